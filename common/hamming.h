@@ -1,0 +1,26 @@
+// Hamming distances between binary descriptors stored as flat uint8 rows.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+
+namespace lmb {
+
+// Hamming distance of two descriptors of `num_bytes` bytes each.
+inline int hamming_distance(const uint8_t* a, const uint8_t* b, int num_bytes) {
+  int d = 0;
+  int i = 0;
+  for (; i + 8 <= num_bytes; i += 8) {
+    uint64_t x, y;
+    std::memcpy(&x, a + i, 8);
+    std::memcpy(&y, b + i, 8);
+    d += __builtin_popcountll(x ^ y);
+  }
+  for (; i < num_bytes; ++i) d += __builtin_popcount(static_cast<unsigned>(a[i] ^ b[i]));
+  return d;
+}
+
+// Bit `bit` of a descriptor (LSB-first within each byte, as OpenCV packs BRISK/ORB).
+inline int descriptor_bit(const uint8_t* desc, int bit) { return (desc[bit >> 3] >> (bit & 7)) & 1; }
+
+}  // namespace lmb
