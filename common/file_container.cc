@@ -1,0 +1,127 @@
+#include "common/file_container.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+
+#include "common/error.h"
+
+namespace lmb {
+
+namespace {
+
+std::array<uint32_t, 256> make_crc_table() {
+  std::array<uint32_t, 256> table{};
+  for (uint32_t i = 0; i < 256; ++i) {
+    uint32_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+    table[i] = c;
+  }
+  return table;
+}
+
+void put_le(std::vector<uint8_t>& out, uint64_t value, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<uint8_t>(value >> (8 * i)));
+}
+
+uint64_t get_le(const uint8_t* p, int bytes) {
+  uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i) v |= static_cast<uint64_t>(p[i]) << (8 * i);
+  return v;
+}
+
+}  // namespace
+
+uint32_t crc32(const uint8_t* data, size_t size, uint32_t crc) {
+  static const std::array<uint32_t, 256> table = make_crc_table();
+  crc = ~crc;
+  for (size_t i = 0; i < size; ++i) crc = table[(crc ^ data[i]) & 0xFF] ^ (crc >> 8);
+  return ~crc;
+}
+
+std::vector<uint8_t> make_container(std::string_view magic, uint32_t version,
+                                    const std::string& payload) {
+  LMB_CHECK(magic.size() == 8, "container magic must be 8 bytes");
+  std::vector<uint8_t> out(magic.begin(), magic.end());
+  put_le(out, version, 4);
+  put_le(out, payload.size(), 8);
+  put_le(out, crc32(reinterpret_cast<const uint8_t*>(payload.data()), payload.size()), 4);
+  out.insert(out.end(), payload.begin(), payload.end());
+  return out;
+}
+
+std::string open_container(const uint8_t* data, size_t size, std::string_view magic,
+                           uint32_t version, const std::string& what) {
+  LMB_CHECK(size >= kContainerHeaderBytes,
+            what << ": file too short (" << size << " bytes) for a " << magic << " header");
+  LMB_CHECK(std::memcmp(data, magic.data(), 8) == 0,
+            what << ": not a " << magic << " file (wrong magic)");
+  const uint32_t file_version = static_cast<uint32_t>(get_le(data + 8, 4));
+  LMB_CHECK(file_version == version, what << ": format version " << file_version
+                                          << " is not supported (this build reads version "
+                                          << version << ")");
+  const uint64_t length = get_le(data + 12, 8);
+  LMB_CHECK(length == size - kContainerHeaderBytes,
+            what << ": truncated or padded: header says " << length << " payload bytes, file has "
+                 << size - kContainerHeaderBytes);
+  const uint32_t expected_crc = static_cast<uint32_t>(get_le(data + 20, 4));
+  const uint32_t actual_crc = crc32(data + kContainerHeaderBytes, length);
+  LMB_CHECK(expected_crc == actual_crc, what << ": CRC mismatch (file is corrupt)");
+  return std::string(reinterpret_cast<const char*>(data + kContainerHeaderBytes), length);
+}
+
+void write_file_atomically(const std::filesystem::path& path, const void* data, size_t size) {
+  const std::filesystem::path tmp = path.string() + ".tmp." + std::to_string(::getpid());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  LMB_CHECK(fd >= 0, tmp.string() << ": cannot create file: " << std::strerror(errno));
+  const auto* p = static_cast<const uint8_t*>(data);
+  size_t left = size;
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      LMB_FAIL(path.string() << ": write failed: " << std::strerror(err));
+    }
+    p += n;
+    left -= static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    LMB_FAIL(path.string() << ": fsync/close failed: " << std::strerror(err));
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    LMB_FAIL(path.string() << ": rename failed: " << std::strerror(err));
+  }
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+}
+
+void write_container_file(const std::filesystem::path& path, std::string_view magic,
+                          uint32_t version, const std::string& payload) {
+  const std::vector<uint8_t> bytes = make_container(magic, version, payload);
+  write_file_atomically(path, bytes.data(), bytes.size());
+}
+
+std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
+                                uint32_t version) {
+  std::ifstream in(path, std::ios::binary);
+  LMB_CHECK(in.good(), path.string() << ": cannot open file");
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return open_container(bytes.data(), bytes.size(), magic, version, path.string());
+}
+
+}  // namespace lmb
