@@ -1,0 +1,71 @@
+# Driver of the ctest e2e/consumer_test (cmake -P). Installs the inference component of a build
+# tree into a fresh prefix, then builds and runs the consumer project against it twice: through
+# find_package(LandmarkBoost CONFIG) and through pkg-config.
+# Inputs: LMB_BUILD_DIR, CONSUMER_SOURCE_DIR, WORK_DIR, GENERATOR, CXX_COMPILER.
+cmake_minimum_required(VERSION 3.22)
+foreach(var LMB_BUILD_DIR CONSUMER_SOURCE_DIR WORK_DIR GENERATOR CXX_COMPILER)
+  if(NOT DEFINED ${var})
+    message(FATAL_ERROR "run_consumer_test.cmake: -D${var}=... is required")
+  endif()
+endforeach()
+
+function(run what)
+  message(STATUS "consumer test: ${what}")
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "consumer test: '${what}' failed (${rc}): ${ARGN}")
+  endif()
+endfunction()
+
+set(prefix ${WORK_DIR}/prefix)
+file(REMOVE_RECURSE ${WORK_DIR})
+run("install" ${CMAKE_COMMAND} --install ${LMB_BUILD_DIR} --prefix ${prefix} --component infer)
+
+foreach(file include/landmarkboost/infer/pose_estimator.h include/landmarkboost/common/camera.h)
+  if(NOT EXISTS ${prefix}/${file})
+    message(FATAL_ERROR "consumer test: ${file} is not installed")
+  endif()
+endforeach()
+if(EXISTS ${prefix}/include/landmarkboost/common/io)
+  message(FATAL_ERROR "consumer test: the HDF5 headers of common/io must not be installed")
+endif()
+# No installed header may pull in MPI, HDF5 or OpenCV.
+file(GLOB_RECURSE headers ${prefix}/include/*.h)
+foreach(header ${headers})
+  file(STRINGS ${header} bad REGEX "#[ \t]*include[ \t]*[<\"](mpi|H5|hdf5|opencv)")
+  if(bad)
+    message(FATAL_ERROR "consumer test: installed header ${header} includes ${bad}")
+  endif()
+endforeach()
+
+# 1. CMake package.
+run("configure the consumer" ${CMAKE_COMMAND} -S ${CONSUMER_SOURCE_DIR} -B ${WORK_DIR}/build
+    -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=${CXX_COMPILER}
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
+run("build the consumer" ${CMAKE_COMMAND} --build ${WORK_DIR}/build)
+run("run the consumer" ${WORK_DIR}/build/lmb_consumer)
+
+# 2. pkg-config, from wherever the libdir is (lib or lib/<multiarch>).
+file(GLOB_RECURSE pc_files ${prefix}/*/landmarkboost-infer.pc)
+list(LENGTH pc_files count)
+if(NOT count EQUAL 1)
+  message(FATAL_ERROR "consumer test: expected one installed landmarkboost-infer.pc, found '${pc_files}'")
+endif()
+get_filename_component(pc_dir ${pc_files} DIRECTORY)
+get_filename_component(lib_dir ${pc_dir} DIRECTORY)
+execute_process(COMMAND ${CMAKE_COMMAND} -E env PKG_CONFIG_PATH=${pc_dir}
+                        pkg-config --cflags --libs landmarkboost-infer
+                OUTPUT_VARIABLE flags OUTPUT_STRIP_TRAILING_WHITESPACE RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "consumer test: pkg-config --cflags --libs landmarkboost-infer failed")
+endif()
+message(STATUS "consumer test: pkg-config flags: ${flags}")
+if(NOT flags MATCHES "include/landmarkboost")
+  message(FATAL_ERROR "consumer test: pkg-config gives no include/landmarkboost directory")
+endif()
+separate_arguments(flags UNIX_COMMAND "${flags}")
+run("build the consumer with pkg-config flags"
+    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/main.cc ${flags}
+    -Wl,-rpath,${lib_dir} -o ${WORK_DIR}/lmb_consumer_pkgconfig)
+run("run the pkg-config consumer" ${WORK_DIR}/lmb_consumer_pkgconfig)
+message(STATUS "consumer test: passed")
