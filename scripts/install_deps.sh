@@ -4,7 +4,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake pkg-config ninja-build
+  build-essential cmake pkg-config ninja-build bc
   libeigen3-dev libopencv-dev libopengv-dev libcereal-dev
   libhdf5-dev hdf5-tools
   libopenmpi-dev openmpi-bin

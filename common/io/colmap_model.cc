@@ -1,5 +1,7 @@
 #include "common/io/colmap_model.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -7,6 +9,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/io/colmap_binary.h"
 
 namespace lmb {
 
@@ -94,7 +97,9 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
   std::set<int> image_ids;
   std::set<std::string> names;
   // images.txt holds two lines per image; the second (2D points) may be empty, in which case
-  // read_data_lines dropped it. A line whose first token count is 10 starts an image.
+  // read_data_lines dropped it. A line with 10 fields starts an image; a POINTS2D line has a
+  // multiple of 3 fields, so the two never look alike.
+  bool points_allowed = false;
   for (const auto& [number, line] : image_lines) {
     const std::string at = where(images_path, number);
     std::istringstream probe(line);
@@ -102,11 +107,21 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     std::string token;
     while (probe >> token) tokens.push_back(token);
     if (tokens.size() != 10) {
-      // A POINTS2D line: triples of (x, y, point3D_id). The mapper re-detects keypoints, so they
-      // are only validated for shape.
-      LMB_CHECK(tokens.size() % 3 == 0 && !model.images.empty(),
+      LMB_CHECK(tokens.size() % 3 == 0 && points_allowed,
                 at << ": expected an image line with 10 fields or a POINTS2D line, got "
                    << tokens.size() << " fields");
+      points_allowed = false;
+      std::vector<ColmapPoint2D>& points = model.images.back().points2d;
+      points.reserve(tokens.size() / 3);
+      std::istringstream in(line);
+      for (size_t k = 0; k < tokens.size(); k += 3) {
+        ColmapPoint2D p;
+        p.xy.x() = parse_finite(in, at, "POINTS2D[].X");
+        p.xy.y() = parse_finite(in, at, "POINTS2D[].Y");
+        p.point3d_id = parse<int64_t>(in, at, "POINTS2D[].POINT3D_ID");
+        LMB_CHECK(p.point3d_id >= -1, at << ": POINT3D_ID " << p.point3d_id << " is negative (only -1 means none)");
+        points.push_back(p);
+      }
       continue;
     }
     std::istringstream in(line);
@@ -127,6 +142,7 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     LMB_CHECK(image_ids.insert(image.image_id).second, at << ": duplicate image id " << image.image_id);
     LMB_CHECK(names.insert(image.name).second, at << ": duplicate image name " << image.name);
     model.images.push_back(image);
+    points_allowed = true;
   }
   std::sort(model.images.begin(), model.images.end(),
             [](const ColmapImage& a, const ColmapImage& b) { return a.image_id < b.image_id; });
@@ -147,6 +163,20 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
         p.rgb[c] = static_cast<uint8_t>(v);
       }
       p.error = parse_finite(in, at, "ERROR");
+      std::string track_token;
+      std::vector<std::string> track_tokens;
+      while (in >> track_token) track_tokens.push_back(track_token);
+      LMB_CHECK(track_tokens.size() % 2 == 0,
+                at << ": TRACK[] must hold (IMAGE_ID, POINT2D_IDX) pairs, got " << track_tokens.size()
+                   << " values");
+      for (size_t k = 0; k < track_tokens.size(); k += 2) {
+        std::istringstream pair(track_tokens[k] + " " + track_tokens[k + 1]);
+        ColmapTrackElement e;
+        e.image_id = parse<int>(pair, at, "TRACK[].IMAGE_ID");
+        e.point2d_idx = parse<int>(pair, at, "TRACK[].POINT2D_IDX");
+        LMB_CHECK(e.point2d_idx >= 0, at << ": TRACK[].POINT2D_IDX " << e.point2d_idx << " is negative");
+        p.track.push_back(e);
+      }
       model.points.push_back(p);
     }
   }
@@ -179,7 +209,12 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
       const Eigen::Quaterniond& q = im.cam_from_world.rotation;
       const Eigen::Vector3d& t = im.cam_from_world.translation;
       out << im.image_id << ' ' << q.w() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' '
-          << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << im.camera_id << ' ' << im.name << "\n\n";
+          << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << im.camera_id << ' ' << im.name << '\n';
+      for (size_t k = 0; k < im.points2d.size(); ++k) {
+        const ColmapPoint2D& p = im.points2d[k];
+        out << (k ? " " : "") << p.xy.x() << ' ' << p.xy.y() << ' ' << p.point3d_id;
+      }
+      out << '\n';
     }
     LMB_CHECK(out.good(), (sparse_dir / "images.txt").string() << ": write failed");
   }
@@ -191,9 +226,79 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
     out << std::setprecision(17);
     for (const ColmapPoint3D& p : model.points) {
       out << p.point3d_id << ' ' << p.xyz.x() << ' ' << p.xyz.y() << ' ' << p.xyz.z() << ' '
-          << int(p.rgb[0]) << ' ' << int(p.rgb[1]) << ' ' << int(p.rgb[2]) << ' ' << p.error << '\n';
+          << int(p.rgb[0]) << ' ' << int(p.rgb[1]) << ' ' << int(p.rgb[2]) << ' ' << p.error;
+      for (const ColmapTrackElement& e : p.track) out << ' ' << e.image_id << ' ' << e.point2d_idx;
+      out << '\n';
     }
     LMB_CHECK(out.good(), (sparse_dir / "points3D.txt").string() << ": write failed");
+  }
+}
+
+ColmapModel read_colmap_model(const fs::path& sparse_dir, ColmapFormat* format) {
+  LMB_CHECK(fs::is_directory(sparse_dir), sparse_dir.string() << ": sparse model folder does not exist");
+  const bool has_bin_cameras = fs::exists(sparse_dir / "cameras.bin");
+  const bool has_bin_images = fs::exists(sparse_dir / "images.bin");
+  if (has_bin_cameras || has_bin_images) {
+    LMB_CHECK(has_bin_cameras && has_bin_images,
+              sparse_dir.string() << ": incomplete binary model: " << (has_bin_cameras ? "images.bin" : "cameras.bin")
+                                  << " is missing");
+    if (format) *format = ColmapFormat::kBinary;
+    return read_colmap_binary(sparse_dir);
+  }
+  LMB_CHECK(fs::exists(sparse_dir / "cameras.txt") || fs::exists(sparse_dir / "images.txt"),
+            sparse_dir.string() << ": no COLMAP sparse model (expected cameras.bin + images.bin or "
+                                   "cameras.txt + images.txt)");
+  if (format) *format = ColmapFormat::kText;
+  return read_colmap_text(sparse_dir);
+}
+
+namespace {
+
+// True when `head` (the first bytes of a file) starts with the signature of an image format that
+// OpenCV's imread decodes.
+bool has_image_signature(const std::string& head) {
+  auto starts = [&](const char* sig, size_t n, size_t offset = 0) {
+    return head.size() >= offset + n && std::equal(sig, sig + n, head.begin() + static_cast<long>(offset));
+  };
+  if (starts("\xFF\xD8\xFF", 3)) return true;                        // JPEG
+  if (starts("\x89PNG\r\n\x1A\n", 8)) return true;                 // PNG
+  if (starts("II*\0", 4) || starts("MM\0*", 4)) return true;          // TIFF
+  if (starts("BM", 2)) return true;                                  // BMP
+  if (head.size() >= 2 && head[0] == 'P' && head[1] >= '1' && head[1] <= '7') return true;  // PNM, PAM
+  if (starts("RIFF", 4) && starts("WEBP", 4, 8)) return true;        // WebP
+  if (starts("\0\0\0\x0CjP  ", 8) || starts("\xFF\x4F\xFF\x51", 4)) return true;  // JPEG 2000
+  if (starts("\x76\x2F\x31\x01", 4)) return true;                    // OpenEXR
+  if (starts("#?RADIANCE", 10) || starts("#?RGBE", 6)) return true;  // Radiance HDR
+  if (starts("\x59\xA6\x6A\x95", 4)) return true;                    // Sun raster
+  return false;
+}
+
+}  // namespace
+
+void check_collection_images(const ColmapModel& model, const fs::path& image_dir) {
+  LMB_CHECK(fs::is_directory(image_dir), image_dir.string() << ": image folder does not exist");
+  std::vector<const ColmapImage*> images;
+  for (const ColmapImage& im : model.images) images.push_back(&im);
+  std::sort(images.begin(), images.end(),
+            [](const ColmapImage* a, const ColmapImage* b) { return a->image_id < b->image_id; });
+  for (const ColmapImage* im : images) {
+    const fs::path path = image_dir / im->name;
+    const std::string at = "image " + std::to_string(im->image_id) + " '" + im->name + "': " + path.string();
+    std::error_code ec;
+    if (!fs::exists(path, ec)) {
+      if (fs::is_symlink(fs::symlink_status(path, ec))) {
+        LMB_FAIL(at << ": dangling symbolic link to " << fs::read_symlink(path, ec).string());
+      }
+      LMB_FAIL(at << ": image file is missing");
+    }
+    LMB_CHECK(fs::is_regular_file(path, ec), at << ": not a regular file");
+    std::ifstream in(path, std::ios::binary);
+    LMB_CHECK(in.good(), at << ": cannot open the file for reading");
+    std::string head(16, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<size_t>(in.gcount()));
+    LMB_CHECK(!head.empty(), at << ": empty file");
+    LMB_CHECK(has_image_signature(head), at << ": not an image file (unknown signature)");
   }
 }
 

@@ -96,5 +96,48 @@ TEST(Camera, RejectsBadModelsAndParameters) {
   }
 }
 
+// Every supported model against values hand-computed from COLMAP's definitions
+// (src/colmap/sensor/models.h), both ways: img_from_cam gives the pixel, cam_from_img recovers the
+// normalized point.
+TEST(Camera, KnownValuesForEveryModelBothWays) {
+  struct Case {
+    Camera camera;
+    Eigen::Vector2d normalized;
+    Eigen::Vector2d pixel;
+  };
+  const std::vector<Case> cases = {
+      // SIMPLE_PINHOLE f=500, c=(320, 240): (320 + 50, 240 - 100).
+      {make(CameraModel::kSimplePinhole, {500, 320, 240}), {0.1, -0.2}, {370, 140}},
+      // PINHOLE fx=500, fy=400.
+      {make(CameraModel::kPinhole, {500, 400, 320, 240}), {0.1, -0.2}, {370, 160}},
+      // SIMPLE_RADIAL k=-0.1, r2=0.05: factor 0.995.
+      {make(CameraModel::kSimpleRadial, {500, 320, 240, -0.1}), {0.2, 0.1}, {419.5, 289.75}},
+      // RADIAL k1=-0.1, k2=0.02, r2=0.05: factor 1 - 0.005 + 0.00005 = 0.99505.
+      {make(CameraModel::kRadial, {500, 320, 240, -0.1, 0.02}), {0.2, 0.1}, {419.505, 289.7525}},
+      // OPENCV k1=0.1, k2=-0.05, p1=0.001, p2=0.002 at (0.3, 0.4): r2=0.25, radial 0.021875,
+      // du = 0.0065625 + 0.00024 + 0.00086, dv = 0.00875 + 0.00048 + 0.00057.
+      {make(CameraModel::kOpenCV, {400, 300, 320, 240, 0.1, -0.05, 0.001, 0.002}), {0.3, 0.4}, {443.065, 362.94}},
+      // FULL_OPENCV, the TUM freiburg1 camera at (0.2, -0.1): r2=0.05, radial 1.0108826625,
+      // x_d = 0.2021765325 + 0.000216 + 0.000338, y_d = -0.10108826625 - 0.000104 - 0.000378.
+      {make(CameraModel::kFullOpenCV,
+            {517.3, 516.5, 318.6, 255.3, 0.2624, -0.9531, -0.0054, 0.0026, 1.1633, 0, 0, 0}),
+       {0.2, -0.1},
+       {318.6 + 517.3 * 0.2027305325, 255.3 - 516.5 * 0.10157026625}},
+      // FULL_OPENCV rational terms k1..k6 at (0.3, 0.4): r2=0.25, r4=0.0625, r6=0.015625:
+      // (1 + 0.025 + 0.000625 + 0.000015625) / (1 + 0.05 + 0.00125 + 0.00003125).
+      {make(CameraModel::kFullOpenCV, {100, 100, 0, 0, 0.1, 0.01, 0, 0, 0.001, 0.2, 0.02, 0.002}),
+       {0.3, 0.4},
+       {30 * 1.025640625 / 1.05128125, 40 * 1.025640625 / 1.05128125}},
+  };
+  for (const Case& c : cases) {
+    const std::string name = camera_model_name(c.camera.model);
+    EXPECT_LT((c.camera.img_from_cam(c.normalized) - c.pixel).norm(), 1e-9) << name;
+    EXPECT_LT((c.camera.cam_from_img(c.pixel) - c.normalized).norm(), 1e-9) << name;
+  }
+  // Spot check of the FULL_OPENCV pixel computed above, to the digits written out by hand.
+  EXPECT_NEAR(cases[5].pixel.x(), 423.47250446, 1e-7);
+  EXPECT_NEAR(cases[5].pixel.y(), 202.83895748, 1e-7);
+}
+
 }  // namespace
 }  // namespace lmb

@@ -7,7 +7,13 @@ namespace lmb::cli {
 
 void add_world_command(CLI::App& app);
 void add_map_command(CLI::App& app);
+void add_inspect_command(CLI::App& app);
 void add_vocab_command(CLI::App& app);
 void add_train_command(CLI::App& app);
+void add_export_command(CLI::App& app);
+void add_localize_command(CLI::App& app);
+void add_bench_infer_command(CLI::App& app);  // `bench infer`, after add_bench_command
+void add_import_command(CLI::App& app);  // `import` group: `import tum`, `import colmap`
+void add_bench_command(CLI::App& app);  // `bench` group: `bench context`, ...
 
 }  // namespace lmb::cli

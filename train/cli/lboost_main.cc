@@ -15,8 +15,14 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "lboost 0.1.0");
   lmb::cli::add_world_command(app);
   lmb::cli::add_map_command(app);
+  lmb::cli::add_inspect_command(app);
   lmb::cli::add_vocab_command(app);
   lmb::cli::add_train_command(app);
+  lmb::cli::add_export_command(app);
+  lmb::cli::add_localize_command(app);
+  lmb::cli::add_import_command(app);
+  lmb::cli::add_bench_command(app);
+  lmb::cli::add_bench_infer_command(app);
   spdlog::set_pattern("[%H:%M:%S] %v");
   try {
     app.parse(argc, argv);

@@ -1,10 +1,12 @@
 #include "common/io/colmap_model.h"
 
+#include <algorithm>
 #include <fstream>
 
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "common/io/colmap_binary.h"
 
 namespace lmb {
 namespace {
@@ -94,6 +96,101 @@ TEST_F(ColmapTextTest, MalformedFilesFailWithFileAndLine) {
   expect_error("duplicate image name a.png");
   fs::remove(dir_ / "images.txt");
   expect_error("images.txt: cannot open file");
+}
+
+TEST_F(ColmapTextTest, PointsAndTracksRoundTripAndAreValidated) {
+  ColmapModel m = sample();
+  m.images[0].points2d = {{Eigen::Vector2d(1.25, 2.5), 7}, {Eigen::Vector2d(3, 4), ColmapPoint2D::kNoPoint3D}};
+  ColmapPoint3D p;
+  p.point3d_id = 7;
+  p.xyz = Eigen::Vector3d(1, 2, 3);
+  p.track = {{m.images[0].image_id, 0}, {m.images[1].image_id, 5}};
+  m.points.push_back(p);
+  write_colmap_text(m, dir_);
+  const ColmapModel r = read_colmap_text(dir_);
+  const auto it = std::find_if(r.images.begin(), r.images.end(),
+                               [&](const ColmapImage& im) { return im.image_id == m.images[0].image_id; });
+  ASSERT_NE(it, r.images.end());
+  EXPECT_EQ(it->points2d, m.images[0].points2d);
+  ASSERT_EQ(r.points.size(), 1u);
+  EXPECT_EQ(r.points[0].track, p.track);
+
+  write("points3D.txt", "7 1 2 3 0 0 0 0.5 10 0 11\n");
+  EXPECT_THROW(read_colmap_text(dir_), Error);
+  write("points3D.txt", "");
+  write("images.txt", "1 1 0 0 0 0 0 0 3 a.png\n1 nan -1\n");
+  try {
+    read_colmap_text(dir_);
+    ADD_FAILURE() << "NaN 2D point accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("images.txt line 2: field 'POINTS2D[].Y' is not"), std::string::npos)
+        << e.what();
+  }
+  write("images.txt", "1 1 0 0 0 0 0 0 3 a.png\n1 2 -1\n3 4 -1\n");
+  EXPECT_THROW(read_colmap_text(dir_), Error);  // two POINTS2D lines for one image
+}
+
+TEST_F(ColmapTextTest, ReadModelDetectsTheFormat) {
+  const ColmapModel m = sample();
+  auto error_of = [&](const fs::path& dir) -> std::string {
+    try {
+      read_colmap_model(dir);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(error_of(dir_ / "nope").find("sparse model folder does not exist"), std::string::npos);
+  EXPECT_NE(error_of(dir_).find("no COLMAP sparse model"), std::string::npos);
+  write_colmap_text(m, dir_);
+  ColmapFormat format = ColmapFormat::kBinary;
+  EXPECT_EQ(read_colmap_model(dir_, &format).images.size(), 4u);
+  EXPECT_EQ(format, ColmapFormat::kText);
+  // Both formats: binary wins (as in COLMAP); make the binary model differ to see it.
+  ColmapModel other = m;
+  other.images.pop_back();
+  write_colmap_binary(other, dir_);
+  EXPECT_EQ(read_colmap_model(dir_, &format).images.size(), 3u);
+  EXPECT_EQ(format, ColmapFormat::kBinary);
+  fs::remove(dir_ / "images.bin");
+  EXPECT_NE(error_of(dir_).find("incomplete binary model: images.bin is missing"), std::string::npos)
+      << error_of(dir_);
+}
+
+TEST_F(ColmapTextTest, CheckCollectionImagesNamesTheFirstBadFile) {
+  const ColmapModel m = sample();  // ids 7..10, names map/3.png .. map/0.png
+  const fs::path images = dir_ / "images";
+  fs::create_directories(images / "map");
+  const std::string png("\x89PNG\r\n\x1A\n\0\0\0\rIHDR", 16);
+  for (int i = 0; i < 4; ++i) std::ofstream(images / "map" / (std::to_string(i) + ".png")) << png;
+  EXPECT_NO_THROW(check_collection_images(m, images));
+  auto error = [&]() -> std::string {
+    try {
+      check_collection_images(m, images);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  // Image ids: name map/i.png has id 10 - i, so map/3.png (id 7) is checked first.
+  fs::remove(images / "map" / "1.png");
+  EXPECT_NE(error().find("image 9 'map/1.png': "), std::string::npos) << error();
+  EXPECT_NE(error().find("image file is missing"), std::string::npos) << error();
+  fs::create_symlink(dir_ / "gone.png", images / "map" / "1.png");
+  EXPECT_NE(error().find("dangling symbolic link to"), std::string::npos) << error();
+  fs::remove(images / "map" / "1.png");
+  std::ofstream(images / "map" / "1.png") << "hello, not an image";
+  EXPECT_NE(error().find("not an image file"), std::string::npos) << error();
+  std::ofstream(images / "map" / "1.png", std::ios::trunc).close();
+  EXPECT_NE(error().find("empty file"), std::string::npos) << error();
+  fs::remove(images / "map" / "1.png");
+  fs::create_directories(images / "map" / "1.png");
+  EXPECT_NE(error().find("not a regular file"), std::string::npos) << error();
+  fs::remove(images / "map" / "1.png");
+  std::ofstream(images / "map" / "1.png") << "\xFF\xD8\xFF\xE0 jpeg";
+  fs::remove(images / "map" / "0.png");  // id 10: after id 9, which is fine now
+  EXPECT_NE(error().find("image 10 'map/0.png'"), std::string::npos) << error();
+  EXPECT_EQ(error().find('\n'), std::string::npos);
 }
 
 }  // namespace

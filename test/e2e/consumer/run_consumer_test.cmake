@@ -21,7 +21,8 @@ set(prefix ${WORK_DIR}/prefix)
 file(REMOVE_RECURSE ${WORK_DIR})
 run("install" ${CMAKE_COMMAND} --install ${LMB_BUILD_DIR} --prefix ${prefix} --component infer)
 
-foreach(file include/landmarkboost/infer/pose_estimator.h include/landmarkboost/common/camera.h)
+foreach(file include/landmarkboost/infer/pose_estimator.h include/landmarkboost/infer/localizer.h
+             include/landmarkboost/infer/c_api.h include/landmarkboost/common/camera.h)
   if(NOT EXISTS ${prefix}/${file})
     message(FATAL_ERROR "consumer test: ${file} is not installed")
   endif()
@@ -64,8 +65,13 @@ if(NOT flags MATCHES "include/landmarkboost")
   message(FATAL_ERROR "consumer test: pkg-config gives no include/landmarkboost directory")
 endif()
 separate_arguments(flags UNIX_COMMAND "${flags}")
+# The C part (c_check.c) is compiled as C99 with the same flags.
+find_program(C_COMPILER NAMES cc gcc REQUIRED)
+run("compile the C part with pkg-config flags"
+    ${C_COMPILER} -std=c99 -Wall -Wextra -Werror -O2 -c ${CONSUMER_SOURCE_DIR}/c_check.c ${flags}
+    -o ${WORK_DIR}/c_check.o)
 run("build the consumer with pkg-config flags"
-    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/main.cc ${flags}
+    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/main.cc ${WORK_DIR}/c_check.o ${flags}
     -Wl,-rpath,${lib_dir} -o ${WORK_DIR}/lmb_consumer_pkgconfig)
 run("run the pkg-config consumer" ${WORK_DIR}/lmb_consumer_pkgconfig)
 message(STATUS "consumer test: passed")

@@ -1,0 +1,235 @@
+// Context embeddings and feature vectors (the paper's Fig. 4), computed identically in training and
+// inference.
+//
+// Feature vector of a keypoint k (every value a uint8 bin, see train/features/feature_matrix.h):
+//   dim d <  R*W : region r = d / W, word w = d % W:
+//                  bin = (255 * count_w + count_all / 2) / count_all  (integer arithmetic),
+//                  0 when the region holds no keypoint; count_w = keypoints of word w in region r
+//                  of k, count_all = all keypoints in it. The anchor k itself is never counted;
+//                  other keypoints at the same position are.
+//   dim d >= R*W : descriptor bit b = d - R*W of k's own descriptor (0/1; bit b is bit b % 8 of
+//                  byte b / 8, LSB first, lmb::descriptor_bit).
+//
+// Geometry (one convention for map and query frames):
+//   - pixel: a Keypoint's (x, y) is in COLMAP's convention (centre of the top-left pixel at
+//     (0.5, 0.5)), which Camera uses; detectors that report OpenCV's KeyPoint::pt add 0.5 when
+//     they make a Keypoint (see common/types.h).
+//   - position p = camera.cam_from_img(pixel): normalized undistorted plane (x right, y down).
+//   - scale s = |cam_from_img(pixel + (size/2, 0)) - cam_from_img(pixel - (size/2, 0))|, the detector
+//     diameter mapped through the local undistortion (size / focal for a pinhole camera).
+//   - gravity: ONE direction per frame, gravity_in_cam's image-plane direction at the principal ray,
+//     (g_x, g_y) / |(g_x, g_y)|. Every keypoint is rotated into the gravity-aligned frame where
+//     gravity points to +y:  p' = (g_y p_x - g_x p_y,  g_x p_x + g_y p_y)  (in double, then float).
+//     Degenerate gravity (|(g_x, g_y)| < kMinGravityInPlane * |g|, i.e. within ~0.06 degrees of the
+//     optical axis, where the direction is undefined) falls back to the image's own +y axis (no
+//     rotation); a zero or non-finite gravity vector is an lmb::Error.
+//   - region r of keypoint k: [p'_k.x + s_k*x0_r, p'_k.x + s_k*x1_r) x [p'_k.y + s_k*y0_r, ...),
+//     each bound computed in float as lo = p'_k.x + s_k * x0_r; keypoint j is inside when
+//     lo_x <= p'_j.x < hi_x and lo_y <= p'_j.y < hi_y (float comparisons). The fast path and the
+//     brute-force reference evaluate exactly these expressions, so they agree bit for bit.
+//
+// Invariance: translating the frame, scaling it (positions and keypoint scales) and rotating it
+// together with its gravity vector leave every bin unchanged whenever the transformed coordinates
+// and region bounds are exact in float (powers-of-two scales, dyadic translations, multiples of 90
+// degrees; region corners are multiples of 1/1024 keypoint scale for this reason). Otherwise float
+// rounding of p' can move a keypoint that lies within ~1e-7 (relative) of a region border across
+// it: the counts then differ by at most the keypoints at the borders.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/camera.h"
+#include "common/context_regions.h"
+#include "common/types.h"
+
+namespace lmb {
+
+constexpr double kMinGravityInPlane = 1e-3;
+
+// Dimension layout of a feature vector (see the file comment).
+struct EmbeddingLayout {
+  int32_t num_regions = 0;
+  int32_t num_words = 0;
+  int32_t descriptor_bytes = 0;
+
+  int32_t num_context_dims() const { return num_regions * num_words; }
+  int32_t num_dims() const { return num_context_dims() + 8 * descriptor_bytes; }
+  bool is_context(int32_t d) const { return d < num_context_dims(); }
+  int32_t region_of(int32_t d) const { return d / num_words; }
+  int32_t word_of(int32_t d) const { return d % num_words; }
+  int32_t bit_of(int32_t d) const { return d - num_context_dims(); }
+  // Throws lmb::Error when a count is out of range.
+  void check() const;
+};
+
+// The bin of a word count in a region of `total` keypoints: (255 * count + total / 2) / total,
+// 0 when total is 0.
+inline uint8_t context_bin(int32_t count, int32_t total) {
+  return total > 0 ? static_cast<uint8_t>((255 * static_cast<int64_t>(count) + total / 2) / total)
+                   : uint8_t{0};
+}
+
+// The image-plane direction of gravity (unit 2-vector), see the file comment. Sets *degenerate
+// when the fallback (0, 1) was used. Throws lmb::Error for a zero or non-finite vector.
+Eigen::Vector2d gravity_direction_in_image(const Eigen::Vector3d& gravity_in_cam,
+                                           bool* degenerate = nullptr);
+
+// Normalized position and scale of a detector keypoint (see the file comment). Throws lmb::Error
+// when the size is not finite and > 0 or the position is not finite.
+void normalize_keypoint(const Camera& camera, const Keypoint& keypoint, Eigen::Vector2d* position,
+                        double* scale);
+
+// One frame's keypoints in the gravity-aligned normalized plane, with their visual words.
+struct FrameKeypoints {
+  std::vector<float> x;
+  std::vector<float> y;
+  std::vector<float> scale;  // > 0, normalized-plane units
+  std::vector<uint8_t> word;
+
+  int32_t size() const { return static_cast<int32_t>(x.size()); }
+};
+
+// Rotates normalized positions into the gravity-aligned frame (gravity_dir: a unit image-plane
+// direction from gravity_direction_in_image). All vectors have the same length. Throws lmb::Error
+// (prefixed by `where`) for non-finite positions, non-finite or non-positive scales.
+FrameKeypoints align_frame_keypoints(const std::vector<Eigen::Vector2d>& positions,
+                                     const std::vector<double>& scales,
+                                     const std::vector<uint8_t>& words,
+                                     const Eigen::Vector2d& gravity_dir, const std::string& where);
+
+// The whole chain for detector keypoints of one frame: normalize_keypoint, gravity_direction_in_image,
+// align_frame_keypoints. `words` has n entries. Throws lmb::Error prefixed by `where`.
+FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypoint* keypoints,
+                                               const uint8_t* words, int32_t n,
+                                               const Eigen::Vector3d& gravity_in_cam,
+                                               const std::string& where);
+
+// A model's used dimensions, prepared once for fast per-keypoint evaluation: the used regions and
+// their corners sorted per axis (so each keypoint's region bounds are ranked by one merge, as in
+// FrameContext::embed_context).
+class DimPlan {
+ public:
+  DimPlan() = default;
+  // dims: sorted ascending, unique, each < layout.num_dims(). Throws lmb::Error otherwise, or
+  // when the layout does not match the regions.
+  DimPlan(const ContextRegions& regions, const EmbeddingLayout& layout, std::vector<int32_t> dims);
+
+  const std::vector<int32_t>& dims() const { return dims_; }
+  int32_t size() const { return static_cast<int32_t>(dims_.size()); }
+  const EmbeddingLayout& layout() const { return layout_; }
+  int32_t num_used_regions() const { return static_cast<int32_t>(used_regions_.size()); }
+
+ private:
+  friend class FrameContext;
+  struct Corner {
+    float c;
+    int32_t slot;  // 2 * used-region index + (0: lower, 1: upper)
+  };
+  EmbeddingLayout layout_;
+  std::vector<int32_t> dims_;
+  std::vector<int32_t> used_regions_;  // region ids, ascending
+  std::vector<int32_t> dim_begin_;     // dims of used region u: [dim_begin_[u], dim_begin_[u+1])
+  int32_t num_context_ = 0;            // dims_[0, num_context_) are context dims
+  std::vector<Corner> corners_x_, corners_y_;
+};
+
+// Per-frame spatial index answering "how many keypoints of word w lie in region r of keypoint k" in
+// O(log n): keypoints sorted by x and by y, and per word a coordinate-compressed 2D prefix-count
+// table over its own points ((n_w + 1)^2 uint16 entries, about n^2 / W in all). A single query
+// (region_counts, compute_dims with a raw dim list) does 4 binary searches on the frame's sorted
+// coordinates, then 4 table reads per word; count_all is the sum over the words. embed_context
+// and the DimPlan overloads replace the binary searches by one merge per axis of the regions'
+// sorted corners with the sorted coordinates (O(R + n) per keypoint instead of O(R log n); the
+// same ranks, because a bound p + s * c is monotone in the corner c). The anchor is removed by
+// comparing its own ranks with the region's rank ranges. (A table over all keypoints for
+// count_all was measured slower: at (n+1)^2 entries it does not stay in cache.)
+//
+// Usage: construct once per thread (buffers are reused), reset() per frame, then query from one
+// thread; the const query methods are safe to call concurrently after reset().
+class FrameContext {
+ public:
+  // Counts are stored as uint16: a frame may hold at most this many keypoints.
+  static constexpr int32_t kMaxFrameKeypoints = 65535;
+
+  // regions must outlive this object. num_words in 1..256.
+  FrameContext(const ContextRegions& regions, int32_t num_words);
+
+  // Builds the index for a frame. Throws lmb::Error (prefixed by `where`) when a word is >=
+  // num_words, a scale is not finite and > 0, a coordinate is not finite, or the frame has more
+  // than kMaxFrameKeypoints keypoints. An empty frame is valid (nothing to query).
+  void reset(const FrameKeypoints& frame, const std::string& where = "frame");
+
+  int32_t num_keypoints() const { return n_; }
+  int32_t num_words() const { return num_words_; }
+  const ContextRegions& regions() const { return *regions_; }
+
+  // counts[w] for w < num_words: keypoints of each word in region r of keypoint k (anchor
+  // excluded); returns count_all.
+  int32_t region_counts(int32_t k, int32_t r, int32_t* counts) const;
+  // The R*W context bins of keypoint k, region-major (out[r * W + w]).
+  void embed_context(int32_t k, uint8_t* out) const;
+  // Values of the given dims (sorted ascending, each < layout().num_dims()) of keypoint k, whose
+  // own descriptor is `descriptor` (descriptor_bytes bytes; may be null when no dim is a bit).
+  // out[i] is the value of dims[i].
+  void compute_dims(int32_t k, const int32_t* dims, int32_t num_dims, const uint8_t* descriptor,
+                    int32_t descriptor_bytes, uint8_t* out) const;
+  // compute_dims for every keypoint of the frame: out is n x num_dims, row-major (keypoint rows).
+  // descriptors: n rows of descriptor_bytes bytes, in frame order.
+  void compute_dims_all(const int32_t* dims, int32_t num_dims, const uint8_t* descriptors,
+                        int32_t descriptor_bytes, uint8_t* out) const;
+  // The same with a prepared plan (faster: one merge per axis instead of 4 binary searches per
+  // used region). out has plan.size() bytes; descriptor has plan.layout().descriptor_bytes bytes.
+  // The plan must come from this context's regions and word count (asserted).
+  void compute_dims(int32_t k, const DimPlan& plan, const uint8_t* descriptor, uint8_t* out) const;
+  // For every keypoint: out is n x plan.size(), row-major. Throws lmb::Error when the plan's
+  // layout does not match this context.
+  void compute_dims_all(const DimPlan& plan, const uint8_t* descriptors, uint8_t* out) const;
+
+ private:
+  struct Bounds {
+    int32_t ix0, ix1, iy0, iy1;  // global rank ranges [ix0, ix1), [iy0, iy1)
+    bool anchor_inside;
+  };
+  // A region corner coordinate, in keypoint scales; slot = 2 * region + (0: lower, 1: upper).
+  struct Corner {
+    float c;
+    int32_t slot;
+  };
+  Bounds bounds(int32_t k, int32_t r) const;
+  // Rank bounds of every region of keypoint k along one axis, by merging the sorted corners with
+  // the sorted coordinates (bounds are monotone in the corner): out[slot].
+  void merge_ranks(float p, float s, const std::vector<Corner>& corners,
+                   const std::vector<float>& sorted, int32_t* out) const;
+  void counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts, int32_t* total) const;
+
+  const ContextRegions* regions_;
+  int32_t num_words_;
+  std::vector<Corner> corners_x_, corners_y_;  // sorted by coordinate
+  int32_t n_ = 0;
+  std::vector<float> x_, y_, scale_;
+  std::vector<uint8_t> word_;
+  std::vector<float> sorted_x_, sorted_y_;
+  std::vector<int32_t> rank_x_, rank_y_;  // each keypoint's position in x (y) order
+  // local_rank_x_[ix * W + w]: points of word w among the first ix points in x order.
+  std::vector<uint16_t> local_rank_x_, local_rank_y_;
+  // Per word: table of (n_w + 1)^2 prefix counts, row a = local x rank, column b = local y rank.
+  std::vector<int32_t> word_side_;
+  std::vector<int64_t> table_offset_;
+  std::vector<uint16_t> tables_;
+  std::vector<int32_t> order_;          // scratch
+};
+
+// Reference implementation: the naive loop over every other keypoint of the frame, region by
+// region, with the same float expressions as FrameContext. out has R*W bytes.
+void embed_context_brute_force(const ContextRegions& regions, int32_t num_words,
+                               const FrameKeypoints& frame, int32_t k, uint8_t* out);
+// Brute-force counts of one region (anchor excluded); returns count_all.
+int32_t region_counts_brute_force(const ContextRegions& regions, int32_t num_words,
+                                  const FrameKeypoints& frame, int32_t k, int32_t r,
+                                  int32_t* counts);
+
+}  // namespace lmb

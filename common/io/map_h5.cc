@@ -1,0 +1,460 @@
+#include "common/io/map_h5.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <system_error>
+#include <vector>
+
+#include <H5Cpp.h>
+
+#include "common/error.h"
+
+namespace lmb {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kMaxCameraParams = 12;  // FULL_OPENCV has the most parameters
+
+// Column types: the HDF5 memory type and the type class a stored dataset must have.
+template <typename T>
+const H5::PredType& mem_type();
+template <> const H5::PredType& mem_type<double>() { return H5::PredType::NATIVE_DOUBLE; }
+template <> const H5::PredType& mem_type<float>() { return H5::PredType::NATIVE_FLOAT; }
+template <> const H5::PredType& mem_type<int32_t>() { return H5::PredType::NATIVE_INT32; }
+template <> const H5::PredType& mem_type<int64_t>() { return H5::PredType::NATIVE_INT64; }
+template <> const H5::PredType& mem_type<uint8_t>() { return H5::PredType::NATIVE_UINT8; }
+
+// The file's on-disk types (little endian, fixed size), so files are the same on every machine.
+template <typename T>
+const H5::PredType& file_type();
+template <> const H5::PredType& file_type<double>() { return H5::PredType::IEEE_F64LE; }
+template <> const H5::PredType& file_type<float>() { return H5::PredType::IEEE_F32LE; }
+template <> const H5::PredType& file_type<int32_t>() { return H5::PredType::STD_I32LE; }
+template <> const H5::PredType& file_type<int64_t>() { return H5::PredType::STD_I64LE; }
+template <> const H5::PredType& file_type<uint8_t>() { return H5::PredType::STD_U8LE; }
+
+// Dataset creation without modification times, so that the same map gives the same bytes.
+H5::DSetCreatPropList untimed_dataset() {
+  H5::DSetCreatPropList plist;
+  H5Pset_obj_track_times(plist.getId(), false);
+  return plist;
+}
+
+H5::Group create_untimed_group(H5::H5File& file, const char* name) {
+  const hid_t gcpl = H5Pcreate(H5P_GROUP_CREATE);
+  H5Pset_obj_track_times(gcpl, false);
+  const hid_t id = H5Gcreate2(file.getId(), name, H5P_DEFAULT, gcpl, H5P_DEFAULT);
+  H5Pclose(gcpl);
+  if (id < 0) throw H5::GroupIException("create_untimed_group", std::string("cannot create group ") + name);
+  H5::Group group(id);
+  H5Gclose(id);  // H5::Group(id) took its own reference
+  return group;
+}
+
+template <typename T>
+void write_column(H5::Group& group, const char* name, const std::vector<T>& data, hsize_t rows,
+                  hsize_t cols = 0) {
+  const int rank = cols == 0 ? 1 : 2;
+  const hsize_t dims[2] = {rows, cols};
+  H5::DataSpace space(rank, dims);
+  H5::DataSet ds = group.createDataSet(name, file_type<T>(), space, untimed_dataset());
+  if (!data.empty()) ds.write(data.data(), mem_type<T>());
+}
+
+void write_string_attribute(H5::H5Object& obj, const char* name, const std::string& value) {
+  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
+  H5::Attribute attr = obj.createAttribute(name, type, H5::DataSpace(H5S_SCALAR));
+  attr.write(type, value);
+}
+
+void write_int_attribute(H5::H5Object& obj, const char* name, int32_t value) {
+  H5::Attribute attr = obj.createAttribute(name, H5::PredType::STD_I32LE, H5::DataSpace(H5S_SCALAR));
+  attr.write(H5::PredType::NATIVE_INT32, &value);
+}
+
+// Reading with validation: every helper throws lmb::Error "<file>: <field>: <reason>".
+class Reader {
+ public:
+  Reader(const fs::path& path, H5::H5File& file) : path_(path.string()), file_(file) {}
+
+  std::string where(const std::string& field) const { return path_ + ": " + field; }
+
+  std::string string_attribute(const char* name) {
+    LMB_CHECK(file_.attrExists(name), where(std::string("attribute '") + name + "'") << ": missing");
+    H5::Attribute attr = file_.openAttribute(name);
+    LMB_CHECK(attr.getTypeClass() == H5T_STRING,
+              where(std::string("attribute '") + name + "'") << ": not a string");
+    std::string value;
+    attr.read(attr.getStrType(), value);
+    return value;
+  }
+
+  int64_t int_attribute(const char* name) {
+    LMB_CHECK(file_.attrExists(name), where(std::string("attribute '") + name + "'") << ": missing");
+    H5::Attribute attr = file_.openAttribute(name);
+    LMB_CHECK(attr.getTypeClass() == H5T_INTEGER && attr.getSpace().getSimpleExtentNpoints() == 1,
+              where(std::string("attribute '") + name + "'") << ": not an integer scalar");
+    int64_t value = 0;
+    attr.read(H5::PredType::NATIVE_INT64, &value);
+    return value;
+  }
+
+  // Reads dataset `name` ("/group/column") of the given rank; rows must equal `rows` when rows >= 0
+  // and cols must equal `cols` for rank 2 (when cols >= 0). Returns the data and the row count.
+  template <typename T>
+  std::vector<T> column(const std::string& name, int64_t rows, int rank = 1, int64_t cols = -1,
+                        int64_t* rows_out = nullptr) {
+    const std::string at = where("dataset '" + name + "'");
+    LMB_CHECK(file_.nameExists(name), at << ": missing");
+    H5::DataSet ds = file_.openDataSet(name);
+    const H5T_class_t want = std::is_floating_point_v<T> ? H5T_FLOAT : H5T_INTEGER;
+    LMB_CHECK(ds.getTypeClass() == want,
+              at << ": wrong element type (expected " << (want == H5T_FLOAT ? "float" : "integer") << ")");
+    H5::DataSpace space = ds.getSpace();
+    LMB_CHECK(space.isSimple() && space.getSimpleExtentNdims() == rank,
+              at << ": expected " << rank << " dimension(s), found " << space.getSimpleExtentNdims());
+    hsize_t dims[2] = {0, 0};
+    space.getSimpleExtentDims(dims);
+    LMB_CHECK(rows < 0 || static_cast<int64_t>(dims[0]) == rows,
+              at << ": has " << dims[0] << " rows, expected " << rows);
+    if (rank == 2) {
+      LMB_CHECK(cols < 0 || static_cast<int64_t>(dims[1]) == cols,
+                at << ": has " << dims[1] << " columns, expected " << cols);
+    }
+    const hsize_t count = dims[0] * (rank == 2 ? dims[1] : 1);
+    std::vector<T> data(count);
+    if (count > 0) ds.read(data.data(), mem_type<T>());
+    if (rows_out) *rows_out = static_cast<int64_t>(dims[0]);
+    return data;
+  }
+
+  std::vector<std::string> strings(const std::string& name, int64_t rows) {
+    const std::string at = where("dataset '" + name + "'");
+    LMB_CHECK(file_.nameExists(name), at << ": missing");
+    H5::DataSet ds = file_.openDataSet(name);
+    LMB_CHECK(ds.getTypeClass() == H5T_STRING, at << ": not a string dataset");
+    H5::StrType stored = ds.getStrType();
+    LMB_CHECK(stored.isVariableStr(), at << ": expected variable-length strings");
+    H5::DataSpace space = ds.getSpace();
+    LMB_CHECK(space.isSimple() && space.getSimpleExtentNdims() == 1, at << ": expected 1 dimension");
+    hsize_t n = 0;
+    space.getSimpleExtentDims(&n);
+    LMB_CHECK(static_cast<int64_t>(n) == rows, at << ": has " << n << " rows, expected " << rows);
+    std::vector<std::string> out(n);
+    if (n == 0) return out;
+    std::vector<char*> buffer(n, nullptr);
+    H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
+    ds.read(buffer.data(), type);
+    for (hsize_t i = 0; i < n; ++i) out[i] = buffer[i] ? std::string(buffer[i]) : std::string();
+    H5::DataSet::vlenReclaim(buffer.data(), type, space);
+    return out;
+  }
+
+ private:
+  std::string path_;
+  H5::H5File& file_;
+};
+
+bool finite3(const Eigen::Vector3d& v) { return v.allFinite(); }
+
+void fsync_path(const fs::path& path, bool directory) {
+  const int fd = ::open(path.c_str(), directory ? (O_RDONLY | O_DIRECTORY) : O_RDONLY);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+}  // namespace
+
+void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
+  LMB_CHECK(map.descriptor_bytes >= 0 && map.descriptor_bytes <= 4096,
+            where << ": descriptor_bytes: " << map.descriptor_bytes << " outside 0..4096");
+  LMB_CHECK(!map.detector.empty(), where << ": detector: empty name");
+  for (size_t c = 0; c < map.cameras.size(); ++c) {
+    map.cameras[c].check(where + ": cameras[" + std::to_string(c) + "]");
+  }
+  const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
+  int64_t next_keypoint = 0;
+  for (size_t f = 0; f < map.frames.size(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    const std::string at = where + ": frames[" + std::to_string(f) + "]";
+    LMB_CHECK(!frame.name.empty(), at << ".name: empty");
+    LMB_CHECK(frame.camera >= 0 && frame.camera < static_cast<camera_t>(map.cameras.size()),
+              at << ".camera: " << frame.camera << " outside 0.." << map.cameras.size());
+    const Eigen::Quaterniond& q = frame.cam_from_world.rotation;
+    LMB_CHECK(q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 1e-6,
+              at << ".cam_from_world_q: not a rotation (norm " << q.norm() << ")");
+    LMB_CHECK(finite3(frame.cam_from_world.translation), at << ".cam_from_world_t: not finite");
+    LMB_CHECK(finite3(frame.gravity_in_cam) && std::abs(frame.gravity_in_cam.norm() - 1.0) < 1e-6,
+              at << ".gravity_in_cam: not a unit vector");
+    LMB_CHECK(frame.num_keypoints >= 0, at << ".num_keypoints: negative");
+    LMB_CHECK(frame.first_keypoint == next_keypoint,
+              at << ".first_keypoint: " << frame.first_keypoint << ", expected " << next_keypoint
+                 << " (frames' keypoint ranges must follow each other)");
+    next_keypoint += frame.num_keypoints;
+  }
+  LMB_CHECK(next_keypoint == num_keypoints, where << ": frames.num_keypoints: sum " << next_keypoint
+                                                  << " differs from the keypoint count " << num_keypoints);
+  LMB_CHECK(static_cast<int64_t>(map.descriptors.size()) == num_keypoints * map.descriptor_bytes,
+            where << ": descriptors: " << map.descriptors.size() << " bytes, expected "
+                  << num_keypoints << " x " << map.descriptor_bytes);
+  LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_keypoints,
+            where << ": keypoint_landmark: " << map.keypoint_landmark.size() << " entries, expected "
+                  << num_keypoints);
+  for (int64_t k = 0; k < num_keypoints; ++k) {
+    const Keypoint& kp = map.keypoints[k];
+    LMB_CHECK(std::isfinite(kp.x) && std::isfinite(kp.y) && std::isfinite(kp.scale) &&
+                  std::isfinite(kp.angle),
+              where << ": keypoints[" << k << "]: not finite");
+  }
+  const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
+  std::vector<int32_t> map_obs(num_landmarks, 0), query_obs(num_landmarks, 0);
+  for (const MapFrame& frame : map.frames) {
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
+                where << ": keypoint_landmark[" << k << "]: " << l << " outside -1.." << num_landmarks - 1);
+      if (l >= 0) ++(frame.is_query ? query_obs : map_obs)[l];
+    }
+  }
+  for (int64_t l = 0; l < num_landmarks; ++l) {
+    const Landmark& lm = map.landmarks[l];
+    const std::string at = where + ": landmarks[" + std::to_string(l) + "]";
+    LMB_CHECK(finite3(lm.position), at << ".position: not finite");
+    LMB_CHECK(std::isfinite(lm.quality), at << ".quality: not finite");
+    LMB_CHECK(std::isfinite(lm.mean_reprojection_error) && lm.mean_reprojection_error >= 0,
+              at << ".mean_reprojection_error: not a finite non-negative number");
+    LMB_CHECK(lm.num_map_observations == map_obs[l],
+              at << ".num_map_observations: " << lm.num_map_observations << ", but "
+                 << map_obs[l] << " map keypoints refer to it");
+    LMB_CHECK(lm.num_query_observations == query_obs[l],
+              at << ".num_query_observations: " << lm.num_query_observations << ", but "
+                 << query_obs[l] << " query keypoints refer to it");
+  }
+}
+
+void write_map_h5(const LandmarkMap& map, const fs::path& path) {
+  validate_landmark_map(map, path.string() + " (map to write)");
+  H5::Exception::dontPrint();
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  std::string tmp_name = ".";  // built step by step: GCC 12 warns falsely (-Wrestrict) on "." + string
+  tmp_name += path.filename().string();
+  tmp_name += ".tmp-";
+  tmp_name += std::to_string(::getpid());
+  const fs::path tmp = dir / tmp_name;
+  try {
+    {
+      H5::H5File file(tmp.string(), H5F_ACC_TRUNC);
+      write_string_attribute(file, "format", kMapH5Format);
+      write_int_attribute(file, "format_version", kMapH5Version);
+      write_string_attribute(file, "detector", map.detector);
+      write_int_attribute(file, "descriptor_bytes", map.descriptor_bytes);
+
+      const hsize_t num_cameras = map.cameras.size();
+      std::vector<int32_t> model, width, height;
+      std::vector<double> params(num_cameras * kMaxCameraParams, 0.0);
+      for (size_t c = 0; c < num_cameras; ++c) {
+        const Camera& cam = map.cameras[c];
+        model.push_back(static_cast<int32_t>(cam.model));
+        width.push_back(cam.width);
+        height.push_back(cam.height);
+        for (size_t p = 0; p < cam.params.size(); ++p) params[c * kMaxCameraParams + p] = cam.params[p];
+      }
+      H5::Group cameras = create_untimed_group(file, "/cameras");
+      write_column(cameras, "model", model, num_cameras);
+      write_column(cameras, "width", width, num_cameras);
+      write_column(cameras, "height", height, num_cameras);
+      write_column(cameras, "params", params, num_cameras, kMaxCameraParams);
+
+      const hsize_t num_frames = map.frames.size();
+      std::vector<const char*> names;
+      std::vector<int32_t> camera, num_keypoints;
+      std::vector<double> q, t, gravity;
+      std::vector<uint8_t> is_query;
+      std::vector<int64_t> first_keypoint;
+      for (const MapFrame& f : map.frames) {
+        names.push_back(f.name.c_str());
+        camera.push_back(f.camera);
+        const Eigen::Quaterniond& r = f.cam_from_world.rotation;
+        q.insert(q.end(), {r.w(), r.x(), r.y(), r.z()});
+        const Eigen::Vector3d& tr = f.cam_from_world.translation;
+        t.insert(t.end(), {tr.x(), tr.y(), tr.z()});
+        gravity.insert(gravity.end(), {f.gravity_in_cam.x(), f.gravity_in_cam.y(), f.gravity_in_cam.z()});
+        is_query.push_back(f.is_query ? 1 : 0);
+        first_keypoint.push_back(f.first_keypoint);
+        num_keypoints.push_back(f.num_keypoints);
+      }
+      H5::Group frames = create_untimed_group(file, "/frames");
+      {
+        H5::StrType str_type(H5::PredType::C_S1, H5T_VARIABLE);
+        const hsize_t dims[1] = {num_frames};
+        H5::DataSet ds = frames.createDataSet("name", str_type, H5::DataSpace(1, dims), untimed_dataset());
+        if (num_frames > 0) ds.write(names.data(), str_type);
+      }
+      write_column(frames, "camera", camera, num_frames);
+      write_column(frames, "cam_from_world_q", q, num_frames, 4);
+      write_column(frames, "cam_from_world_t", t, num_frames, 3);
+      write_column(frames, "gravity_in_cam", gravity, num_frames, 3);
+      write_column(frames, "is_query", is_query, num_frames);
+      write_column(frames, "first_keypoint", first_keypoint, num_frames);
+      write_column(frames, "num_keypoints", num_keypoints, num_frames);
+
+      const hsize_t n = map.keypoints.size();
+      std::vector<float> xy, scale, angle;
+      xy.reserve(2 * n);
+      for (const Keypoint& k : map.keypoints) {
+        xy.push_back(k.x);
+        xy.push_back(k.y);
+        scale.push_back(k.scale);
+        angle.push_back(k.angle);
+      }
+      H5::Group keypoints = create_untimed_group(file, "/keypoints");
+      write_column(keypoints, "xy", xy, n, 2);
+      write_column(keypoints, "scale", scale, n);
+      write_column(keypoints, "angle", angle, n);
+      write_column(keypoints, "descriptors", map.descriptors, n, static_cast<hsize_t>(map.descriptor_bytes));
+      write_column(keypoints, "landmark", map.keypoint_landmark, n);
+
+      const hsize_t num_landmarks = map.landmarks.size();
+      std::vector<double> position;
+      std::vector<float> quality, reprojection;
+      std::vector<int32_t> map_obs, query_obs;
+      for (const Landmark& l : map.landmarks) {
+        position.insert(position.end(), {l.position.x(), l.position.y(), l.position.z()});
+        quality.push_back(l.quality);
+        reprojection.push_back(l.mean_reprojection_error);
+        map_obs.push_back(l.num_map_observations);
+        query_obs.push_back(l.num_query_observations);
+      }
+      H5::Group landmarks = create_untimed_group(file, "/landmarks");
+      write_column(landmarks, "position", position, num_landmarks, 3);
+      write_column(landmarks, "quality", quality, num_landmarks);
+      write_column(landmarks, "mean_reprojection_error", reprojection, num_landmarks);
+      write_column(landmarks, "num_map_observations", map_obs, num_landmarks);
+      write_column(landmarks, "num_query_observations", query_obs, num_landmarks);
+      file.close();
+    }
+    fsync_path(tmp, false);
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    LMB_CHECK(!ec, path.string() << ": cannot rename the temporary file into place: " << ec.message());
+    fsync_path(dir, true);
+  } catch (const H5::Exception& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    LMB_FAIL(path.string() << ": cannot write HDF5: " << e.getFuncName() << ": " << e.getDetailMsg());
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  }
+}
+
+LandmarkMap read_map_h5(const fs::path& path) {
+  H5::Exception::dontPrint();
+  const std::string name = path.string();
+  std::error_code ec;
+  LMB_CHECK(fs::is_regular_file(path, ec), name << ": no such file");
+  LandmarkMap map;
+  try {
+    LMB_CHECK(H5::H5File::isHdf5(name), name << ": not an HDF5 file (expected a landmarkboost-map)");
+    H5::H5File file;
+    try {
+      file.openFile(name, H5F_ACC_RDONLY);
+    } catch (const H5::Exception& e) {
+      LMB_FAIL(name << ": cannot open as HDF5 (truncated or damaged file): " << e.getDetailMsg());
+    }
+    Reader r(path, file);
+    const std::string format = r.string_attribute("format");
+    LMB_CHECK(format == kMapH5Format, name << ": attribute 'format': '" << format
+                                           << "' is not a landmark map (expected '" << kMapH5Format << "')");
+    const int64_t version = r.int_attribute("format_version");
+    LMB_CHECK(version == kMapH5Version, name << ": attribute 'format_version': version " << version
+                                             << " is not supported (this build reads version "
+                                             << kMapH5Version << ")");
+    map.detector = r.string_attribute("detector");
+    const int64_t descriptor_bytes = r.int_attribute("descriptor_bytes");
+    LMB_CHECK(descriptor_bytes >= 0 && descriptor_bytes <= 4096,
+              name << ": attribute 'descriptor_bytes': " << descriptor_bytes << " outside 0..4096");
+    map.descriptor_bytes = static_cast<int>(descriptor_bytes);
+
+    int64_t num_cameras = 0;
+    const auto model = r.column<int32_t>("/cameras/model", -1, 1, -1, &num_cameras);
+    const auto width = r.column<int32_t>("/cameras/width", num_cameras);
+    const auto height = r.column<int32_t>("/cameras/height", num_cameras);
+    const auto params = r.column<double>("/cameras/params", num_cameras, 2, kMaxCameraParams);
+    for (int64_t c = 0; c < num_cameras; ++c) {
+      Camera cam;
+      try {
+        cam.model = camera_model_from_id(model[c]);
+      } catch (const Error& e) {
+        LMB_FAIL(name << ": /cameras/model[" << c << "]: " << e.what());
+      }
+      cam.width = width[c];
+      cam.height = height[c];
+      const int np = camera_model_num_params(cam.model);
+      cam.params.assign(params.begin() + c * kMaxCameraParams, params.begin() + c * kMaxCameraParams + np);
+      map.cameras.push_back(cam);
+    }
+
+    int64_t num_frames = 0;
+    const auto camera = r.column<int32_t>("/frames/camera", -1, 1, -1, &num_frames);
+    const auto names = r.strings("/frames/name", num_frames);
+    const auto q = r.column<double>("/frames/cam_from_world_q", num_frames, 2, 4);
+    const auto t = r.column<double>("/frames/cam_from_world_t", num_frames, 2, 3);
+    const auto gravity = r.column<double>("/frames/gravity_in_cam", num_frames, 2, 3);
+    const auto is_query = r.column<uint8_t>("/frames/is_query", num_frames);
+    const auto first_keypoint = r.column<int64_t>("/frames/first_keypoint", num_frames);
+    const auto num_keypoints = r.column<int32_t>("/frames/num_keypoints", num_frames);
+    for (int64_t f = 0; f < num_frames; ++f) {
+      MapFrame frame;
+      frame.name = names[f];
+      frame.camera = camera[f];
+      frame.cam_from_world.rotation = Eigen::Quaterniond(q[4 * f], q[4 * f + 1], q[4 * f + 2], q[4 * f + 3]);
+      frame.cam_from_world.translation = Eigen::Vector3d(t[3 * f], t[3 * f + 1], t[3 * f + 2]);
+      frame.gravity_in_cam = Eigen::Vector3d(gravity[3 * f], gravity[3 * f + 1], gravity[3 * f + 2]);
+      LMB_CHECK(is_query[f] <= 1, name << ": /frames/is_query[" << f << "]: " << int(is_query[f]) << " is not 0 or 1");
+      frame.is_query = is_query[f] != 0;
+      frame.first_keypoint = first_keypoint[f];
+      frame.num_keypoints = num_keypoints[f];
+      map.frames.push_back(frame);
+    }
+
+    int64_t n = 0;
+    const auto xy = r.column<float>("/keypoints/xy", -1, 2, 2, &n);
+    const auto scale = r.column<float>("/keypoints/scale", n);
+    const auto angle = r.column<float>("/keypoints/angle", n);
+    map.descriptors = r.column<uint8_t>("/keypoints/descriptors", n, 2, descriptor_bytes);
+    map.keypoint_landmark = r.column<int64_t>("/keypoints/landmark", n);
+    map.keypoints.resize(n);
+    for (int64_t k = 0; k < n; ++k) map.keypoints[k] = Keypoint{xy[2 * k], xy[2 * k + 1], scale[k], angle[k]};
+
+    int64_t num_landmarks = 0;
+    const auto position = r.column<double>("/landmarks/position", -1, 2, 3, &num_landmarks);
+    const auto quality = r.column<float>("/landmarks/quality", num_landmarks);
+    const auto reprojection = r.column<float>("/landmarks/mean_reprojection_error", num_landmarks);
+    const auto map_obs = r.column<int32_t>("/landmarks/num_map_observations", num_landmarks);
+    const auto query_obs = r.column<int32_t>("/landmarks/num_query_observations", num_landmarks);
+    map.landmarks.resize(num_landmarks);
+    for (int64_t l = 0; l < num_landmarks; ++l) {
+      Landmark& lm = map.landmarks[l];
+      lm.position = Eigen::Vector3d(position[3 * l], position[3 * l + 1], position[3 * l + 2]);
+      lm.quality = quality[l];
+      lm.mean_reprojection_error = reprojection[l];
+      lm.num_map_observations = map_obs[l];
+      lm.num_query_observations = query_obs[l];
+    }
+  } catch (const H5::Exception& e) {
+    LMB_FAIL(name << ": cannot read HDF5 (truncated or damaged file?): " << e.getFuncName() << ": "
+                  << e.getDetailMsg());
+  }
+  validate_landmark_map(map, name);
+  return map;
+}
+
+}  // namespace lmb

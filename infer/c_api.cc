@@ -1,0 +1,196 @@
+#include "infer/c_api.h"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <memory>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "common/error.h"
+#include "infer/localizer.h"
+#include "infer/model.h"
+
+struct lmb_model {
+  std::shared_ptr<const lmb::Model> model;
+};
+
+namespace {
+
+thread_local std::string last_error;
+
+lmb_status fail(lmb_status status, const std::string& message) {
+  last_error = message;
+  return status;
+}
+
+// Runs f, turning every exception into a status and the thread's last error.
+template <class F>
+lmb_status guarded(lmb_status error_status, const char* function, F&& f) {
+  try {
+    return f();
+  } catch (const lmb::Error& e) {
+    return fail(error_status, std::string(function) + ": " + e.what());
+  } catch (const std::bad_alloc&) {
+    return fail(LMB_ERROR_OUT_OF_MEMORY, std::string(function) + ": out of memory");
+  } catch (const std::exception& e) {
+    return fail(LMB_ERROR_INTERNAL, std::string(function) + ": " + e.what());
+  } catch (...) {
+    return fail(LMB_ERROR_INTERNAL, std::string(function) + ": unknown error");
+  }
+}
+
+}  // namespace
+
+extern "C" {
+
+const char* lmb_last_error(void) { return last_error.c_str(); }
+
+const char* lmb_version(void) { return "0.1.0"; }
+
+lmb_status lmb_model_load(const char* path, lmb_model** out) {
+  if (out == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_model_load: out is NULL");
+  *out = nullptr;
+  if (path == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_model_load: path is NULL");
+  return guarded(LMB_ERROR_MODEL_FILE, "lmb_model_load", [&] {
+    auto handle = std::make_unique<lmb_model>();
+    handle->model = lmb::Model::load(path);
+    *out = handle.release();
+    return LMB_OK;
+  });
+}
+
+lmb_status lmb_model_load_from_memory(const void* data, size_t size, lmb_model** out) {
+  if (out == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_model_load_from_memory: out is NULL");
+  *out = nullptr;
+  if (data == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_model_load_from_memory: data is NULL");
+  return guarded(LMB_ERROR_MODEL_FILE, "lmb_model_load_from_memory", [&] {
+    auto handle = std::make_unique<lmb_model>();
+    handle->model = lmb::Model::from_bytes(static_cast<const uint8_t*>(data), size, "model in memory");
+    *out = handle.release();
+    return LMB_OK;
+  });
+}
+
+void lmb_model_free(lmb_model* model) { delete model; }
+
+int lmb_model_descriptor_bytes(const lmb_model* model) {
+  return model ? model->model->descriptor_bytes() : -1;
+}
+
+int lmb_model_num_classes(const lmb_model* model) { return model ? model->model->num_classes() : -1; }
+
+void lmb_localize_options_init(lmb_localize_options* options) {
+  if (options == nullptr) return;
+  const lmb::LocalizerOptions d;
+  options->top_k = d.classifier.top_k;
+  options->use_inverted_file = d.classifier.use_inverted_file ? 1 : 0;
+  options->min_margin = d.classifier.min_margin;
+  options->pose_top_k = d.pose_top_k;
+  options->max_correspondences = d.max_correspondences;
+  options->ransac_iterations = d.pose.max_iterations;
+  options->max_reprojection_error_px = d.pose.max_reprojection_error_px;
+  options->min_inliers = d.pose.min_inliers;
+  options->seed = d.pose.seed;
+}
+
+lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera,
+                        const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
+                        int descriptor_bytes, const double gravity_in_cam[3],
+                        const lmb_localize_options* options, lmb_pose* out_pose,
+                        lmb_match* out_matches, int max_matches, int* num_matches) {
+  const char* fn = "lmb_localize";
+  if (num_matches != nullptr) *num_matches = 0;
+  if (out_pose != nullptr) *out_pose = lmb_pose{};
+  if (model == nullptr || camera == nullptr || gravity_in_cam == nullptr || out_pose == nullptr) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: model, camera, gravity_in_cam and out_pose must not be NULL");
+  }
+  if (n < 0 || (n > 0 && (keypoints == nullptr || descriptors == nullptr))) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: n < 0 or NULL keypoints/descriptors");
+  }
+  if (max_matches < 0 || (max_matches > 0 && out_matches == nullptr)) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: max_matches < 0 or NULL out_matches");
+  }
+  if (descriptor_bytes != model->model->descriptor_bytes()) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                "lmb_localize: descriptors have " + std::to_string(descriptor_bytes) +
+                    " bytes, the model expects " + std::to_string(model->model->descriptor_bytes()));
+  }
+  if (camera->num_params < 0 || (camera->num_params > 0 && camera->params == nullptr)) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: camera params NULL or num_params < 0");
+  }
+  return guarded(LMB_ERROR_INVALID_ARGUMENT, fn, [&] {
+    lmb::Camera cam;
+    cam.model = lmb::camera_model_from_id(camera->model);
+    cam.width = camera->width;
+    cam.height = camera->height;
+    cam.params.assign(camera->params, camera->params + camera->num_params);
+
+    lmb_localize_options o;
+    lmb_localize_options_init(&o);
+    if (options != nullptr) o = *options;
+    lmb::LocalizerOptions lo;
+    lo.classifier.top_k = o.top_k;
+    lo.classifier.use_inverted_file = o.use_inverted_file != 0;
+    lo.classifier.min_margin = o.min_margin;
+    lo.pose_top_k = o.pose_top_k;
+    lo.max_correspondences = o.max_correspondences;
+    lo.pose.max_iterations = o.ransac_iterations;
+    lo.pose.max_reprojection_error_px = o.max_reprojection_error_px;
+    lo.pose.min_inliers = o.min_inliers;
+    lo.pose.seed = o.seed;
+
+    std::vector<lmb::Keypoint> kps(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      kps[i].x = keypoints[i].x;
+      kps[i].y = keypoints[i].y;
+      kps[i].scale = keypoints[i].size;
+      kps[i].angle = keypoints[i].angle;
+    }
+    const Eigen::Vector3d gravity(gravity_in_cam[0], gravity_in_cam[1], gravity_in_cam[2]);
+    const lmb::Localizer localizer(model->model, lo);
+    const lmb::LocalizeResult r = localizer.localize(cam, kps, descriptors, gravity);
+
+    out_pose->success = r.pose.success ? 1 : 0;
+    const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
+    out_pose->rotation[0] = q.w();
+    out_pose->rotation[1] = q.x();
+    out_pose->rotation[2] = q.y();
+    out_pose->rotation[3] = q.z();
+    for (int i = 0; i < 3; ++i) out_pose->translation[i] = r.pose.cam_from_world.translation[i];
+    out_pose->num_inliers = r.pose.num_inliers;
+    out_pose->num_correspondences = static_cast<int>(r.correspondence_keypoint.size());
+
+    // Inlier flag of every match that was a correspondence.
+    std::vector<char> inlier(r.matches.matches.size(), 0);
+    for (size_t i = 0; i < r.correspondence_match.size(); ++i) {
+      if (r.pose.inlier_mask[i]) inlier[r.correspondence_match[i]] = 1;
+    }
+    const int total = static_cast<int>(r.matches.matches.size());
+    if (num_matches != nullptr) *num_matches = total;
+    int written = 0;
+    for (int32_t k = 0; k < r.matches.num_keypoints() && written < max_matches; ++k) {
+      for (int32_t j = 0; j < r.matches.count(k) && written < max_matches; ++j) {
+        const int32_t index = r.matches.begin[k] + j;
+        const lmb::ClassMatch& m = r.matches.matches[index];
+        lmb_match& out = out_matches[written++];
+        out.keypoint = k;
+        out.rank = j;
+        out.class_id = m.cls;
+        out.landmark = m.landmark;
+        out.score = m.score;
+        const Eigen::Vector3d& p = model->model->class_position(m.cls);
+        for (int i = 0; i < 3; ++i) out.position[i] = p[i];
+        out.inlier = inlier[index];
+      }
+    }
+    if (out_matches != nullptr && total > max_matches) {
+      return fail(LMB_ERROR_BUFFER_TOO_SMALL, "lmb_localize: the frame has " + std::to_string(total) +
+                                                  " matches, the buffer holds " + std::to_string(max_matches));
+    }
+    return LMB_OK;
+  });
+}
+
+}  // extern "C"

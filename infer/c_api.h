@@ -1,0 +1,136 @@
+/* The C API of the LandmarkBoost inference library (a pure C header, usable from C89 and C++).
+ *
+ *   lmb_model* model = NULL;
+ *   if (lmb_model_load("model.lbm", &model) != LMB_OK) fprintf(stderr, "%s\n", lmb_last_error());
+ *   lmb_localize_options options;
+ *   lmb_localize_options_init(&options);
+ *   lmb_pose pose;
+ *   lmb_localize(model, &camera, keypoints, n, descriptors, gravity, &options, &pose,
+ *                matches, max_matches, &num_matches);
+ *   lmb_model_free(model);
+ *
+ * Conventions are those of the C++ API (infer/localizer.h): keypoints in pixels of the distorted
+ * image, OpenCV convention (centre of the top-left pixel at (0, 0)), size = detector diameter in
+ * pixels, angle in degrees or -1; descriptors n rows of lmb_model_descriptor_bytes() bytes;
+ * gravity_in_cam the down direction in the camera frame (x right, y down, z forward); the pose is
+ * cam_from_world (x_cam = R x_world + t), R as a unit quaternion (w, x, y, z).
+ *
+ * Errors: every function returns an lmb_status; on failure lmb_last_error() gives a message for
+ * the calling thread (valid until that thread's next failing call). No C++ exception crosses this
+ * API. Threading: a loaded model is immutable; lmb_localize may run concurrently on one model from
+ * any number of threads.
+ */
+#ifndef LMB_INFER_C_API_H_
+#define LMB_INFER_C_API_H_
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "infer/export.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum lmb_status {
+  LMB_OK = 0,
+  LMB_ERROR_INVALID_ARGUMENT = 1, /* null pointer, bad size, invalid camera or option */
+  LMB_ERROR_MODEL_FILE = 2,       /* model file missing, unreadable, wrong format or corrupt */
+  LMB_ERROR_BUFFER_TOO_SMALL = 3, /* the matches buffer is too small (the count is still set) */
+  LMB_ERROR_OUT_OF_MEMORY = 4,
+  LMB_ERROR_INTERNAL = 5
+} lmb_status;
+
+/* Opaque handle of a loaded model. */
+typedef struct lmb_model lmb_model;
+
+/* Camera models, COLMAP's ids and parameter orders (common/camera.h). */
+typedef enum lmb_camera_model {
+  LMB_CAMERA_SIMPLE_PINHOLE = 0, /* f, cx, cy */
+  LMB_CAMERA_PINHOLE = 1,        /* fx, fy, cx, cy */
+  LMB_CAMERA_SIMPLE_RADIAL = 2,  /* f, cx, cy, k */
+  LMB_CAMERA_RADIAL = 3,         /* f, cx, cy, k1, k2 */
+  LMB_CAMERA_OPENCV = 4,         /* fx, fy, cx, cy, k1, k2, p1, p2 */
+  LMB_CAMERA_FULL_OPENCV = 6     /* fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6 */
+} lmb_camera_model;
+
+typedef struct lmb_camera {
+  int model; /* lmb_camera_model */
+  int width;
+  int height;
+  const double* params;
+  int num_params;
+} lmb_camera;
+
+typedef struct lmb_keypoint {
+  float x;
+  float y;
+  float size;  /* detector diameter, pixels */
+  float angle; /* degrees, or -1 */
+} lmb_keypoint;
+
+typedef struct lmb_localize_options {
+  int top_k;                         /* matches kept per keypoint (default 1) */
+  int use_inverted_file;             /* 0: score all classes; 1: the word's candidates (default 0) */
+  double min_margin;                 /* score above the background's (default 0) */
+  int pose_top_k;                    /* matches per keypoint fed to the pose (default 1) */
+  int max_correspondences;           /* best-margin matches fed to the pose, 0 = all (default 0) */
+  int ransac_iterations;             /* default 500 */
+  double max_reprojection_error_px;  /* inlier threshold, default 8 */
+  int min_inliers;                   /* default 12 */
+  uint64_t seed;                     /* RANSAC seed, default 0 */
+} lmb_localize_options;
+
+typedef struct lmb_pose {
+  int success;           /* 1 when a pose was found */
+  double rotation[4];    /* cam_from_world rotation, unit quaternion w, x, y, z */
+  double translation[3]; /* cam_from_world translation, map units */
+  int num_inliers;
+  int num_correspondences; /* matches given to RANSAC */
+} lmb_pose;
+
+typedef struct lmb_match {
+  int32_t keypoint;   /* index into the input keypoints */
+  int32_t rank;       /* 0 = the keypoint's best match */
+  int32_t class_id;   /* landmark class */
+  int64_t landmark;   /* map landmark id */
+  double score;
+  double position[3]; /* landmark position, world frame */
+  int inlier;         /* 1 when this match is an inlier of the pose */
+} lmb_match;
+
+/* The message of the calling thread's last failure ("" when none). Never NULL. */
+LMB_INFER_EXPORT const char* lmb_last_error(void);
+/* The library version, "MAJOR.MINOR.PATCH". */
+LMB_INFER_EXPORT const char* lmb_version(void);
+
+/* Loads model.lbm into *out (set to NULL on failure). */
+LMB_INFER_EXPORT lmb_status lmb_model_load(const char* path, lmb_model** out);
+/* The same from a file image in memory (the bytes are copied). */
+LMB_INFER_EXPORT lmb_status lmb_model_load_from_memory(const void* data, size_t size, lmb_model** out);
+/* Frees a model (NULL is allowed). */
+LMB_INFER_EXPORT void lmb_model_free(lmb_model* model);
+/* Model facts; -1 for a NULL model. */
+LMB_INFER_EXPORT int lmb_model_descriptor_bytes(const lmb_model* model);
+LMB_INFER_EXPORT int lmb_model_num_classes(const lmb_model* model);
+
+/* Defaults of every option. */
+LMB_INFER_EXPORT void lmb_localize_options_init(lmb_localize_options* options);
+
+/* Localizes one frame of n keypoints. options may be NULL (defaults). out_matches may be NULL
+ * when max_matches is 0; *num_matches (may be NULL) receives the number of matches of the frame
+ * (ranked matches of every keypoint, keypoint after keypoint, best first); when out_matches is
+ * not NULL and that number exceeds max_matches, the first max_matches are written, the pose is
+ * still computed, and the call returns LMB_ERROR_BUFFER_TOO_SMALL. */
+LMB_INFER_EXPORT lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera,
+                                         const lmb_keypoint* keypoints, int n,
+                                         const uint8_t* descriptors, int descriptor_bytes,
+                                         const double gravity_in_cam[3],
+                                         const lmb_localize_options* options, lmb_pose* out_pose,
+                                         lmb_match* out_matches, int max_matches, int* num_matches);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* LMB_INFER_C_API_H_ */

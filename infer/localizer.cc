@@ -1,0 +1,105 @@
+#include "infer/localizer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <climits>
+
+#include "common/context_embedding.h"
+#include "common/error.h"
+
+namespace lmb {
+
+void LocalizerOptions::check() const {
+  classifier.check();
+  LMB_CHECK(max_correspondences >= 0, "localizer options: max_correspondences = " << max_correspondences
+                                                                                 << " must be >= 0");
+  LMB_CHECK(pose_top_k >= 1 && pose_top_k <= classifier.top_k,
+            "localizer options: pose_top_k = " << pose_top_k << " must be in 1..classifier.top_k ("
+                                               << classifier.top_k << ")");
+  pose.check();
+}
+
+Localizer::Localizer(std::shared_ptr<const Model> model, const LocalizerOptions& options)
+    : model_(std::move(model)), options_(options) {
+  LMB_CHECK(model_ != nullptr, "localizer: null model");
+  options_.check();
+}
+
+LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                   const uint8_t* descriptors,
+                                   const Eigen::Vector3d& gravity_in_cam) const {
+  return localize(camera, keypoints, descriptors, gravity_in_cam, options_);
+}
+
+LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                   const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                   const LocalizerOptions& options) const {
+  using Clock = std::chrono::steady_clock;
+  const auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  options.check();
+  camera.check("localize: camera");
+  const int64_t n64 = static_cast<int64_t>(keypoints.size());
+  LMB_CHECK(n64 <= INT32_MAX, "localize: " << n64 << " keypoints are too many");
+  const int32_t n = static_cast<int32_t>(n64);
+  LMB_CHECK(n == 0 || descriptors != nullptr, "localize: null descriptors for " << n << " keypoints");
+  const Model& m = *model_;
+  LocalizeResult result;
+  const Clock::time_point t_start = Clock::now();
+
+  std::vector<uint8_t> words(static_cast<size_t>(n));
+  if (n > 0) m.vocabulary().quantize(descriptors, n, words.data());
+  const Clock::time_point t_words = Clock::now();
+  result.timings.words_ms = ms(t_words - t_start);
+
+  const FrameKeypoints frame = frame_keypoints_from_detections(camera, keypoints.data(), words.data(),
+                                                               n, gravity_in_cam, "localize");
+  Classifier classifier(model_, options.classifier);
+  const Clock::time_point t_frame = Clock::now();
+  double embedding_ms = 0.0;
+  result.matches = classifier.classify(frame, descriptors, "localize", &embedding_ms);
+  const Clock::time_point t_classified = Clock::now();
+  // Embedding: keypoint normalization and the classifier's frame index and feature values.
+  result.timings.embedding_ms = ms(t_frame - t_words) + embedding_ms;
+  result.timings.classification_ms = ms(t_classified - t_frame) - embedding_ms;
+
+  for (int32_t k = 0; k < n; ++k) {
+    const int32_t count = std::min(result.matches.count(k), options.pose_top_k);
+    for (int32_t j = 0; j < count; ++j) {
+      result.correspondence_keypoint.push_back(k);
+      result.correspondence_match.push_back(result.matches.begin[k] + j);
+    }
+  }
+  const size_t limit = static_cast<size_t>(options.max_correspondences);
+  if (limit > 0 && result.correspondence_match.size() > limit) {
+    std::vector<size_t> order(result.correspondence_match.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    const auto margin = [&](size_t i) {
+      const ClassMatch& c = result.matches.matches[result.correspondence_match[i]];
+      return c.score - c.background_score;
+    };
+    std::stable_sort(order.begin(), order.end(), [&](size_t x, size_t y) { return margin(x) > margin(y); });
+    order.resize(limit);
+    std::sort(order.begin(), order.end());  // back to keypoint order
+    std::vector<int32_t> keypoint, match;
+    for (size_t i : order) {
+      keypoint.push_back(result.correspondence_keypoint[i]);
+      match.push_back(result.correspondence_match[i]);
+    }
+    result.correspondence_keypoint = std::move(keypoint);
+    result.correspondence_match = std::move(match);
+  }
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  for (size_t i = 0; i < result.correspondence_keypoint.size(); ++i) {
+    const int32_t k = result.correspondence_keypoint[i];
+    pixels.emplace_back(keypoints[k].x, keypoints[k].y);
+    points.push_back(m.class_position(result.matches.matches[result.correspondence_match[i]].cls));
+  }
+  result.pose = estimate_absolute_pose(camera, pixels, points, options.pose);
+  const Clock::time_point t_end = Clock::now();
+  result.timings.pose_ms = ms(t_end - t_classified);
+  result.timings.total_ms = ms(t_end - t_start);
+  return result;
+}
+
+}  // namespace lmb

@@ -1,0 +1,91 @@
+// Frame -> ranked 2D-3D matches -> 6-DoF pose, the inference library's main entry point.
+//
+//   Localizer localizer(Model::load("model.lbm"));
+//   LocalizeResult r = localizer.localize(camera, keypoints, descriptors, gravity_in_cam);
+//   if (r.pose.success) use(r.pose.cam_from_world);
+//
+// Steps: quantize each descriptor to its visual word, place the keypoints in the gravity-aligned
+// normalized plane (common/context_embedding.h), classify them (infer/classifier.h), then feed the
+// matches to estimate_absolute_pose (infer/pose_estimator.h): each keypoint's best match, or its
+// pose_top_k best, pixel (keypoint + 0.5, COLMAP's pixel convention) <-> the class's 3D landmark.
+//
+// Inputs: keypoints in pixels of the distorted image with OpenCV's convention (centre of the
+// top-left pixel at (0, 0)), scale = detector diameter in pixels (lmb::Keypoint); descriptors:
+// keypoints.size() rows of model.descriptor_bytes() bytes; gravity_in_cam: the direction of gravity
+// (down) in the camera frame (x right, y down, z forward), any non-zero length.
+//
+// Errors: invalid input (null descriptors, invalid camera, non-finite or non-positive keypoint
+// sizes, zero gravity) throws lmb::Error. Failing to localize is not an error: pose.success false.
+//
+// Threading: localize() is const and keeps its buffers per call, so one Localizer (and one Model)
+// may serve any number of threads at once; results depend only on the inputs and options.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/camera.h"
+#include "common/types.h"
+#include "infer/classifier.h"
+#include "infer/export.h"
+#include "infer/model.h"
+#include "infer/pose_estimator.h"
+
+namespace lmb {
+
+struct LMB_INFER_EXPORT LocalizerOptions {
+  ClassifierOptions classifier;  // top_k, inverted file, background margin, min score
+  // Matches per keypoint fed to the pose estimator (1..classifier.top_k): 1 = the best match only.
+  int pose_top_k = 1;
+  // At most this many correspondences, those with the largest margin over the background
+  // (score - background score; ties: keypoint order); 0 = all.
+  int max_correspondences = 0;
+  PoseEstimatorOptions pose;     // RANSAC iterations, inlier threshold (px), seed, refinement
+
+  // Throws lmb::Error naming the field.
+  void check() const;
+};
+
+// Milliseconds spent in each step of one localize() call (steady clock).
+struct LocalizeTimings {
+  double words_ms = 0.0;           // descriptor quantization
+  double embedding_ms = 0.0;       // frame index + context dims (inside classification)
+  double classification_ms = 0.0;  // scoring and ranking (embedding excluded)
+  double pose_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct LocalizeResult {
+  KeypointMatches matches;              // ranked matches of every keypoint
+  PoseResult pose;                      // cam_from_world and the inlier mask of correspondences
+  // One entry per correspondence given to the pose estimator (pose.inlier_mask is aligned):
+  std::vector<int32_t> correspondence_keypoint;  // keypoint index
+  std::vector<int32_t> correspondence_match;     // index into matches.matches
+  LocalizeTimings timings;
+};
+
+class LMB_INFER_EXPORT Localizer {
+ public:
+  // Throws lmb::Error for a null model or invalid options.
+  explicit Localizer(std::shared_ptr<const Model> model, const LocalizerOptions& options = {});
+
+  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                          const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) const;
+  // The same with explicit options (per-call settings; options.check() first).
+  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                          const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                          const LocalizerOptions& options) const;
+
+  const Model& model() const { return *model_; }
+  const std::shared_ptr<const Model>& shared_model() const { return model_; }
+  const LocalizerOptions& options() const { return options_; }
+
+ private:
+  std::shared_ptr<const Model> model_;
+  LocalizerOptions options_;
+};
+
+}  // namespace lmb

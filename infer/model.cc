@@ -1,0 +1,367 @@
+#include "infer/model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include <cereal/archives/portable_binary.hpp>
+
+#include "common/error.h"
+#include "common/file_container.h"
+
+namespace lmb {
+
+namespace detail {
+
+std::string encode_ascending_ids(const std::vector<int32_t>& ids) {
+  std::string out;
+  out.reserve(ids.size() * 2);
+  uint32_t prev = 0;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    uint32_t gap = static_cast<uint32_t>(ids[i]) - (i == 0 ? 0u : prev);
+    prev = static_cast<uint32_t>(ids[i]);
+    do {
+      uint8_t byte = gap & 0x7F;
+      gap >>= 7;
+      if (gap != 0) byte |= 0x80;
+      out.push_back(static_cast<char>(byte));
+    } while (gap != 0);
+  }
+  return out;
+}
+
+std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t count, int32_t max_id,
+                                          const std::string& what) {
+  // Every id takes at least one byte: a count above the byte count is corrupt (checked before
+  // allocating).
+  LMB_CHECK(count <= bytes.size(),
+            what << ": corrupt id list: " << count << " ids in " << bytes.size() << " bytes");
+  std::vector<int32_t> ids(count);
+  size_t pos = 0;
+  int64_t prev = -1;
+  for (uint32_t i = 0; i < count; ++i) {
+    uint64_t gap = 0;
+    int shift = 0;
+    while (true) {
+      LMB_CHECK(pos < bytes.size(), what << ": corrupt id list: ends inside id " << i);
+      const uint8_t byte = static_cast<uint8_t>(bytes[pos++]);
+      gap |= static_cast<uint64_t>(byte & 0x7F) << shift;
+      if ((byte & 0x80) == 0) break;
+      shift += 7;
+      LMB_CHECK(shift <= 28, what << ": corrupt id list: varint too long at id " << i);
+    }
+    LMB_CHECK(i == 0 || gap > 0, what << ": corrupt id list: ids not strictly ascending at " << i);
+    const int64_t id = (i == 0 ? 0 : prev) + static_cast<int64_t>(gap);
+    LMB_CHECK(id <= max_id, what << ": corrupt id list: id " << id << " exceeds " << max_id);
+    ids[i] = static_cast<int32_t>(id);
+    prev = id;
+  }
+  LMB_CHECK(pos == bytes.size(), what << ": corrupt id list: " << bytes.size() - pos
+                                      << " extra bytes after " << count << " ids");
+  return ids;
+}
+
+}  // namespace detail
+
+namespace {
+
+constexpr size_t kMaxDetectorNameBytes = 256;
+
+// A cereal portable binary reader that bounds every count by the bytes left before anything is
+// allocated (cereal itself trusts size fields).
+class BoundedReader {
+ public:
+  BoundedReader(const std::string& bytes, const std::string& what)
+      : is_(bytes), ar_(is_), total_(bytes.size()), what_(what) {}
+
+  template <class T>
+  void value(T& x) {
+    ar_(x);
+  }
+  uint64_t bytes_left() {
+    const auto pos = is_.tellg();
+    LMB_CHECK(pos >= 0, what_ << ": truncated model payload");
+    return total_ - static_cast<uint64_t>(pos);
+  }
+  // Reads a uint64 count of elements taking at least `min_element_bytes` bytes each and checks it.
+  uint64_t count(uint64_t min_element_bytes, const char* field) {
+    uint64_t n = 0;
+    ar_(n);
+    const uint64_t left = bytes_left();
+    LMB_CHECK(n <= left / min_element_bytes,
+              what_ << ": " << field << ": corrupt count " << n << " exceeds the " << left
+                    << " bytes left");
+    return n;
+  }
+  std::string byte_string(const char* field, uint64_t max_size = UINT64_MAX) {
+    const uint64_t n = count(1, field);
+    LMB_CHECK(n <= max_size, what_ << ": " << field << ": " << n << " bytes exceed " << max_size);
+    std::string s(n, '\0');
+    if (n > 0) ar_(cereal::binary_data(s.data(), n));
+    return s;
+  }
+
+ private:
+  std::istringstream is_;
+  cereal::PortableBinaryInputArchive ar_;
+  uint64_t total_;
+  std::string what_;
+};
+
+void write_bytes(cereal::PortableBinaryOutputArchive& ar, const std::string& s) {
+  ar(static_cast<uint64_t>(s.size()));
+  if (!s.empty()) ar(cereal::binary_data(s.data(), s.size()));
+}
+
+void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inclusive,
+                     const std::string& where) {
+  for (size_t i = 0; i < ids.size(); ++i) {
+    LMB_CHECK(ids[i] >= lo && ids[i] <= hi_inclusive,
+              where << ": class " << ids[i] << " outside " << lo << ".." << hi_inclusive);
+    LMB_CHECK(i == 0 || ids[i - 1] < ids[i], where << ": classes not strictly ascending");
+  }
+}
+
+}  // namespace
+
+void ModelData::check(const std::string& where) const {
+  LMB_CHECK(descriptor_bytes >= 1 && descriptor_bytes <= kMaxDescriptorBytes,
+            where << ": descriptor_bytes = " << descriptor_bytes << " outside 1.."
+                  << kMaxDescriptorBytes);
+  LMB_CHECK(vocabulary.num_words() >= kMinVocabularyWords,
+            where << ": vocabulary is empty");
+  LMB_CHECK(vocabulary.descriptor_bytes() == descriptor_bytes,
+            where << ": vocabulary has " << vocabulary.descriptor_bytes()
+                  << "-byte words, descriptors have " << descriptor_bytes << " bytes");
+  regions.validate(where + ": regions");
+  const EmbeddingLayout l = layout();
+  l.check();
+  LMB_CHECK(num_classes >= 1, where << ": num_classes = " << num_classes << " must be >= 1");
+  const size_t C = static_cast<size_t>(num_classes);
+  LMB_CHECK(class_landmark.size() == C, where << ": class_landmark has " << class_landmark.size()
+                                              << " entries, expected " << C);
+  LMB_CHECK(class_position.size() == C, where << ": class_position has " << class_position.size()
+                                              << " entries, expected " << C);
+  for (size_t c = 0; c < C; ++c) {
+    LMB_CHECK(class_landmark[c] >= 0, where << ": class " << c << " has landmark id "
+                                            << class_landmark[c]);
+    LMB_CHECK(class_position[c].allFinite(), where << ": class " << c << " has a non-finite position");
+  }
+  LMB_CHECK(bias.size() == C + 1, where << ": bias has " << bias.size() << " entries, expected "
+                                        << C + 1);
+  for (size_t c = 0; c <= C; ++c) {
+    LMB_CHECK(std::isfinite(bias[c]), where << ": class " << c << " has a non-finite bias");
+  }
+  for (size_t m = 0; m < stumps.size(); ++m) {
+    const ModelStump& s = stumps[m];
+    const std::string sw = where + ": stump " + std::to_string(m);
+    LMB_CHECK(s.dim >= 0 && s.dim < l.num_dims(),
+              sw << ": dim " << s.dim << " outside [0, " << l.num_dims() << ")");
+    LMB_CHECK(s.theta < 255, sw << ": threshold 255 never fires");
+    LMB_CHECK(std::isfinite(s.a) && std::isfinite(s.b), sw << ": non-finite a or b");
+    LMB_CHECK(!s.classes.empty(), sw << ": empty sharing set");
+    check_ascending(s.classes, 0, num_classes, sw);
+  }
+  LMB_CHECK(static_cast<int32_t>(inverted_file.size()) == vocabulary.num_words(),
+            where << ": inverted file has " << inverted_file.size() << " lists, expected "
+                  << vocabulary.num_words());
+  for (size_t w = 0; w < inverted_file.size(); ++w) {
+    check_ascending(inverted_file[w], 0, num_classes - 1,
+                    where + ": inverted file word " + std::to_string(w));
+  }
+}
+
+std::string serialize_model_data(const ModelData& data) {
+  data.check("model");
+  std::ostringstream os(std::ios::binary);
+  {
+    cereal::PortableBinaryOutputArchive ar(os);
+    write_bytes(ar, data.detector);
+    ar(data.descriptor_bytes);
+    const ContextRegionOptions& ro = data.regions.options();
+    ar(ro.num_regions, ro.seed, ro.min_area, ro.max_area, ro.max_aspect, ro.max_offset);
+    ar(static_cast<uint64_t>(data.regions.size()));
+    for (const RegionRect& r : data.regions.rects()) ar(r.x0, r.y0, r.x1, r.y1);
+    write_bytes(ar, data.vocabulary.to_payload());
+    ar(data.num_classes);
+    ar(static_cast<uint64_t>(data.class_landmark.size()));
+    for (landmark_t id : data.class_landmark) ar(static_cast<int64_t>(id));
+    ar(static_cast<uint64_t>(data.class_position.size()));
+    for (const Eigen::Vector3d& p : data.class_position) ar(p.x(), p.y(), p.z());
+    ar(static_cast<uint64_t>(data.bias.size()));
+    for (double b : data.bias) ar(b);
+    ar(static_cast<uint64_t>(data.stumps.size()));
+    for (const ModelStump& s : data.stumps) {
+      ar(s.dim, s.theta, s.a, s.b, static_cast<uint32_t>(s.classes.size()));
+      write_bytes(ar, detail::encode_ascending_ids(s.classes));
+    }
+    ar(static_cast<int32_t>(data.inverted_file.size()));
+    for (const std::vector<int32_t>& list : data.inverted_file) {
+      ar(static_cast<uint32_t>(list.size()));
+      write_bytes(ar, detail::encode_ascending_ids(list));
+    }
+  }
+  return os.str();
+}
+
+ModelData parse_model_data(const std::string& payload, const std::string& what) {
+  ModelData d;
+  try {
+    BoundedReader r(payload, what);
+    d.detector = r.byte_string("detector", kMaxDetectorNameBytes);
+    r.value(d.descriptor_bytes);
+    ContextRegionOptions ro;
+    r.value(ro.num_regions);
+    r.value(ro.seed);
+    r.value(ro.min_area);
+    r.value(ro.max_area);
+    r.value(ro.max_aspect);
+    r.value(ro.max_offset);
+    const uint64_t num_regions = r.count(4 * sizeof(float), "regions");
+    LMB_CHECK(num_regions >= 1 && num_regions <= static_cast<uint64_t>(kMaxContextRegions),
+              what << ": regions: count " << num_regions << " outside 1.." << kMaxContextRegions);
+    std::vector<RegionRect> rects(num_regions);
+    for (RegionRect& q : rects) {
+      r.value(q.x0);
+      r.value(q.y0);
+      r.value(q.x1);
+      r.value(q.y1);
+    }
+    d.regions = ContextRegions(std::move(rects), ro);
+    d.vocabulary = Vocabulary::from_payload(r.byte_string("vocabulary"), what + ": vocabulary");
+    r.value(d.num_classes);
+    LMB_CHECK(d.num_classes >= 1, what << ": num_classes = " << d.num_classes << " must be >= 1");
+    d.class_landmark.resize(r.count(sizeof(int64_t), "class_landmark"));
+    for (landmark_t& id : d.class_landmark) {
+      int64_t v = 0;
+      r.value(v);
+      id = v;
+    }
+    d.class_position.resize(r.count(3 * sizeof(double), "class_position"));
+    for (Eigen::Vector3d& p : d.class_position) {
+      r.value(p.x());
+      r.value(p.y());
+      r.value(p.z());
+    }
+    d.bias.resize(r.count(sizeof(double), "bias"));
+    for (double& b : d.bias) r.value(b);
+    // A stump takes at least dim + theta + a + b + set count + set size = 33 bytes.
+    d.stumps.resize(r.count(33, "stumps"));
+    for (size_t m = 0; m < d.stumps.size(); ++m) {
+      ModelStump& s = d.stumps[m];
+      uint32_t n = 0;
+      r.value(s.dim);
+      r.value(s.theta);
+      r.value(s.a);
+      r.value(s.b);
+      r.value(n);
+      s.classes = detail::decode_ascending_ids(r.byte_string("stump classes"), n, d.num_classes,
+                                               what + ": stump " + std::to_string(m));
+    }
+    int32_t num_lists = 0;
+    r.value(num_lists);
+    LMB_CHECK(num_lists == d.vocabulary.num_words(),
+              what << ": inverted file has " << num_lists << " lists, expected "
+                   << d.vocabulary.num_words());
+    d.inverted_file.resize(static_cast<size_t>(num_lists));
+    for (int32_t w = 0; w < num_lists; ++w) {
+      uint32_t n = 0;
+      r.value(n);
+      d.inverted_file[w] = detail::decode_ascending_ids(
+          r.byte_string("inverted file"), n, d.num_classes - 1,
+          what + ": inverted file word " + std::to_string(w));
+    }
+    LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left()
+                                        << " unexpected bytes after the model");
+  } catch (const cereal::Exception& e) {
+    LMB_FAIL(what << ": truncated or corrupt model payload (" << e.what() << ")");
+  }
+  d.check(what);
+  return d;
+}
+
+Model::Model(ModelData data) : data_(std::move(data)) {
+  data_.check("model");
+  layout_ = data_.layout();
+  const int32_t C = data_.num_classes;
+  const size_t M = data_.stumps.size();
+
+  for (const ModelStump& s : data_.stumps) used_dims_.push_back(s.dim);
+  std::sort(used_dims_.begin(), used_dims_.end());
+  used_dims_.erase(std::unique(used_dims_.begin(), used_dims_.end()), used_dims_.end());
+
+  dense_stumps_.resize(M);
+  stump_class_begin_.assign(M + 1, 0);
+  std::vector<int64_t> class_count(static_cast<size_t>(C) + 1, 0);
+  for (size_t m = 0; m < M; ++m) {
+    const ModelStump& s = data_.stumps[m];
+    DenseStump& d = dense_stumps_[m];
+    d.used = static_cast<int32_t>(std::lower_bound(used_dims_.begin(), used_dims_.end(), s.dim) -
+                                  used_dims_.begin());
+    d.theta = s.theta;
+    d.above = s.a + s.b;  // BoostModel: (fires ? a : 0.0) + b, the same double
+    d.below = s.b;
+    stump_class_begin_[m + 1] = stump_class_begin_[m] + static_cast<int64_t>(s.classes.size());
+    stump_classes_.insert(stump_classes_.end(), s.classes.begin(), s.classes.end());
+    for (int32_t c : s.classes) ++class_count[c];
+  }
+
+  class_stump_begin_.assign(static_cast<size_t>(C) + 2, 0);
+  for (int32_t c = 0; c <= C; ++c) class_stump_begin_[c + 1] = class_stump_begin_[c] + class_count[c];
+  class_stumps_.resize(static_cast<size_t>(class_stump_begin_[C + 1]));
+  std::vector<int64_t> fill(class_stump_begin_.begin(), class_stump_begin_.end() - 1);
+  for (size_t m = 0; m < M; ++m) {
+    for (int32_t c : data_.stumps[m].classes) class_stumps_[fill[c]++] = dense_stumps_[m];
+  }
+
+  const int32_t W = data_.vocabulary.num_words();
+  word_class_begin_.assign(static_cast<size_t>(W) + 1, 0);
+  word_used_begin_.assign(static_cast<size_t>(W) + 1, 0);
+  std::vector<uint8_t> mark(used_dims_.size());
+  for (int32_t w = 0; w < W; ++w) {
+    const std::vector<int32_t>& list = data_.inverted_file[w];
+    word_classes_.insert(word_classes_.end(), list.begin(), list.end());
+    word_class_begin_[w + 1] = static_cast<int32_t>(word_classes_.size());
+    std::fill(mark.begin(), mark.end(), 0);
+    auto mark_class = [&](int32_t c) {
+      for (int64_t e = class_stump_begin_[c]; e < class_stump_begin_[c + 1]; ++e) {
+        mark[class_stumps_[e].used] = 1;
+      }
+    };
+    for (int32_t c : list) mark_class(c);
+    mark_class(C);  // the background is always scored
+    for (size_t u = 0; u < mark.size(); ++u) {
+      if (mark[u]) {
+        word_used_.push_back(static_cast<int32_t>(u));
+        word_used_dims_.push_back(used_dims_[u]);
+      }
+    }
+    word_used_begin_[w + 1] = static_cast<int32_t>(word_used_.size());
+    word_plans_.emplace_back(data_.regions, layout_,
+                             std::vector<int32_t>(word_used_dims_.begin() + word_used_begin_[w],
+                                                  word_used_dims_.end()));
+  }
+  used_plan_ = DimPlan(data_.regions, layout_, used_dims_);
+}
+
+std::shared_ptr<const Model> Model::load(const std::filesystem::path& path) {
+  const std::string payload = read_container_file(path, kModelMagic, kModelVersion);
+  return std::make_shared<const Model>(parse_model_data(payload, path.string()));
+}
+
+std::shared_ptr<const Model> Model::from_bytes(const uint8_t* data, size_t size,
+                                               const std::string& what) {
+  LMB_CHECK(data != nullptr || size == 0, what << ": null buffer");
+  const std::string payload = open_container(data, size, kModelMagic, kModelVersion, what);
+  return std::make_shared<const Model>(parse_model_data(payload, what));
+}
+
+void Model::save(const std::filesystem::path& path) const {
+  write_container_file(path, kModelMagic, kModelVersion, serialize_model_data(data_));
+}
+
+std::vector<uint8_t> Model::to_bytes() const {
+  return make_container(kModelMagic, kModelVersion, serialize_model_data(data_));
+}
+
+}  // namespace lmb

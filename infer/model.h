@@ -1,0 +1,179 @@
+// The inference model: everything the inference library needs to classify a frame's keypoints
+// into landmark classes, in one file (model.lbm) written by `lboost export`.
+//
+//   score(v, c) = bias[c] + sum over stumps m with c in S_m of (v[dim_m] > theta_m ? a_m + b_m : b_m)
+//
+// (the trainer's BoostModel with the non-sharing constants folded into bias[c]). Class num_classes
+// (the last one) is the background. Stumps are added in their training order, so a class's score
+// is summed in the same order as BoostModel::scores and is bit-identical to it.
+//
+// File model.lbm: lmb container (common/file_container.h) with magic "LMBMODEL", version 1, around
+// a cereal portable binary payload, in this order:
+//   string detector; int32 descriptor_bytes;
+//   regions: ContextRegionOptions fields (int32, uint64, 4 x double), uint64 count, count x 4 float;
+//   vocabulary: uint64 size + the vocabulary payload bytes (common/vocabulary.h);
+//   int32 num_classes C; uint64 C, C x int64 class landmark ids; uint64 C, C x 3 double positions;
+//   uint64 C + 1, (C + 1) x double biases;
+//   uint64 M stumps, each: int32 dim, uint8 theta, double a, double b, uint32 |S|, sharing set
+//     as a byte string (uint64 size + bytes) of LEB128 varint gaps between ascending class ids;
+//   int32 W words; W inverted lists, each: uint32 count + byte string of varint gaps (ascending
+//     landmark classes whose training observations quantize to the word).
+// Every count is checked against the bytes left in the payload before anything is allocated.
+//
+// Threading: a Model is immutable after construction; all methods are const and may be called
+// from any number of threads at once.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/context_embedding.h"
+#include "common/context_regions.h"
+#include "common/types.h"
+#include "common/vocabulary.h"
+#include "infer/export.h"
+
+namespace lmb {
+
+constexpr const char* kModelMagic = "LMBMODEL";
+constexpr uint32_t kModelVersion = 1;
+
+// One shared stump of the inference model.
+struct ModelStump {
+  int32_t dim = 0;               // feature dimension (common/context_embedding.h layout)
+  uint8_t theta = 0;             // fires when the bin is > theta; theta in 0..254
+  double a = 0.0;                // step height
+  double b = 0.0;                // value at or below the threshold
+  std::vector<int32_t> classes;  // sharing set S, ascending, non-empty, classes 0..C (C = background)
+};
+
+// The model's contents as plain data: what export builds and the file holds.
+struct ModelData {
+  std::string detector = "BRISK";  // detector the descriptors come from (informative)
+  int32_t descriptor_bytes = 0;    // descriptor length; equals the vocabulary's
+  ContextRegions regions;
+  Vocabulary vocabulary;
+  int32_t num_classes = 0;                       // landmark classes C; class C is the background
+  std::vector<landmark_t> class_landmark;        // size C: the map landmark id of each class
+  std::vector<Eigen::Vector3d> class_position;   // size C: world frame, map units (metres)
+  std::vector<double> bias;                      // size C + 1, folded constants
+  std::vector<ModelStump> stumps;                // in training order
+  // Inverted file: inverted_file[w] lists (ascending) the landmark classes (< C) whose training
+  // observations quantize to word w. Size: vocabulary.num_words().
+  std::vector<std::vector<int32_t>> inverted_file;
+
+  EmbeddingLayout layout() const {
+    EmbeddingLayout l;
+    l.num_regions = regions.size();
+    l.num_words = vocabulary.num_words();
+    l.descriptor_bytes = descriptor_bytes;
+    return l;
+  }
+  // Throws lmb::Error (prefixed by `where`) naming the field: sizes, ranges, ordering, finiteness.
+  LMB_INFER_EXPORT void check(const std::string& where = "model") const;
+};
+
+// The payload (cereal portable binary, see the file comment) and its inverse. parse throws
+// lmb::Error naming `what` for truncated or corrupt bytes, a count larger than the bytes left,
+// or contents that fail ModelData::check.
+LMB_INFER_EXPORT std::string serialize_model_data(const ModelData& data);
+LMB_INFER_EXPORT ModelData parse_model_data(const std::string& payload, const std::string& what);
+
+// Immutable model with the indices scoring needs.
+class LMB_INFER_EXPORT Model {
+ public:
+  // Validates `data` (check()) and builds the scoring indices. Throws lmb::Error.
+  explicit Model(ModelData data);
+
+  // Reads model.lbm. Throws lmb::Error naming the path: missing or unreadable file, wrong magic,
+  // wrong version, length or CRC mismatch, truncated or corrupt payload.
+  static std::shared_ptr<const Model> load(const std::filesystem::path& path);
+  // The same from a file image in memory (header + payload). `what` names the source in errors.
+  static std::shared_ptr<const Model> from_bytes(const uint8_t* data, size_t size,
+                                                 const std::string& what = "model");
+  // Writes model.lbm atomically (temp file, fsync, rename). Throws lmb::Error.
+  void save(const std::filesystem::path& path) const;
+  // The whole file image (header + payload).
+  std::vector<uint8_t> to_bytes() const;
+
+  const ModelData& data() const { return data_; }
+  int32_t num_classes() const { return data_.num_classes; }
+  int32_t background_class() const { return data_.num_classes; }
+  int32_t descriptor_bytes() const { return data_.descriptor_bytes; }
+  int32_t num_words() const { return data_.vocabulary.num_words(); }
+  const EmbeddingLayout& layout() const { return layout_; }
+  const ContextRegions& regions() const { return data_.regions; }
+  const Vocabulary& vocabulary() const { return data_.vocabulary; }
+  landmark_t class_landmark(int32_t c) const { return data_.class_landmark[c]; }
+  const Eigen::Vector3d& class_position(int32_t c) const { return data_.class_position[c]; }
+
+  // ---- Scoring indices (read by the classifier) -------------------------------------------
+  // The feature dimensions any stump reads, ascending ("used dims"); stump m reads used dim
+  // stump_used_[m] (an index into used_dims()).
+  const std::vector<int32_t>& used_dims() const { return used_dims_; }
+  // used_dims() prepared for FrameContext::compute_dims.
+  const DimPlan& used_plan() const { return used_plan_; }
+
+  // Dense scoring: stumps as flat arrays, sharing sets in CSR form.
+  struct DenseStump {
+    int32_t used = 0;     // index into used_dims()
+    uint8_t theta = 0;
+    double above = 0.0;   // a + b
+    double below = 0.0;   // b
+  };
+  const std::vector<DenseStump>& dense_stumps() const { return dense_stumps_; }
+  const std::vector<int64_t>& stump_class_begin() const { return stump_class_begin_; }  // M + 1
+  const std::vector<int32_t>& stump_classes() const { return stump_classes_; }
+
+  // Per-class scoring (inverted file): class c's stumps in training order are entries
+  // [class_stump_begin()[c], class_stump_begin()[c + 1]) of class_stumps(); the same DenseStump
+  // records, copied so that one class's loop reads contiguous memory.
+  const std::vector<int64_t>& class_stump_begin() const { return class_stump_begin_; }  // C + 2
+  const std::vector<DenseStump>& class_stumps() const { return class_stumps_; }
+
+  // Inverted file in CSR form: word w's candidate classes are [word_class_begin()[w],
+  // word_class_begin()[w + 1]) of word_classes(), ascending.
+  const std::vector<int32_t>& word_class_begin() const { return word_class_begin_; }
+  const std::vector<int32_t>& word_classes() const { return word_classes_; }
+  // The used dims that word w's candidate classes and the background read: indices into
+  // used_dims(), ascending, in [word_used_begin()[w], word_used_begin()[w + 1]) of word_used();
+  // word_used_dims() holds the matching global dims (what FrameContext::compute_dims takes).
+  const std::vector<int32_t>& word_used_begin() const { return word_used_begin_; }
+  const std::vector<int32_t>& word_used() const { return word_used_; }
+  const std::vector<int32_t>& word_used_dims() const { return word_used_dims_; }
+  // Word w's used dims prepared for FrameContext::compute_dims.
+  const DimPlan& word_plan(int32_t w) const { return word_plans_[w]; }
+
+ private:
+  ModelData data_;
+  EmbeddingLayout layout_;
+  std::vector<int32_t> used_dims_;
+  std::vector<DenseStump> dense_stumps_;
+  std::vector<int64_t> stump_class_begin_;
+  std::vector<int32_t> stump_classes_;
+  std::vector<int64_t> class_stump_begin_;
+  std::vector<DenseStump> class_stumps_;
+  std::vector<int32_t> word_class_begin_;
+  std::vector<int32_t> word_classes_;
+  std::vector<int32_t> word_used_begin_;
+  std::vector<int32_t> word_used_;
+  std::vector<int32_t> word_used_dims_;
+  DimPlan used_plan_;
+  std::vector<DimPlan> word_plans_;
+};
+
+namespace detail {
+// LEB128 varint gap coding of an ascending id list (first id, then differences), and its
+// bounds-checked inverse: decode throws lmb::Error naming `what` when the bytes end early, hold
+// extra bytes, a gap is zero after the first id, or an id exceeds max_id.
+LMB_INFER_EXPORT std::string encode_ascending_ids(const std::vector<int32_t>& ids);
+LMB_INFER_EXPORT std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t count,
+                                                           int32_t max_id, const std::string& what);
+}  // namespace detail
+
+}  // namespace lmb

@@ -1,0 +1,159 @@
+// The C API: same answers as the C++ API, status codes and last-error text, no exception escapes.
+#include "infer/c_api.h"
+
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "infer/localizer.h"
+#include "test/infer/test_models.h"
+
+namespace lmb {
+namespace {
+
+struct CFixture {
+  test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  Model model{test::make_code_model_data(world.positions)};
+  std::filesystem::path path = std::filesystem::temp_directory_path() / "lmb_c_api_test.lbm";
+  std::vector<lmb_keypoint> keypoints;
+  lmb_camera camera{};
+
+  CFixture() {
+    model.save(path);
+    for (const Keypoint& k : world.frame.keypoints) keypoints.push_back({k.x, k.y, k.scale, k.angle});
+    camera.model = LMB_CAMERA_PINHOLE;
+    camera.width = world.frame.camera.width;
+    camera.height = world.frame.camera.height;
+    camera.params = world.frame.camera.params.data();
+    camera.num_params = static_cast<int>(world.frame.camera.params.size());
+  }
+  ~CFixture() { std::filesystem::remove(path); }
+};
+
+TEST(CApiTest, LocalizesLikeTheCppApi) {
+  CFixture fx;
+  lmb_model* model = nullptr;
+  ASSERT_EQ(lmb_model_load(fx.path.c_str(), &model), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(lmb_model_descriptor_bytes(model), test::kCodeDescriptorBytes);
+  EXPECT_EQ(lmb_model_num_classes(model), 101);
+  lmb_localize_options options;
+  lmb_localize_options_init(&options);
+  options.top_k = 2;
+  options.seed = 5;
+  const Eigen::Vector3d& g = fx.world.frame.gravity_in_cam;
+  const double gravity[3] = {g.x(), g.y(), g.z()};
+  lmb_pose pose;
+  std::vector<lmb_match> matches(1000);
+  int num_matches = -1;
+  ASSERT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
+                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, &options,
+                         &pose, matches.data(), static_cast<int>(matches.size()), &num_matches),
+            LMB_OK)
+      << lmb_last_error();
+
+  LocalizerOptions o;
+  o.classifier.top_k = 2;
+  o.pose.seed = 5;
+  const Localizer localizer(std::make_shared<const Model>(fx.model.data()), o);
+  const LocalizeResult r = localizer.localize(fx.world.frame.camera, fx.world.frame.keypoints,
+                                              fx.world.frame.descriptors.data(), g);
+  ASSERT_TRUE(r.pose.success);
+  EXPECT_EQ(pose.success, 1);
+  EXPECT_EQ(pose.num_inliers, r.pose.num_inliers);
+  EXPECT_EQ(pose.num_correspondences, static_cast<int>(r.correspondence_keypoint.size()));
+  EXPECT_EQ(pose.rotation[0], r.pose.cam_from_world.rotation.w());
+  EXPECT_EQ(pose.rotation[3], r.pose.cam_from_world.rotation.z());
+  EXPECT_EQ(pose.translation[1], r.pose.cam_from_world.translation.y());
+  EXPECT_LT(position_error(r.pose.cam_from_world, fx.world.frame.cam_from_world), 1e-3);
+  ASSERT_EQ(num_matches, static_cast<int>(r.matches.matches.size()));
+  int inliers = 0;
+  for (int i = 0; i < num_matches; ++i) {
+    const ClassMatch& m = r.matches.matches[i];
+    EXPECT_EQ(matches[i].class_id, m.cls);
+    EXPECT_EQ(matches[i].landmark, m.landmark);
+    EXPECT_EQ(matches[i].score, m.score);
+    EXPECT_EQ(matches[i].position[2], fx.model.class_position(m.cls).z());
+    EXPECT_GE(matches[i].keypoint, 0);
+    inliers += matches[i].inlier;
+  }
+  EXPECT_EQ(inliers, pose.num_inliers);
+
+  // A buffer too small: the count, the first matches and the pose are still given.
+  lmb_pose pose2;
+  int n2 = 0;
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
+                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, &options,
+                         &pose2, matches.data(), 3, &n2),
+            LMB_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_EQ(n2, num_matches);
+  EXPECT_EQ(pose2.success, 1);
+  EXPECT_NE(std::string(lmb_last_error()).find("buffer"), std::string::npos);
+  lmb_model_free(model);
+}
+
+TEST(CApiTest, ErrorsAreStatusesWithMessages) {
+  CFixture fx;
+  lmb_model* model = reinterpret_cast<lmb_model*>(0x1);
+  EXPECT_EQ(lmb_model_load("/nonexistent/model.lbm", &model), LMB_ERROR_MODEL_FILE);
+  EXPECT_EQ(model, nullptr);
+  EXPECT_NE(std::string(lmb_last_error()).find("/nonexistent/model.lbm"), std::string::npos);
+  EXPECT_EQ(lmb_model_load(nullptr, &model), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_model_load(fx.path.c_str(), nullptr), LMB_ERROR_INVALID_ARGUMENT);
+
+  // A corrupt image in memory.
+  std::vector<uint8_t> bytes = fx.model.to_bytes();
+  bytes[bytes.size() / 2] ^= 1;
+  EXPECT_EQ(lmb_model_load_from_memory(bytes.data(), bytes.size(), &model), LMB_ERROR_MODEL_FILE);
+  EXPECT_NE(std::string(lmb_last_error()).find("CRC"), std::string::npos);
+  bytes[bytes.size() / 2] ^= 1;
+  ASSERT_EQ(lmb_model_load_from_memory(bytes.data(), bytes.size(), &model), LMB_OK);
+
+  const double gravity[3] = {0, 1, 0};
+  const double zero[3] = {0, 0, 0};
+  lmb_pose pose;
+  const int n = static_cast<int>(fx.keypoints.size());
+  const uint8_t* desc = fx.world.frame.descriptors.data();
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, 32, gravity, nullptr, &pose,
+                         nullptr, 0, nullptr),
+            LMB_ERROR_INVALID_ARGUMENT);  // wrong descriptor length
+  EXPECT_NE(std::string(lmb_last_error()).find("bytes"), std::string::npos);
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, zero,
+                         nullptr, &pose, nullptr, 0, nullptr),
+            LMB_ERROR_INVALID_ARGUMENT);  // zero gravity: an lmb::Error inside, a status outside
+  EXPECT_NE(std::string(lmb_last_error()).find("gravity"), std::string::npos) << lmb_last_error();
+  lmb_camera bad = fx.camera;
+  bad.model = 99;
+  EXPECT_EQ(lmb_localize(model, &bad, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity,
+                         nullptr, &pose, nullptr, 0, nullptr),
+            LMB_ERROR_INVALID_ARGUMENT);
+  lmb_localize_options options;
+  lmb_localize_options_init(&options);
+  options.top_k = 0;
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity,
+                         &options, &pose, nullptr, 0, nullptr),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_localize(nullptr, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes,
+                         gravity, nullptr, &pose, nullptr, 0, nullptr),
+            LMB_ERROR_INVALID_ARGUMENT);
+  // Without a matches buffer: the pose and the match count alone.
+  int count = 0;
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes,
+                         gravity, nullptr, &pose, nullptr, 0, &count),
+            LMB_OK);
+  EXPECT_GT(count, 0);
+  EXPECT_EQ(pose.success, 1);
+
+  // The last error is per thread.
+  std::string other;
+  std::thread([&] { other = lmb_last_error(); }).join();
+  EXPECT_EQ(other, "");
+  lmb_model_free(model);
+  lmb_model_free(nullptr);
+}
+
+}  // namespace
+}  // namespace lmb

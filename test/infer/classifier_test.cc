@@ -1,0 +1,210 @@
+// Classifier: feature values against the brute-force embedding, dense and inverted-file scores
+// against a reference sum, ranking and background rejection.
+#include "infer/classifier.h"
+
+#include <algorithm>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/context_embedding.h"
+#include "common/error.h"
+#include "common/hamming.h"
+#include "common/random.h"
+#include "test/infer/test_models.h"
+
+namespace lmb {
+namespace {
+
+// A random model: random stumps on random dims (context and bits), random sharing sets (some with
+// the background), random biases, random inverted file.
+ModelData random_model_data(int32_t C, int32_t M, uint64_t seed) {
+  Rng rng(seed);
+  ModelData d;
+  d.descriptor_bytes = test::kCodeDescriptorBytes;
+  d.regions = test::test_regions();
+  d.vocabulary = test::test_vocabulary(seed);
+  d.num_classes = C;
+  for (int32_t c = 0; c < C; ++c) {
+    d.class_landmark.push_back(10 * c + 1);
+    d.class_position.emplace_back(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(2, 5));
+  }
+  for (int32_t c = 0; c <= C; ++c) d.bias.push_back(rng.uniform(-1, 1));
+  const int32_t num_dims = d.layout().num_dims();
+  for (int32_t m = 0; m < M; ++m) {
+    ModelStump s;
+    s.dim = static_cast<int32_t>(rng.below(static_cast<uint64_t>(num_dims)));
+    s.theta = d.layout().is_context(s.dim) ? static_cast<uint8_t>(rng.below(255)) : 0;
+    s.a = rng.uniform(-1, 1);
+    s.b = rng.uniform(-0.5, 0.5);
+    for (int32_t c = 0; c <= C; ++c) {
+      if (rng.uniform() < 0.3) s.classes.push_back(c);
+    }
+    if (s.classes.empty()) s.classes.push_back(static_cast<int32_t>(rng.below(static_cast<uint64_t>(C) + 1)));
+    d.stumps.push_back(s);
+  }
+  d.inverted_file.assign(static_cast<size_t>(d.vocabulary.num_words()), {});
+  for (auto& list : d.inverted_file) {
+    for (int32_t c = 0; c < C; ++c) {
+      if (rng.uniform() < 0.4) list.push_back(c);
+    }
+  }
+  return d;
+}
+
+// Reference: the dense feature vector of keypoint k (brute-force context + descriptor bits).
+std::vector<uint8_t> reference_vector(const Model& m, const FrameKeypoints& frame, int32_t k,
+                                      const uint8_t* desc) {
+  const EmbeddingLayout l = m.layout();
+  std::vector<uint8_t> v(static_cast<size_t>(l.num_dims()));
+  embed_context_brute_force(m.regions(), l.num_words, frame, k, v.data());
+  for (int32_t b = 0; b < 8 * l.descriptor_bytes; ++b) v[l.num_context_dims() + b] = static_cast<uint8_t>(descriptor_bit(desc, b));
+  return v;
+}
+
+// Reference score: bias + stumps in training order, BoostModel's expression.
+double reference_score(const ModelData& d, const std::vector<uint8_t>& v, int32_t c) {
+  double total = d.bias[c];
+  for (const ModelStump& s : d.stumps) {
+    if (std::binary_search(s.classes.begin(), s.classes.end(), c)) {
+      total += (v[s.dim] > s.theta ? s.a : 0.0) + s.b;
+    }
+  }
+  return total;
+}
+
+FrameKeypoints frame_of(const test::TestFrame& f, const Vocabulary& vocab, std::vector<uint8_t>* words) {
+  words->resize(f.keypoints.size());
+  vocab.quantize(f.descriptors.data(), static_cast<int64_t>(f.keypoints.size()), words->data());
+  return frame_keypoints_from_detections(f.camera, f.keypoints.data(), words->data(),
+                                         static_cast<int32_t>(f.keypoints.size()), f.gravity_in_cam, "test");
+}
+
+TEST(ClassifierTest, ValuesAndScoresEqualTheReference) {
+  const auto model = std::make_shared<const Model>(random_model_data(9, 60, 11));
+  const ModelData& d = model->data();
+  const test::TestWorld world = test::make_test_world(40, 40, 60, 4);
+  std::vector<uint8_t> words;
+  const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
+  Classifier classifier(model);
+  classifier.index_frame(frame);
+  std::vector<uint8_t> values(model->used_dims().size());
+  std::vector<double> scores(static_cast<size_t>(d.num_classes) + 1);
+  int nonzero_context = 0;
+  for (int32_t k = 0; k < frame.size(); ++k) {
+    const uint8_t* desc = world.frame.descriptors.data() + k * d.descriptor_bytes;
+    const std::vector<uint8_t> v = reference_vector(*model, frame, k, desc);
+    classifier.compute_used_values(k, desc, values.data());
+    for (size_t u = 0; u < values.size(); ++u) {
+      ASSERT_EQ(values[u], v[model->used_dims()[u]]) << "keypoint " << k << " dim " << model->used_dims()[u];
+      if (model->layout().is_context(model->used_dims()[u]) && values[u] > 0) ++nonzero_context;
+    }
+    classifier.dense_scores(values.data(), scores.data());
+    for (int32_t c = 0; c <= d.num_classes; ++c) {
+      const double ref = reference_score(d, v, c);
+      EXPECT_EQ(scores[c], ref) << "dense, keypoint " << k << " class " << c;  // bit-identical
+      EXPECT_EQ(classifier.class_score(values.data(), c), ref) << "per class, keypoint " << k;
+    }
+  }
+  EXPECT_GT(nonzero_context, 50);  // the context path was exercised
+}
+
+TEST(ClassifierTest, RankingTopKAndBackgroundRejection) {
+  ModelData data = random_model_data(12, 80, 12);
+  data.bias[12] += 3.0;  // a stronger background, so that some keypoints are rejected
+  const auto model = std::make_shared<const Model>(std::move(data));
+  const ModelData& d = model->data();
+  const test::TestWorld world = test::make_test_world(30, 30, 30, 5);
+  std::vector<uint8_t> words;
+  const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
+  for (int top_k : {1, 3}) {
+    for (double margin : {0.0, 0.3}) {
+      for (bool inverted : {false, true}) {
+        ClassifierOptions o;
+        o.top_k = top_k;
+        o.min_margin = margin;
+        o.use_inverted_file = inverted;
+        Classifier classifier(model, o);
+        const KeypointMatches got = classifier.classify(frame, world.frame.descriptors.data());
+        ASSERT_EQ(got.num_keypoints(), frame.size());
+        int matched = 0;
+        for (int32_t k = 0; k < frame.size(); ++k) {
+          const std::vector<uint8_t> v =
+              reference_vector(*model, frame, k, world.frame.descriptors.data() + k * d.descriptor_bytes);
+          const double bg = reference_score(d, v, d.num_classes);
+          std::vector<std::pair<double, int32_t>> expected;  // (-score, class)
+          for (int32_t c = 0; c < d.num_classes; ++c) {
+            if (inverted) {
+              const auto& list = d.inverted_file[frame.word[k]];
+              if (!std::binary_search(list.begin(), list.end(), c)) continue;
+            }
+            const double s = reference_score(d, v, c);
+            if (s - bg > margin) expected.emplace_back(-s, c);
+          }
+          std::sort(expected.begin(), expected.end());
+          if (static_cast<int>(expected.size()) > top_k) expected.resize(static_cast<size_t>(top_k));
+          ASSERT_EQ(got.count(k), static_cast<int32_t>(expected.size())) << "keypoint " << k;
+          for (int32_t j = 0; j < got.count(k); ++j) {
+            const ClassMatch& m = got.of(k)[j];
+            EXPECT_EQ(m.cls, expected[j].second);
+            EXPECT_EQ(m.score, -expected[j].first);
+            EXPECT_EQ(m.background_score, bg);
+            EXPECT_EQ(m.landmark, d.class_landmark[m.cls]);
+          }
+          matched += got.count(k) > 0;
+        }
+        EXPECT_GT(matched, 0);
+        EXPECT_LT(matched, frame.size());  // some keypoints rejected as background
+      }
+    }
+  }
+}
+
+TEST(ClassifierTest, InvertedFileComputesOnlyTheWordsDims) {
+  const Model model(random_model_data(20, 100, 13));
+  for (int32_t w = 0; w < model.num_words(); ++w) {
+    std::vector<int32_t> expected;
+    std::vector<int32_t> classes = model.data().inverted_file[w];
+    classes.push_back(model.background_class());
+    for (size_t u = 0; u < model.used_dims().size(); ++u) {
+      bool needed = false;
+      for (int32_t c : classes) {
+        for (int64_t e = model.class_stump_begin()[c]; e < model.class_stump_begin()[c + 1]; ++e) {
+          needed |= model.class_stumps()[e].used == static_cast<int32_t>(u);
+        }
+      }
+      if (needed) expected.push_back(static_cast<int32_t>(u));
+    }
+    const std::vector<int32_t> got(model.word_used().begin() + model.word_used_begin()[w],
+                                   model.word_used().begin() + model.word_used_begin()[w + 1]);
+    EXPECT_EQ(got, expected) << "word " << w;
+    EXPECT_LE(got.size(), model.used_dims().size());
+  }
+}
+
+TEST(ClassifierTest, RejectsBadOptionsAndInput) {
+  const auto model = std::make_shared<const Model>(random_model_data(3, 10, 14));
+  ClassifierOptions o;
+  o.top_k = 0;
+  EXPECT_THROW(Classifier(model, o), Error);
+  o = {};
+  o.min_margin = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(Classifier(model, o), Error);
+  EXPECT_THROW(Classifier(nullptr), Error);
+  Classifier classifier(model);
+  FrameKeypoints frame;
+  frame.x = {0.f};
+  frame.y = {0.f};
+  frame.scale = {0.01f};
+  frame.word = {static_cast<uint8_t>(model->num_words())};  // out of range
+  const std::vector<uint8_t> desc(8, 0);
+  EXPECT_THROW(classifier.classify(frame, desc.data()), Error);
+  frame.word = {0};
+  EXPECT_THROW(classifier.classify(frame, nullptr), Error);
+  EXPECT_EQ(classifier.classify(frame, desc.data()).num_keypoints(), 1);
+}
+
+}  // namespace
+}  // namespace lmb

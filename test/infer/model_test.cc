@@ -1,0 +1,244 @@
+// model.lbm: round trip, and rejection of damaged files with bounded memory.
+#include "infer/model.h"
+
+#include <atomic>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <new>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+#include "common/file_container.h"
+#include "test/infer/test_models.h"
+
+// GCC flags free() on memory from the replaced operator new below; they are a matching pair.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+
+// Every allocation of this test binary goes through here, so that tests can assert that parsing
+// a corrupt file never asks for a large block (cereal would trust a corrupt size field).
+namespace {
+std::atomic<size_t> largest_allocation{0};
+}  // namespace
+
+void* operator new(size_t size) {
+  size_t seen = largest_allocation.load(std::memory_order_relaxed);
+  while (size > seen && !largest_allocation.compare_exchange_weak(seen, size)) {
+  }
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, size_t) noexcept { std::free(p); }
+
+namespace lmb {
+namespace {
+
+using test::make_code_model_data;
+
+std::vector<Eigen::Vector3d> some_positions(int n) {
+  std::vector<Eigen::Vector3d> p;
+  for (int i = 0; i < n; ++i) p.emplace_back(i, 2.0 * i, -0.5 * i);
+  return p;
+}
+
+std::vector<uint8_t> small_model_file() {
+  return Model(make_code_model_data(some_positions(5))).to_bytes();
+}
+
+std::string expect_rejected(const std::vector<uint8_t>& bytes) {
+  try {
+    Model::from_bytes(bytes.data(), bytes.size(), "test.lbm");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "a damaged model was accepted";
+  return "";
+}
+
+TEST(ModelTest, RoundTripKeepsEverything) {
+  const ModelData d = make_code_model_data(some_positions(7));
+  const Model m(d);
+  const std::vector<uint8_t> bytes = m.to_bytes();
+  const auto back = Model::from_bytes(bytes.data(), bytes.size());
+  const ModelData& e = back->data();
+  EXPECT_EQ(e.detector, d.detector);
+  EXPECT_EQ(e.descriptor_bytes, d.descriptor_bytes);
+  EXPECT_TRUE(e.regions == d.regions);
+  EXPECT_TRUE(e.vocabulary == d.vocabulary);
+  EXPECT_EQ(e.num_classes, d.num_classes);
+  EXPECT_EQ(e.class_landmark, d.class_landmark);
+  EXPECT_EQ(e.class_position, d.class_position);
+  EXPECT_EQ(e.bias, d.bias);
+  ASSERT_EQ(e.stumps.size(), d.stumps.size());
+  for (size_t i = 0; i < d.stumps.size(); ++i) {
+    EXPECT_EQ(e.stumps[i].dim, d.stumps[i].dim);
+    EXPECT_EQ(e.stumps[i].theta, d.stumps[i].theta);
+    EXPECT_EQ(e.stumps[i].a, d.stumps[i].a);
+    EXPECT_EQ(e.stumps[i].b, d.stumps[i].b);
+    EXPECT_EQ(e.stumps[i].classes, d.stumps[i].classes);
+  }
+  EXPECT_EQ(e.inverted_file, d.inverted_file);
+  // Serialization is deterministic: the same bytes again.
+  EXPECT_EQ(back->to_bytes(), bytes);
+}
+
+TEST(ModelTest, SaveAndLoadFile) {
+  const auto dir = std::filesystem::temp_directory_path() / "lmb_model_test";
+  std::filesystem::create_directories(dir);
+  const Model m(make_code_model_data(some_positions(4)));
+  m.save(dir / "m.lbm");
+  const auto back = Model::load(dir / "m.lbm");
+  EXPECT_EQ(back->to_bytes(), m.to_bytes());
+  EXPECT_THROW(Model::load(dir / "missing.lbm"), Error);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ModelTest, IndicesMatchTheStumps) {
+  const Model m(make_code_model_data(some_positions(6)));
+  const ModelData& d = m.data();
+  // Used dims: sorted, unique, and exactly the stumps' dims.
+  std::vector<int32_t> dims;
+  for (const ModelStump& s : d.stumps) dims.push_back(s.dim);
+  std::sort(dims.begin(), dims.end());
+  dims.erase(std::unique(dims.begin(), dims.end()), dims.end());
+  EXPECT_EQ(m.used_dims(), dims);
+  // Per-class lists hold each class's stumps in training order.
+  for (int32_t c = 0; c <= d.num_classes; ++c) {
+    std::vector<int32_t> expected;
+    for (const ModelStump& s : d.stumps) {
+      if (std::binary_search(s.classes.begin(), s.classes.end(), c)) expected.push_back(s.dim);
+    }
+    std::vector<int32_t> got;
+    for (int64_t e = m.class_stump_begin()[c]; e < m.class_stump_begin()[c + 1]; ++e) {
+      got.push_back(m.used_dims()[m.class_stumps()[e].used]);
+    }
+    EXPECT_EQ(got, expected) << "class " << c;
+  }
+}
+
+TEST(ModelTest, IdCodingRoundTripAndRejectsCorruptLists) {
+  const std::vector<int32_t> ids = {0, 1, 2, 127, 128, 300, 16383, 16384, 2000000};
+  const std::string bytes = detail::encode_ascending_ids(ids);
+  EXPECT_EQ(detail::decode_ascending_ids(bytes, static_cast<uint32_t>(ids.size()), 2000000, "t"), ids);
+  EXPECT_THROW(detail::decode_ascending_ids(bytes, static_cast<uint32_t>(ids.size()), 1999999, "t"), Error);
+  EXPECT_THROW(detail::decode_ascending_ids(bytes, static_cast<uint32_t>(ids.size()) - 1, 2000000, "t"), Error);
+  EXPECT_THROW(detail::decode_ascending_ids(bytes, 1000000, 2000000, "t"), Error);
+  EXPECT_THROW(detail::decode_ascending_ids(bytes.substr(0, bytes.size() - 1),
+                                            static_cast<uint32_t>(ids.size()), 2000000, "t"),
+               Error);
+  // A zero gap (repeated id) is not ascending.
+  EXPECT_THROW(detail::decode_ascending_ids(std::string("\x05\x00", 2), 2, 100, "t"), Error);
+}
+
+TEST(ModelTest, RejectsWrongMagicVersionAndCrc) {
+  const std::vector<uint8_t> good = small_model_file();
+  std::vector<uint8_t> bad = good;
+  bad[0] = 'X';
+  EXPECT_NE(expect_rejected(bad).find("magic"), std::string::npos);
+  bad = good;
+  bad[8] = 2;  // version 2
+  EXPECT_NE(expect_rejected(bad).find("version"), std::string::npos);
+  bad = good;
+  bad[kContainerHeaderBytes + 10] ^= 0x40;
+  EXPECT_NE(expect_rejected(bad).find("CRC"), std::string::npos);
+  // A vocabulary file is not a model.
+  const std::vector<uint8_t> vocab =
+      make_container(kVocabularyMagic, kVocabularyVersion, test::test_vocabulary().to_payload());
+  EXPECT_NE(expect_rejected(vocab).find("magic"), std::string::npos);
+}
+
+TEST(ModelTest, RejectsTruncationAtEveryOffset) {
+  const std::vector<uint8_t> good = small_model_file();
+  for (size_t size = 0; size < good.size(); ++size) {
+    const std::vector<uint8_t> cut(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(size));
+    expect_rejected(cut);
+  }
+  // Truncation of the payload behind a valid header (length and CRC fixed up): the parser itself
+  // must notice, at every offset.
+  const std::string payload = serialize_model_data(make_code_model_data(some_positions(5)));
+  largest_allocation = 0;
+  for (size_t size = 0; size < payload.size(); ++size) {
+    const std::vector<uint8_t> rewrapped = make_container(kModelMagic, kModelVersion, payload.substr(0, size));
+    const std::string message = expect_rejected(rewrapped);
+    EXPECT_FALSE(message.empty()) << "payload cut at " << size;
+  }
+  EXPECT_LT(largest_allocation.load(), size_t{1} << 20);
+}
+
+TEST(ModelTest, RejectsLargeCountsBeforeAllocating) {
+  // Overwrite each 8-byte window of the payload with huge values (valid CRC): every count the
+  // parser meets is then larger than the bytes left. Parsing must fail with lmb::Error and never
+  // allocate more than a small multiple of the file size.
+  const std::string payload = serialize_model_data(make_code_model_data(some_positions(5)));
+  int rejected = 0;
+  for (uint64_t value : {0xFFFFFFFFFFFFFFFFull, 0x00000000FFFFFFFFull, 0x0000000100000000ull}) {
+    for (size_t offset = 0; offset + 8 <= payload.size(); ++offset) {
+      std::string bad = payload;
+      std::memcpy(bad.data() + offset, &value, 8);
+      largest_allocation = 0;
+      try {
+        parse_model_data(bad, "corrupt.lbm");
+      } catch (const Error&) {
+        ++rejected;
+      }
+      EXPECT_LT(largest_allocation.load(), size_t{1} << 20) << "offset " << offset;
+    }
+  }
+  EXPECT_GT(rejected, 0);
+  // The classic case: the first count (the detector name's size) says 2^60 bytes.
+  std::string bad = payload;
+  const uint64_t huge = uint64_t{1} << 60;
+  std::memcpy(bad.data() + 1, &huge, 8);  // after the archive's endianness byte
+  try {
+    parse_model_data(bad, "corrupt.lbm");
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("exceeds"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ModelTest, CheckRejectsInconsistentData) {
+  ModelData d = make_code_model_data(some_positions(3));
+  {
+    ModelData x = d;
+    x.bias.pop_back();
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.stumps[0].classes = {2, 1};
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.stumps[0].classes = {4};  // > C (background is 3)
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.inverted_file[0] = {3};  // the background is never a candidate
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.stumps[0].dim = x.layout().num_dims();
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.class_position[1].x() = std::nan("");
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.descriptor_bytes = 16;  // the vocabulary's words have 8
+    EXPECT_THROW(Model{x}, Error);
+  }
+}
+
+}  // namespace
+}  // namespace lmb

@@ -1,0 +1,127 @@
+#include "train/boost/training_set.h"
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+
+namespace lmb {
+namespace {
+
+// A map with `num_landmarks` landmarks (quality = id), landmark l observed in (l % 5) + 3 map
+// frames, two untracked keypoints per frame, and one query frame observing every landmark.
+LandmarkMap make_map(int num_landmarks) {
+  LandmarkMap map;
+  map.descriptor_bytes = 1;
+  map.cameras.resize(1);
+  for (int l = 0; l < num_landmarks; ++l) {
+    Landmark lm;
+    lm.position = Eigen::Vector3d(l, 0, 0);
+    lm.quality = static_cast<float>(l);
+    map.landmarks.push_back(lm);
+  }
+  auto add_frame = [&](bool query, const std::vector<landmark_t>& seen) {
+    MapFrame f;
+    f.is_query = query;
+    f.first_keypoint = static_cast<int64_t>(map.keypoints.size());
+    for (landmark_t l : seen) {
+      map.keypoints.push_back({});
+      map.keypoint_landmark.push_back(l);
+      map.descriptors.push_back(0);
+    }
+    for (int i = 0; i < 2; ++i) {
+      map.keypoints.push_back({});
+      map.keypoint_landmark.push_back(kInvalidLandmarkId);
+      map.descriptors.push_back(0);
+    }
+    f.num_keypoints = static_cast<int32_t>(map.keypoints.size() - f.first_keypoint);
+    map.frames.push_back(f);
+  };
+  for (int f = 0; f < 8; ++f) {
+    std::vector<landmark_t> seen;
+    for (int l = 0; l < num_landmarks; ++l) {
+      if (f < (l % 5) + 3) seen.push_back(l);
+    }
+    add_frame(false, seen);
+  }
+  std::vector<landmark_t> all;
+  for (int l = 0; l < num_landmarks; ++l) all.push_back(l);
+  add_frame(true, all);
+  return map;
+}
+
+std::vector<int32_t> words_of(const LandmarkMap& map) {
+  std::vector<int32_t> w(map.keypoints.size());
+  for (size_t k = 0; k < w.size(); ++k) w[k] = static_cast<int32_t>(k % 16);
+  return w;
+}
+
+TEST(TrainingSet, SelectsTopKHoldsOutAndSamplesBackground) {
+  const LandmarkMap map = make_map(20);
+  TrainingSetOptions o;
+  o.top_k_landmarks = 6;
+  o.validation_fraction = 0.25;
+  o.background_cap = 10;
+  const TrainingSet set = build_training_set(map, words_of(map), o);
+  ASSERT_EQ(set.num_classes, 6);
+  // The best six by quality are landmarks 14..19, in id order.
+  for (int c = 0; c < 6; ++c) EXPECT_EQ(set.class_landmark[c], 14 + c);
+  std::vector<int> train(7, 0), val(7, 0);
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    const int64_t k = set.sample_keypoint[s];
+    EXPECT_FALSE(map.frames[set.sample_frame[s]].is_query);
+    EXPECT_EQ(set.sample_word[s], static_cast<int32_t>(k % 16));
+    (set.sample_is_validation[s] ? val : train)[set.sample_class[s]]++;
+    if (set.sample_class[s] < 6) {
+      EXPECT_EQ(map.keypoint_landmark[k], set.class_landmark[set.sample_class[s]]);
+    }
+  }
+  for (int c = 0; c < 6; ++c) {
+    const int n = static_cast<int>((set.class_landmark[c] % 5) + 3);
+    EXPECT_EQ(train[c] + val[c], n);
+    EXPECT_EQ(val[c], std::max(1, static_cast<int>(0.25 * n)));
+  }
+  EXPECT_EQ(train[6], 10);  // background capped
+  EXPECT_EQ(val[6], 0);
+  // Deterministic.
+  const TrainingSet again = build_training_set(map, words_of(map), o);
+  EXPECT_EQ(again.sample_keypoint, set.sample_keypoint);
+  EXPECT_EQ(again.sample_is_validation, set.sample_is_validation);
+}
+
+TEST(TrainingSet, UnselectedLandmarksBecomeBackground) {
+  const LandmarkMap map = make_map(4);
+  TrainingSetOptions o;
+  o.top_k_landmarks = 2;
+  o.background_cap = 1000000;
+  const TrainingSet set = build_training_set(map, words_of(map), o);
+  int64_t bg_tracked = 0;
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    if (set.sample_class[s] == set.background_class() && map.keypoint_landmark[set.sample_keypoint[s]] >= 0) {
+      ++bg_tracked;
+      EXPECT_TRUE(set.sample_position[s].allFinite());
+    }
+  }
+  EXPECT_EQ(bg_tracked, 3 + 4);  // landmarks 0 and 1 have 3 and 4 map observations
+}
+
+TEST(TrainingSet, RejectsBadInput) {
+  const LandmarkMap map = make_map(4);
+  EXPECT_THROW(build_training_set(map, std::vector<int32_t>(3, 0), TrainingSetOptions()), Error);
+  TrainingSetOptions o;
+  o.min_train_observations = 100;
+  EXPECT_THROW(build_training_set(map, words_of(map), o), Error);
+  // A set whose class has no training positives, and a NaN weight.
+  TrainingSet set = build_training_set(map, words_of(map), TrainingSetOptions());
+  TrainingSet no_pos = set;
+  for (int64_t s = 0; s < no_pos.num_samples(); ++s) {
+    if (no_pos.sample_class[s] == 0) no_pos.sample_is_validation[s] = 1;
+  }
+  EXPECT_THROW(no_pos.check(), Error);
+  TrainingSet nan_weight = set;
+  nan_weight.sample_weight.assign(static_cast<size_t>(set.num_samples()), 1.f);
+  nan_weight.sample_weight[3] = std::nanf("");
+  EXPECT_THROW(nan_weight.check(), Error);
+}
+
+}  // namespace
+}  // namespace lmb

@@ -1,0 +1,90 @@
+#include "train/eval/report.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+
+namespace lmb {
+namespace {
+
+MethodResult sample_method(const std::string& name) {
+  MethodResult r;
+  r.name = name;
+  KeypointRanking a;
+  a.truth = 5;
+  a.candidates = {{5, 1.0}, {7, 0.5}};
+  KeypointRanking b;
+  b.truth = 3;
+  b.candidates = {{7, 1.0}, {3, 0.5}};
+  r.retrieval = evaluate_retrieval({a, b});
+  FrameOutcome ok;
+  ok.localized = true;
+  ok.confidence = 30;
+  ok.num_correspondences = 60;
+  ok.num_inliers = 30;
+  ok.match_ms = 4.0;
+  ok.total_ms = 6.0;
+  FrameOutcome failed;
+  failed.match_ms = 2.0;
+  failed.total_ms = 8.0;
+  r.frames = {ok, failed};
+  r.pose = evaluate_poses(r.frames);
+  return r;
+}
+
+TEST(BuildReport, DesignFieldsAndCurves) {
+  DatasetCounts counts;
+  counts.map_frames = 10;
+  counts.query_frames = 2;
+  counts.landmarks = 100;
+  counts.query_keypoints = 3;
+  counts.query_keypoints_with_truth = 2;
+  const nlohmann::json report = build_report(counts, {sample_method("landmarkboost"), sample_method("bruteforce_hamming")});
+  EXPECT_EQ(report["dataset"]["query_keypoints_with_truth"], 2);
+  const auto& m = report["methods"]["landmarkboost"];
+  EXPECT_DOUBLE_EQ(m["precision_at_1"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(m["mrr"].get<double>(), 0.75);
+  // Curve: n = 1 -> fppi 0.5, miss 0.5; n = 2 -> fppi 1, miss 0: MR at FPPI 1 is 0.
+  EXPECT_DOUBLE_EQ(m["miss_rate_at_fppi"]["1"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(m["miss_rate_at_fppi"]["0.1"].get<double>(), 1.0);
+  EXPECT_EQ(m["miss_rate_curve"]["fppi"].size(), 3u);
+  EXPECT_DOUBLE_EQ(m["pose_recall_20cm_5deg"].get<double>(), 0.5);
+  // One correct frame of two: the curve is (0, 1), (0.5, 1), AUC 0.5.
+  EXPECT_DOUBLE_EQ(m["pose_auc"].get<double>(), 0.5);
+  EXPECT_EQ(m["pose_pr_curve"]["recall"].size(), 2u);
+  EXPECT_DOUBLE_EQ(m["mean_inlier_ratio"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(m["match_ms_per_frame"].get<double>(), 3.0);
+  EXPECT_DOUBLE_EQ(m["total_ms_per_frame"].get<double>(), 7.0);
+  EXPECT_EQ(m["per_frame"]["localized"], nlohmann::json({1, 0}));
+  EXPECT_TRUE(m["per_frame"]["position_error_m"][1].is_null());  // NaN -> null
+  EXPECT_EQ(m["per_frame"]["match_ms"], nlohmann::json({4.0, 2.0}));
+  for (const char* key : {"median_position_error_m", "median_rotation_error_deg", "log_average_miss_rate"}) {
+    EXPECT_TRUE(m.contains(key)) << key;
+  }
+
+  const std::string table = format_results_table(report);
+  EXPECT_NE(table.find("landmarkboost"), std::string::npos);
+  EXPECT_NE(table.find("bruteforce_hamming"), std::string::npos);
+  EXPECT_NE(table.find("0.5000"), std::string::npos);
+
+  const auto path = std::filesystem::temp_directory_path() / "lmb_report_test.json";
+  write_report(path, report);
+  std::ifstream in(path);
+  EXPECT_EQ(nlohmann::json::parse(in), report);
+  std::filesystem::remove(path);
+}
+
+TEST(BuildReport, RejectsBadMethods) {
+  EXPECT_THROW(build_report({}, {sample_method("a"), sample_method("a")}), Error);
+  EXPECT_THROW(build_report({}, {sample_method("")}), Error);
+  MethodResult r = sample_method("x");
+  r.frames.pop_back();
+  EXPECT_THROW(build_report({}, {r}), Error);
+}
+
+}  // namespace
+}  // namespace lmb

@@ -1,0 +1,210 @@
+// The serial JointBoost (GentleBoost with shared stumps) learner for thousands of classes.
+//
+// State: per-class entry lists (the paper's L+_c and L-_c) stored sample-major: entry e is
+// (sample, class, z = +1 / -1, weight). Weights are doubles (true weight = stored * 2^exponent);
+// each round they are quantised to int64 fixed point (a power-of-two scale chosen from the global
+// maximum and entry count so that any sum of entries fits), and every histogram and set sum is an
+// integer sum: the result does not depend on summation order, so a distributed layer that splits
+// dims or samples across ranks and sums integers reproduces the serial model bit for bit.
+//
+// A round: draw F_m (counter-based on (seed, round)), choose this rank's dims (hook), per dim one
+// pass over the column's non-zero-bucket samples builds per-(class, threshold bucket) sums of w for
+// positives and negatives, a cheap screening search per threshold ranks (dim, theta), the best
+// `refine_top` candidates get the full sharing-set search (train/boost/sharing_set.h), the best
+// record is reduced (hook), then w <- w exp(-z h) on every entry, incremental scores of validation
+// and mining-pool samples are updated, and every mining_interval rounds hard negatives are added.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <vector>
+
+#include "train/boost/boost_model.h"
+#include "train/boost/boost_options.h"
+#include "train/boost/sharing_set.h"
+#include "train/boost/training_set.h"
+#include "train/features/feature_matrix.h"
+
+namespace lmb {
+
+// The small record a reduction carries: the best stump of a rank.
+struct StumpRecord {
+  double gain = -std::numeric_limits<double>::infinity();  // G(S) in weight units; higher is better
+  int32_t dim = -1;                // global dim, -1 = none
+  int32_t theta = 0;               // threshold bin
+  std::vector<int32_t> classes;    // sharing set, ascending class ids
+  int64_t wp = 0, yp = 0, wm = 0, ym = 0;  // fixed-point sums over S
+  bool valid() const { return dim >= 0; }
+};
+// Strict order: larger gain, then smaller dim, then smaller theta.
+bool stump_better(const StumpRecord& x, const StumpRecord& y);
+
+// A (dim, threshold) after the cheap screening search.
+struct ScreenedCandidate {
+  double gain = 0.0;
+  int32_t dim = -1;
+  int32_t theta = 0;
+};
+
+struct RoundStats {
+  int32_t round = 0;               // 0-based
+  double cost_before = 0.0;        // exponential loss sum w before the update (after mining)
+  double cost = 0.0;               // exponential loss sum w after the update
+  double squared_error = 0.0;      // the paper's J of the fitted stump (weighted squared error)
+  double gain = 0.0;               // squared-error reduction of sharing vs. constants only
+  int32_t dim = -1;
+  int32_t theta = 0;
+  int32_t sharing_size = 0;
+  double validation_p1 = -1.0;     // precision@1 on held-out samples; -1 = not evaluated
+  double validation_p1_landmarks = -1.0;  // the same with the background class left out (no rejection)
+  int64_t num_entries = 0;
+  int64_t mined = 0;               // negatives added by mining at the start of this round
+  double seconds = 0.0;            // whole round
+  double seconds_histogram = 0.0;  // screening: column passes + per-class sums
+  double seconds_search = 0.0;     // screening and refinement searches
+  double seconds_update = 0.0;     // weights, scores, model
+  double seconds_eval = 0.0;       // validation and mining
+};
+
+// F_m of a round: the k dims with the smallest counter_hash(seed, tag, round, dim), ascending.
+// Independent of rank count and resume.
+std::vector<int32_t> draw_round_dims(uint64_t seed, int32_t round, int32_t num_dims, int32_t k);
+
+class SerialStumpLearner {
+ public:
+  // `features` rows are the samples of `set` (features.num_samples == set.num_samples()) and must
+  // outlive the learner. Throws lmb::Error on bad options (options.check(num_dims)), a bad set
+  // (set.check()), size mismatch, or features whose stored columns are all constant.
+  SerialStumpLearner(const FeatureMatrix& features, const TrainingSet& set, const BoostOptions& options);
+  virtual ~SerialStumpLearner() = default;
+  SerialStumpLearner(const SerialStumpLearner&) = delete;
+  SerialStumpLearner& operator=(const SerialStumpLearner&) = delete;
+
+  // Bootstraps the negatives and sets every weight to 1. Called by the first round if not before.
+  void initialize();
+  // One boosting round. Throws lmb::Error if the weights stop being finite.
+  RoundStats run_round();
+  // Runs the remaining rounds; on_round sees each round's statistics.
+  void train(const std::function<void(const RoundStats&)>& on_round = {});
+
+  const BoostModel& model() const { return model_; }
+  int32_t rounds_done() const { return static_cast<int32_t>(model_.stumps.size()); }
+  const BoostOptions& options() const { return options_; }
+
+  // The current entries with true weights (tests, checkpoints), sample-major order.
+  struct Entry {
+    int64_t sample = 0;
+    int32_t cls = 0;
+    int8_t z = 1;
+    double weight = 0.0;
+  };
+  std::vector<Entry> entries() const;
+  double exp_loss() const;  // sum of true weights
+  // Precision@1 of the tracked validation samples under the current model.
+  // exclude_background: best landmark class only (the top-1 ranking without rejection).
+  double validation_precision(bool exclude_background = false) const;
+
+  // The search of one round without changing state (tests): best record over `dims` (global dims,
+  // all stored here) with the current weights.
+  StumpRecord search(const std::vector<int32_t>& dims);
+
+ protected:
+  // Hooks for a distributed layer.
+  // This rank's share of the round's dims (default: all of them; each must be stored here).
+  virtual std::vector<int32_t> choose_dims(int32_t round, const std::vector<int32_t>& round_dims);
+  // Picks the candidates for the full search from this rank's screened ones (default: the
+  // refine_top best by (gain, dim, theta)). A distributed layer gathers and picks globally.
+  virtual std::vector<ScreenedCandidate> select_for_refinement(std::vector<ScreenedCandidate> local);
+  // Combines the ranks' best records (default: identity).
+  virtual StumpRecord reduce_best(StumpRecord local) { return local; }
+  // above[s] = [v_dim(s) > theta] for every sample (default: reads the local column).
+  virtual void stump_above(int32_t dim, int32_t theta, std::vector<uint8_t>* above);
+  // Global reductions of per-rank scalars (default: identity).
+  virtual double reduce_max(double local) { return local; }
+  virtual int64_t reduce_sum(int64_t local) { return local; }
+  // Sample-partitioned (data-parallel) layers sum integer buffers across ranks (default: no-op):
+  // the per-class totals W_c, Y_c (2 x (C + 1) int64 per round) and, after each column pass, the
+  // dim's histogram (num_thresholds x (C + 1) x 2 int64, bucket-major). Integer sums make the
+  // result independent of the rank count. A feature-parallel layer (dims split, entries
+  // replicated) needs neither.
+  virtual void reduce_class_totals(std::vector<int64_t>* /*w*/, std::vector<int64_t>* /*y*/) {}
+  virtual void reduce_histogram(int64_t* /*data*/, size_t /*count*/) {}
+
+  const FeatureMatrix& features_;
+  const TrainingSet& set_;
+  BoostOptions options_;
+
+ private:
+  struct DimLayout {
+    std::vector<uint8_t> thresholds;  // ascending candidate thresholds
+    uint8_t bucket[256];              // bucket of a bin: number of thresholds below it
+  };
+  void build_layouts();
+  void bootstrap_negatives();
+  void rebuild_entry_index(std::vector<int64_t>& samples, std::vector<int32_t>& codes,
+                           std::vector<double>& weights);
+  void quantize_weights();
+  // Per (class, threshold) above-sums of one dim into the touched-class arrays; returns the
+  // number of touched classes.
+  void scatter_dim(int32_t stored, const DimLayout& layout);
+  void cumulate_hist(int32_t num_thresholds);
+  // From the scattered histogram: touched_ and cum_p_/cum_n_; zeroes the histogram.
+  int32_t collect_dim_sums(int32_t num_thresholds);
+  // From the scattered histogram: screening gains per threshold; zeroes the histogram.
+  void screen_scattered(int32_t num_thresholds, std::vector<double>* gains);
+  // Fills wp_.. q_ and active_ with the touched classes that have weight above threshold t;
+  // returns their number.
+  int32_t prepare_threshold(int32_t num_touched, int32_t t, int32_t num_thresholds);
+  void screen_dim(int32_t dim, std::vector<ScreenedCandidate>* out);
+  StumpRecord refine(const ScreenedCandidate& cand);
+  StumpRecord search_impl(const std::vector<int32_t>& dims, RoundStats* stats);
+  int64_t mine_hard_negatives();
+  void evaluate_validation(RoundStats* stats);
+  int32_t stored_index(int32_t dim) const;
+
+  bool initialized_ = false;
+  int32_t C1_ = 0;  // classes including background
+  std::vector<int32_t> global_to_stored_;
+  std::vector<DimLayout> layouts_;  // per stored column
+  std::vector<uint8_t> usable_;     // per stored column: has a threshold
+
+  // Entries, sample-major.
+  std::vector<int64_t> sample_offset_;  // size num_samples + 1
+  std::vector<int32_t> entry_code_;     // class * 2 + (z < 0)
+  std::vector<double> entry_weight_;    // stored weights; true = stored * 2^weight_exponent_
+  // What the histogram pass reads, packed so that a sample's entries share cache lines.
+  struct HotEntry {
+    int64_t wq;    // this round's fixed-point weight
+    int32_t code;  // class * 2 + (z < 0)
+    int32_t unused;
+  };
+  std::vector<HotEntry> hot_;
+  int weight_exponent_ = 0;
+  int quant_shift_ = 0;  // this round's fixed point: units = stored weight * 2^quant_shift_
+  std::vector<std::vector<int64_t>> class_negatives_;  // per class: sorted negative samples
+  std::vector<int64_t> class_w_, class_y_;             // per class fixed-point totals
+  std::vector<double> class_q_;                        // Y^2 / W
+
+  // Per-dim scratch.
+  std::vector<int64_t> hist_;          // ((bucket - 1) * C1 + class) * 2 + neg; all zero between passes
+  std::vector<std::pair<int32_t, int32_t>> nonzero_;  // (sample, bucket) of a column pass
+  std::vector<int32_t> touched_;       // ascending class ids
+  std::vector<int64_t> cum_p_, cum_n_;  // [t * touched + j]
+  std::vector<int64_t> wp_, yp_, wm_, ym_;
+  std::vector<double> wpd_, ypd_, wmd_, ymd_, q_;  // double copies for the screening pass
+  std::vector<double> screen_gains_;
+  std::vector<int32_t> active_;        // class of each search row
+  std::vector<uint8_t> sharing_scratch_;
+
+  // Tracked sample scores: score(s, c) = class_offset_[c] + tracked_scores_[row * C1 + c].
+  std::vector<int64_t> tracked_samples_;  // validation rows first, then mining pool rows
+  int64_t num_validation_rows_ = 0;
+  std::vector<float> tracked_scores_;
+  std::vector<double> class_offset_;
+
+  BoostModel model_;
+  double last_validation_ = -1.0;
+};
+
+}  // namespace lmb

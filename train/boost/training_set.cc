@@ -1,0 +1,184 @@
+#include "train/boost/training_set.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "common/error.h"
+#include "common/random.h"
+
+namespace lmb {
+
+namespace {
+constexpr uint64_t kHoldoutTag = 0x484F4C44;     // "HOLD"
+constexpr uint64_t kBackgroundTag = 0x424B4752;  // "BKGR"
+}  // namespace
+
+void TrainingSet::check() const {
+  const int64_t n = num_samples();
+  LMB_CHECK(num_classes >= 1, "training set: no landmark classes");
+  LMB_CHECK(static_cast<int32_t>(class_landmark.size()) == num_classes &&
+                static_cast<int32_t>(class_position.size()) == num_classes,
+            "training set: class_landmark/class_position must have num_classes = " << num_classes
+                                                                                  << " entries");
+  LMB_CHECK(static_cast<int64_t>(sample_word.size()) == n &&
+                static_cast<int64_t>(sample_position.size()) == n &&
+                static_cast<int64_t>(sample_frame.size()) == n &&
+                static_cast<int64_t>(sample_keypoint.size()) == n &&
+                static_cast<int64_t>(sample_is_validation.size()) == n,
+            "training set: per-sample arrays must all have " << n << " entries");
+  LMB_CHECK(sample_weight.empty() || static_cast<int64_t>(sample_weight.size()) == n,
+            "training set: sample_weight must be empty or have " << n << " entries");
+  for (size_t i = 0; i < sample_weight.size(); ++i) {
+    LMB_CHECK(std::isfinite(sample_weight[i]) && sample_weight[i] > 0.f,
+              "training set: sample " << i << " has weight " << sample_weight[i]
+                                      << " (must be finite and > 0)");
+  }
+  std::vector<int64_t> train_count(static_cast<size_t>(num_classes) + 1, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t c = sample_class[i];
+    LMB_CHECK(c >= 0 && c <= num_classes,
+              "training set: sample " << i << " has class " << c << " outside [0, " << num_classes << "]");
+    if (!sample_is_validation[i]) ++train_count[c];
+  }
+  for (int32_t c = 0; c < num_classes; ++c) {
+    LMB_CHECK(train_count[c] > 0, "training set: class " << c << " (landmark " << class_landmark[c]
+                                                         << ") has no training positives");
+  }
+  LMB_CHECK(train_count[num_classes] > 0,
+            "training set: no background training samples (the map has no untracked keypoints and "
+            "every landmark was selected; lower top_k_landmarks or raise background_cap)");
+}
+
+TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t>& keypoint_words,
+                               const TrainingSetOptions& options) {
+  options.check();
+  const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
+  LMB_CHECK(static_cast<int64_t>(keypoint_words.size()) == num_keypoints,
+            "training set: " << keypoint_words.size() << " visual words given for " << num_keypoints
+                             << " map keypoints");
+  LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_keypoints,
+            "map: keypoint_landmark has " << map.keypoint_landmark.size() << " entries for "
+                                          << num_keypoints << " keypoints");
+  const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
+
+  // Map (non-query) observations per landmark.
+  std::vector<std::vector<int64_t>> observations(static_cast<size_t>(num_landmarks));
+  std::vector<int64_t> background;
+  std::vector<frame_t> keypoint_frame(static_cast<size_t>(num_keypoints), kInvalidFrameId);
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    LMB_CHECK(frame.first_keypoint >= 0 && frame.num_keypoints >= 0 &&
+                  frame.first_keypoint + frame.num_keypoints <= num_keypoints,
+              "map: frame " << f << " (" << frame.name << ") keypoint range out of bounds");
+    if (frame.is_query) continue;
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+      keypoint_frame[k] = f;
+      const landmark_t l = map.keypoint_landmark[k];
+      LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
+                "map: keypoint " << k << " refers to landmark " << l << " of " << num_landmarks);
+      if (l == kInvalidLandmarkId) {
+        background.push_back(k);
+      } else {
+        observations[l].push_back(k);
+      }
+    }
+  }
+
+  // Hold-out count per landmark, then qualification and top-K by quality.
+  auto holdout_count = [&](int64_t n) -> int64_t {
+    if (options.validation_fraction <= 0.0 || n <= options.min_train_observations) return 0;
+    int64_t h = std::max<int64_t>(1, static_cast<int64_t>(std::floor(options.validation_fraction * n)));
+    return std::min<int64_t>(h, n - options.min_train_observations);
+  };
+  std::vector<landmark_t> candidates;
+  for (landmark_t l = 0; l < num_landmarks; ++l) {
+    if (static_cast<int64_t>(observations[l].size()) >= options.min_train_observations) {
+      candidates.push_back(l);
+    }
+  }
+  LMB_CHECK(!candidates.empty(), "training set: no landmark has at least "
+                                     << options.min_train_observations << " map observations");
+  std::sort(candidates.begin(), candidates.end(), [&](landmark_t a, landmark_t b) {
+    if (map.landmarks[a].quality != map.landmarks[b].quality) {
+      return map.landmarks[a].quality > map.landmarks[b].quality;
+    }
+    return a < b;
+  });
+  if (static_cast<int64_t>(candidates.size()) > options.top_k_landmarks) {
+    candidates.resize(static_cast<size_t>(options.top_k_landmarks));
+  }
+  std::sort(candidates.begin(), candidates.end());
+
+  TrainingSet set;
+  set.num_classes = static_cast<int32_t>(candidates.size());
+  std::vector<int32_t> landmark_class(static_cast<size_t>(num_landmarks), -1);
+  for (int32_t c = 0; c < set.num_classes; ++c) {
+    landmark_class[candidates[c]] = c;
+    set.class_landmark.push_back(candidates[c]);
+    set.class_position.push_back(map.landmarks[candidates[c]].position);
+  }
+  // Observations of unselected landmarks are background too.
+  for (landmark_t l = 0; l < num_landmarks; ++l) {
+    if (landmark_class[l] < 0) background.insert(background.end(), observations[l].begin(), observations[l].end());
+  }
+  std::sort(background.begin(), background.end());
+  if (static_cast<int64_t>(background.size()) > options.background_cap) {
+    std::vector<std::pair<uint64_t, int64_t>> keyed;
+    keyed.reserve(background.size());
+    for (int64_t k : background) keyed.emplace_back(counter_hash(options.seed, kBackgroundTag, static_cast<uint64_t>(k)), k);
+    std::nth_element(keyed.begin(), keyed.begin() + options.background_cap, keyed.end());
+    keyed.resize(static_cast<size_t>(options.background_cap));
+    background.clear();
+    for (const auto& [h, k] : keyed) background.push_back(k);
+    std::sort(background.begin(), background.end());
+  }
+
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  auto add_sample = [&](int64_t k, int32_t c, bool validation) {
+    set.sample_class.push_back(c);
+    set.sample_word.push_back(keypoint_words[k]);
+    const landmark_t l = map.keypoint_landmark[k];
+    set.sample_position.push_back(l == kInvalidLandmarkId ? Eigen::Vector3f(nan, nan, nan)
+                                                          : map.landmarks[l].position.cast<float>());
+    set.sample_frame.push_back(keypoint_frame[k]);
+    set.sample_keypoint.push_back(k);
+    set.sample_is_validation.push_back(validation ? 1 : 0);
+  };
+  for (int32_t c = 0; c < set.num_classes; ++c) {
+    const auto& obs = observations[candidates[c]];
+    const int64_t h = holdout_count(static_cast<int64_t>(obs.size()));
+    std::vector<std::pair<uint64_t, int64_t>> keyed;
+    for (int64_t k : obs) keyed.emplace_back(counter_hash(options.seed, kHoldoutTag, static_cast<uint64_t>(k)), k);
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<uint8_t> held(obs.size(), 0);
+    std::vector<int64_t> held_keys;
+    for (int64_t i = 0; i < h; ++i) held_keys.push_back(keyed[i].second);
+    for (size_t i = 0; i < obs.size(); ++i) {
+      const bool v = std::find(held_keys.begin(), held_keys.end(), obs[i]) != held_keys.end();
+      add_sample(obs[i], c, v);
+    }
+  }
+  for (int64_t k : background) add_sample(k, set.num_classes, false);
+
+  // Samples in keypoint order: the feature builder then reads frames sequentially.
+  std::vector<int64_t> order(set.sample_class.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](int64_t a, int64_t b) { return set.sample_keypoint[a] < set.sample_keypoint[b]; });
+  auto permute = [&](auto& v) {
+    auto copy = v;
+    for (size_t i = 0; i < order.size(); ++i) v[i] = copy[order[i]];
+  };
+  permute(set.sample_class);
+  permute(set.sample_word);
+  permute(set.sample_position);
+  permute(set.sample_frame);
+  permute(set.sample_keypoint);
+  permute(set.sample_is_validation);
+  set.check();
+  return set;
+}
+
+}  // namespace lmb

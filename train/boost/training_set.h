@@ -1,0 +1,54 @@
+// The samples the learner trains on: one per map keypoint observation kept for training, labelled
+// with its class. Classes 0..C-1 are the selected landmarks; class C is the background (untracked
+// keypoints and observations of landmarks that were not selected). Row i of the FeatureMatrix is
+// sample i.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/landmark_map.h"
+#include "common/types.h"
+#include "train/boost/boost_options.h"
+
+namespace lmb {
+
+struct TrainingSet {
+  int32_t num_classes = 0;                   // C landmark classes; the background class is C
+  std::vector<landmark_t> class_landmark;    // size C: the map landmark of each class
+  std::vector<Eigen::Vector3d> class_position;  // size C: world frame, meters
+
+  // Per sample (all of size num_samples()):
+  std::vector<int32_t> sample_class;         // 0..C (C = background)
+  std::vector<int32_t> sample_word;          // visual word of the keypoint descriptor, -1 = none
+  std::vector<Eigen::Vector3f> sample_position;  // its landmark's position (world, meters), NaN
+                                                 // for untracked keypoints
+  std::vector<frame_t> sample_frame;         // map frame
+  std::vector<int64_t> sample_keypoint;      // index into LandmarkMap::keypoints, -1 if synthetic
+  std::vector<uint8_t> sample_is_validation; // 1 = held-out map observation (never trained on)
+  // Optional initial weight of every entry of a sample (finite, > 0); empty = all 1.
+  std::vector<float> sample_weight;
+
+  int32_t background_class() const { return num_classes; }
+  int32_t num_classes_with_background() const { return num_classes + 1; }
+  int64_t num_samples() const { return static_cast<int64_t>(sample_class.size()); }
+  // Throws lmb::Error on inconsistent sizes, class indices out of range, a landmark class without
+  // a training sample, no background training sample, or a non-finite / non-positive weight.
+  void check() const;
+};
+
+// Builds the training set from the map's non-query frames:
+//  - classes: the top_k_landmarks landmarks by quality (ties: smaller id) among those with at least
+//    min_train_observations + (1 if any is held out) map observations, ordered by landmark id;
+//  - validation: per class, floor(validation_fraction * n) observations (at least 1 when
+//    validation_fraction > 0 and n > min_train_observations), chosen by a seeded hash;
+//  - background: untracked keypoints and observations of unselected landmarks, at most
+//    background_cap of them (seeded hash), all training samples.
+// keypoint_words: per map keypoint its visual word (-1 = none), size map.keypoints.size().
+// Throws lmb::Error on a malformed map, wrong word count, or no landmark qualifying.
+TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t>& keypoint_words,
+                               const TrainingSetOptions& options);
+
+}  // namespace lmb

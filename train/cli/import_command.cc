@@ -1,0 +1,134 @@
+// lboost import: posed images in other formats -> a collection for `lboost map`.
+//   lboost import tum     a TUM RGB-D sequence (rgb.txt, groundtruth.txt, accelerometer.txt)
+//   lboost import colmap  a COLMAP sparse model (text or binary) + its image folder
+#include <array>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <spdlog/spdlog.h>
+
+#include "common/error.h"
+#include "train/cli/commands.h"
+#include "train/import/colmap_import.h"
+#include "train/import/tum_import.h"
+#include "train/import/visual_time_offset.h"
+
+namespace lmb::cli {
+
+namespace {
+
+void print_gravity_agreement(const GravityAgreement& g, const std::string& world_up) {
+  std::printf("import: accelerometer vs ground-truth gravity (world up %s) over %d frames: median %.2f deg, "
+              "mean %.2f deg, 90%% %.2f deg\n",
+              world_up.c_str(), g.frames, g.median_deg, g.mean_deg, g.p90_deg);
+  std::printf("import: median angle by world up axis: +x %.1f, -x %.1f, +y %.1f, -y %.1f, +z %.1f, -z %.1f deg\n",
+              g.median_deg_by_world_axis[0], g.median_deg_by_world_axis[1], g.median_deg_by_world_axis[2],
+              g.median_deg_by_world_axis[3], g.median_deg_by_world_axis[4], g.median_deg_by_world_axis[5]);
+  std::printf("import: best ground-truth time offset %+.3f s (median %.2f deg); fitted accelerometer rotation is "
+              "%.2f deg from the assumed one (median %.2f deg after fitting)\n",
+              g.best_time_offset_s, g.best_time_offset_median_deg, g.fitted_rotation_offset_deg, g.fitted_median_deg);
+}
+
+// Prints the visual time-offset scan (see train/import/visual_time_offset.h) of the sequence.
+void run_time_offset_scan(const TumImportOptions& options) {
+  spdlog::info("import tum: scanning the image/ground-truth time offset from the images (takes a minute or two)");
+  const std::vector<TumImage> images = read_tum_image_list(options.data_dir / "rgb.txt");
+  const TumTrajectory trajectory = read_tum_trajectory(options.data_dir / "groundtruth.txt");
+  const TimeOffsetScan scan = scan_time_offset_visual(options.data_dir, images, trajectory,
+                                                      parse_camera_line(options.camera), 0.05, 0.005, options.max_gap_s);
+  std::printf("import: visual time offset scan over %d frame pairs (median relative-rotation disagreement):\n",
+              scan.pairs);
+  for (size_t k = 0; k < scan.offset_s.size(); ++k) {
+    std::printf("import:   offset %+.3f s: %.3f deg (%d pairs)\n", scan.offset_s[k], scan.median_deg[k],
+                scan.pairs_used[k]);
+  }
+  std::printf("import: best --time-offset %+.3f s\n", scan.best_offset_s);
+}
+
+void run_tum(const TumImportOptions& options, bool scan_offset) {
+  spdlog::info("import tum: {} -> {}", options.data_dir.string(), options.out_dir.string());
+  const TumImportStats s = import_tum(options);
+  std::printf("import: %d frames listed, %d imported (%d map, %d query), %d skipped without ground truth within "
+              "%.0f ms, %d skipped without accelerometer\n",
+              s.listed_frames, s.imported_frames, s.map_frames, s.query_frames, s.skipped_no_pose,
+              options.max_gap_s * 1000, s.skipped_no_accelerometer);
+  if (s.gravity_agreement) print_gravity_agreement(*s.gravity_agreement, options.world_up);
+  std::printf("import: wrote %s (sparse/, images/ -> %s%s)\n", options.out_dir.string().c_str(),
+              options.data_dir.string().c_str(), options.gravity == "none" ? "" : ", gravity.txt");
+  if (scan_offset) run_time_offset_scan(options);
+}
+
+void run_colmap(const ColmapImportOptions& options) {
+  spdlog::info("import colmap: {} + {} -> {}", options.sparse_dir.string(), options.image_dir.string(),
+               options.out_dir.string());
+  const ColmapImportStats s = import_colmap(options);
+  std::printf("import: %s model, %d images (%d map, %d query), %s; wrote %s\n", s.binary ? "binary" : "text",
+              s.images, s.map_frames, s.query_frames, s.has_gravity ? "gravity.txt written" : "no gravity file",
+              options.out_dir.string().c_str());
+}
+
+}  // namespace
+
+void add_import_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("import", "Turn posed images in other formats into a collection");
+  cmd->require_subcommand(1);
+
+  auto tum = std::make_shared<TumImportOptions>();
+  auto tum_data = std::make_shared<std::string>();
+  auto tum_out = std::make_shared<std::string>();
+  auto* t = cmd->add_subcommand("tum", "A TUM RGB-D sequence (rgb.txt, groundtruth.txt, accelerometer.txt, rgb/)");
+  t->add_option("--data", *tum_data, "Sequence folder")->required();
+  t->add_option("--out", *tum_out, "Collection folder to write (sparse/, images/ with symlinks, gravity.txt)")
+      ->required();
+  t->add_option("--split", tum->split,
+                "Map/query split over the imported frames: every:N (frames 0, N, 2N.. map), first:F, "
+                "time:A:B (seconds from the first frame), list:FILE (map frames)")
+      ->capture_default_str();
+  t->add_option("--gravity", tum->gravity, "gravity.txt from: accelerometer, groundtruth-up, none")
+      ->check(CLI::IsMember({"accelerometer", "groundtruth-up", "none"}))
+      ->capture_default_str();
+  t->add_option("--world-up", tum->world_up, "Up axis of the ground-truth world (groundtruth-up and the check)")
+      ->capture_default_str();
+  t->add_option("--time-offset", tum->time_offset_s,
+                "Seconds added to image timestamps to look up ground truth (positive: ground truth lags)")
+      ->capture_default_str();
+  t->add_option("--max-gap", tum->max_gap_s, "Frames without ground truth this close (s) are skipped")
+      ->capture_default_str();
+  t->add_option("--accel-window", tum->accel_half_window_s, "Half-width (s) of the accelerometer average")
+      ->capture_default_str();
+  t->add_option("--camera", tum->camera, "Camera as 'MODEL WIDTH HEIGHT PARAMS...' (COLMAP)")->capture_default_str();
+  t->add_flag("--overwrite", tum->overwrite, "Replace sparse/, images/ and gravity.txt of an existing output");
+  auto scan_offset = std::make_shared<bool>(false);
+  t->add_flag("--estimate-time-offset", *scan_offset,
+              "Also measure the image/ground-truth time offset from the images (+-50 ms in 5 ms steps)");
+  t->callback([tum, tum_data, tum_out, scan_offset] {
+    TumImportOptions options = *tum;
+    options.data_dir = *tum_data;
+    options.out_dir = *tum_out;
+    run_tum(options, *scan_offset);
+  });
+
+  auto colmap = std::make_shared<ColmapImportOptions>();
+  auto paths = std::make_shared<std::array<std::string, 4>>();
+  auto* c = cmd->add_subcommand("colmap", "A COLMAP sparse model (text or binary) and its image folder");
+  c->add_option("--sparse", (*paths)[0], "Sparse model folder (cameras/images .bin or .txt)")->required();
+  c->add_option("--images", (*paths)[1], "Image folder the model's image names are relative to")->required();
+  c->add_option("--out", (*paths)[2], "Collection folder to write")->required();
+  c->add_option("--split", colmap->split, "Map/query split over the images sorted by name: every:N, first:F, "
+                                          "list:FILE (map frames)")
+      ->capture_default_str();
+  c->add_option("--gravity-file", (*paths)[3], "Per-image gravity (IMAGE_NAME gx gy gz, camera frame, down)");
+  c->add_option("--up", colmap->up, "Or: the model's world up axis (+x, -x, +y, -y, +z, -z) for gravity.txt");
+  c->add_flag("--overwrite", colmap->overwrite, "Replace sparse/, images/ and gravity.txt of an existing output");
+  c->callback([colmap, paths] {
+    ColmapImportOptions options = *colmap;
+    options.sparse_dir = (*paths)[0];
+    options.image_dir = (*paths)[1];
+    options.out_dir = (*paths)[2];
+    options.gravity_file = (*paths)[3];
+    run_colmap(options);
+  });
+}
+
+}  // namespace lmb::cli

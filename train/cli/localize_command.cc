@@ -1,0 +1,270 @@
+// `lboost localize`: model.lbm + the query frames of a map (keypoints, descriptors, camera and
+// gravity as the mapper detected them) -> poses and matches as JSON, and a summary against the
+// map's ground-truth poses and keypoint landmarks.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "common/error.h"
+#include "common/io/map_h5.h"
+#include "common/landmark_map.h"
+#include "infer/localizer.h"
+#include "infer/model.h"
+#include "train/cli/commands.h"
+
+namespace lmb::cli {
+
+namespace {
+
+struct LocalizeArgs {
+  std::string model;
+  std::string map;
+  std::vector<std::string> queries;  // frame names; empty = every query frame
+  std::string out;
+  LocalizerOptions options;
+  int threads = 1;
+  bool all_matches = false;
+};
+
+struct FrameOutcome {
+  LocalizeResult result;
+  int32_t keypoints_with_truth = 0;
+  int32_t correct_top1 = 0;   // top-1 landmark equals the keypoint's true landmark
+  int32_t matched = 0;        // keypoints with a match
+  int32_t matched_correct = 0;
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::vector<frame_t> select_frames(const LandmarkMap& map, const std::vector<std::string>& names) {
+  std::vector<frame_t> frames;
+  if (names.empty()) {
+    for (frame_t f = 0; f < map.num_frames(); ++f) {
+      if (map.frames[f].is_query) frames.push_back(f);
+    }
+    LMB_CHECK(!frames.empty(), "localize: the map has no query frames (give --queries)");
+    return frames;
+  }
+  for (const std::string& name : names) {
+    frame_t found = kInvalidFrameId;
+    for (frame_t f = 0; f < map.num_frames(); ++f) {
+      if (map.frames[f].name == name) found = f;
+    }
+    LMB_CHECK(found != kInvalidFrameId, "localize: --queries: no frame named '" << name << "' in the map");
+    frames.push_back(found);
+  }
+  return frames;
+}
+
+FrameOutcome localize_frame(const Localizer& localizer, const LandmarkMap& map, frame_t f) {
+  const MapFrame& frame = map.frames[f];
+  const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
+                                        map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+  FrameOutcome o;
+  o.result = localizer.localize(map.cameras[frame.camera], keypoints, map.descriptor(frame.first_keypoint),
+                                frame.gravity_in_cam);
+  for (int32_t k = 0; k < frame.num_keypoints; ++k) {
+    const landmark_t truth = map.keypoint_landmark[frame.first_keypoint + k];
+    const bool has_match = o.result.matches.count(k) > 0;
+    const landmark_t top1 = has_match ? o.result.matches.of(k)[0].landmark : kInvalidLandmarkId;
+    if (truth != kInvalidLandmarkId) {
+      ++o.keypoints_with_truth;
+      if (top1 == truth) ++o.correct_top1;
+    }
+    if (has_match) {
+      ++o.matched;
+      if (top1 == truth) ++o.matched_correct;
+    }
+  }
+  return o;
+}
+
+void run_localize(const LocalizeArgs& a) {
+  LMB_CHECK(a.threads >= 1 && a.threads <= 256, "localize: --threads = " << a.threads << " must be in 1..256");
+  const std::shared_ptr<const Model> model = Model::load(a.model);
+  const LandmarkMap map = read_map_h5(a.map);
+  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(),
+            a.map << ": " << map.descriptor_bytes << "-byte descriptors, the model expects "
+                  << model->descriptor_bytes());
+  const Localizer localizer(model, a.options);
+  const std::vector<frame_t> frames = select_frames(map, a.queries);
+  spdlog::info("localize: {} frames, model {} classes, {} stumps, {} used dims, {} scoring, {} thread(s)",
+               frames.size(), model->num_classes(), model->data().stumps.size(), model->used_dims().size(),
+               a.options.classifier.use_inverted_file ? "inverted-file" : "dense", a.threads);
+
+  std::vector<FrameOutcome> outcomes(frames.size());
+  std::atomic<size_t> next{0};
+  std::vector<std::thread> pool;
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  for (int t = 0; t < a.threads; ++t) {
+    pool.emplace_back([&] {
+      for (size_t i = next++; i < frames.size(); i = next++) {
+        try {
+          outcomes[i] = localize_frame(localizer, map, frames[i]);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(error_mutex);
+          if (!error) error = std::current_exception();
+        }
+      }
+    });
+  }
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+
+  nlohmann::json out;
+  out["model"] = a.model;
+  out["map"] = a.map;
+  out["options"] = {{"top_k", a.options.classifier.top_k},
+                    {"use_inverted_file", a.options.classifier.use_inverted_file},
+                    {"min_margin", a.options.classifier.min_margin},
+                    {"pose_top_k", a.options.pose_top_k},
+                    {"max_correspondences", a.options.max_correspondences},
+                    {"ransac_iterations", a.options.pose.max_iterations},
+                    {"max_reprojection_error_px", a.options.pose.max_reprojection_error_px},
+                    {"min_inliers", a.options.pose.min_inliers},
+                    {"seed", a.options.pose.seed}};
+  std::vector<double> position_errors, rotation_errors;
+  int localized = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
+  int64_t with_truth = 0, correct = 0, matched = 0, matched_correct = 0;
+  double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
+  nlohmann::json jframes = nlohmann::json::array();
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const MapFrame& frame = map.frames[frames[i]];
+    const FrameOutcome& o = outcomes[i];
+    const LocalizeResult& r = o.result;
+    nlohmann::json jf;
+    jf["name"] = frame.name;
+    jf["success"] = r.pose.success;
+    const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
+    const Eigen::Vector3d& t = r.pose.cam_from_world.translation;
+    jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
+                            {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
+    jf["num_inliers"] = r.pose.num_inliers;
+    jf["num_correspondences"] = r.correspondence_keypoint.size();
+    jf["num_keypoints"] = frame.num_keypoints;
+    jf["num_matched_keypoints"] = o.matched;
+    if (r.pose.success) {
+      ++localized;
+      const double pe = position_error(r.pose.cam_from_world, frame.cam_from_world);
+      const double re = rotation_error_deg(r.pose.cam_from_world, frame.cam_from_world);
+      position_errors.push_back(pe);
+      rotation_errors.push_back(re);
+      if (pe <= 0.05 && re <= 1.0) ++within_5cm_1deg;
+      if (pe <= 0.20 && re <= 5.0) ++within_20cm_5deg;
+      jf["position_error_m"] = pe;
+      jf["rotation_error_deg"] = re;
+    }
+    jf["timings_ms"] = {{"embedding", r.timings.embedding_ms},
+                        {"classification", r.timings.classification_ms},
+                        {"pose", r.timings.pose_ms},
+                        {"total", r.timings.total_ms}};
+    // Matches: [keypoint, rank, landmark, score, inlier]; the pose's correspondences (or every
+    // ranked match with --all-matches).
+    std::vector<char> inlier(r.matches.matches.size(), 0), used(r.matches.matches.size(), 0);
+    for (size_t c = 0; c < r.correspondence_match.size(); ++c) {
+      used[r.correspondence_match[c]] = 1;
+      if (r.pose.inlier_mask[c]) inlier[r.correspondence_match[c]] = 1;
+    }
+    nlohmann::json jm = nlohmann::json::array();
+    for (int32_t k = 0; k < r.matches.num_keypoints(); ++k) {
+      for (int32_t j = 0; j < r.matches.count(k); ++j) {
+        const int32_t idx = r.matches.begin[k] + j;
+        if (!a.all_matches && !used[idx]) continue;
+        const ClassMatch& m = r.matches.matches[idx];
+        jm.push_back({k, j, m.landmark, m.score, inlier[idx] != 0});
+      }
+    }
+    jf["matches"] = std::move(jm);
+    jframes.push_back(std::move(jf));
+    with_truth += o.keypoints_with_truth;
+    correct += o.correct_top1;
+    matched += o.matched;
+    matched_correct += o.matched_correct;
+    total_ms += r.timings.total_ms;
+    embedding_ms += r.timings.embedding_ms;
+    classification_ms += r.timings.classification_ms;
+    pose_ms += r.timings.pose_ms;
+  }
+  const double nf = static_cast<double>(frames.size());
+  const double med_pos = median(position_errors), med_rot = median(rotation_errors);
+  const double p1 = with_truth ? static_cast<double>(correct) / with_truth : 0.0;
+  const double match_precision = matched ? static_cast<double>(matched_correct) / matched : 0.0;
+  out["frames"] = std::move(jframes);
+  out["summary"] = {{"frames", frames.size()},
+                    {"localized", localized},
+                    {"within_5cm_1deg", within_5cm_1deg},
+                    {"within_20cm_5deg", within_20cm_5deg},
+                    {"median_position_error_m", med_pos},
+                    {"median_rotation_error_deg", med_rot},
+                    {"precision_at_1", p1},
+                    {"keypoints_with_truth", with_truth},
+                    {"match_precision", match_precision},
+                    {"ms_per_frame", {{"embedding", embedding_ms / nf},
+                                      {"classification", classification_ms / nf},
+                                      {"pose", pose_ms / nf},
+                                      {"total", total_ms / nf}}}};
+  const std::string text = out.dump(1);
+  std::ofstream os(a.out);
+  LMB_CHECK(os.good(), a.out << ": cannot open for writing");
+  os << text << "\n";
+  os.close();
+  LMB_CHECK(os.good(), a.out << ": write failed");
+  std::printf(
+      "localize: %d/%zu frames localized, %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
+      "%.3f m %.2f deg (localized frames); precision@1 %.3f of %lld keypoints with a true landmark, "
+      "match precision %.3f; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d "
+      "thread(s)) -> %s\n",
+      localized, frames.size(), within_5cm_1deg, within_20cm_5deg, med_pos, med_rot, p1,
+      static_cast<long long>(with_truth), match_precision, total_ms / nf, embedding_ms / nf,
+      classification_ms / nf, pose_ms / nf, a.threads, a.out.c_str());
+}
+
+}  // namespace
+
+void add_localize_command(CLI::App& app) {
+  auto args = std::make_shared<LocalizeArgs>();
+  auto* cmd = app.add_subcommand(
+      "localize", "Localize the query frames of a map with model.lbm; write poses and matches as JSON");
+  cmd->add_option("--model", args->model, "Inference model (model.lbm)")->required();
+  cmd->add_option("--map", args->map, "Map whose query frames are localized (map.h5)")->required();
+  cmd->add_option("--queries", args->queries, "Frame names to localize (default: every query frame)");
+  cmd->add_option("--out", args->out, "Output JSON (poses, matches, summary)")->required();
+  cmd->add_option("--top-k", args->options.classifier.top_k, "Matches kept per keypoint")->capture_default_str();
+  cmd->add_flag("--inverted-file", args->options.classifier.use_inverted_file,
+                "Score only the keypoint word's candidate classes");
+  cmd->add_option("--min-margin", args->options.classifier.min_margin,
+                  "Score margin over the background for a match")->capture_default_str();
+  cmd->add_option("--pose-top-k", args->options.pose_top_k, "Matches per keypoint fed to RANSAC")
+      ->capture_default_str();
+  cmd->add_option("--max-correspondences", args->options.max_correspondences,
+                  "Best-margin matches fed to RANSAC (0 = all)")->capture_default_str();
+  cmd->add_option("--ransac-iterations", args->options.pose.max_iterations, "RANSAC iterations")
+      ->capture_default_str();
+  cmd->add_option("--max-error", args->options.pose.max_reprojection_error_px, "Inlier threshold, pixels")
+      ->capture_default_str();
+  cmd->add_option("--min-inliers", args->options.pose.min_inliers, "Inliers for a pose")->capture_default_str();
+  cmd->add_option("--seed", args->options.pose.seed, "RANSAC seed")->capture_default_str();
+  cmd->add_option("--threads", args->threads, "Frames localized in parallel")->capture_default_str();
+  cmd->add_flag("--all-matches", args->all_matches, "Write every ranked match, not only the pose's");
+  cmd->callback([args] { run_localize(*args); });
+}
+
+}  // namespace lmb::cli

@@ -1,0 +1,138 @@
+#include "train/eval/report.h"
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "common/error.h"
+#include "common/file_container.h"
+
+namespace lmb {
+
+namespace {
+
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json numbers(const std::vector<double>& v) {
+  nlohmann::json a = nlohmann::json::array();
+  for (double x : v) a.push_back(number(x));
+  return a;
+}
+
+double scalar(const nlohmann::json& m, const char* key) {
+  const auto it = m.find(key);
+  if (it == m.end() || !it->is_number()) return std::nan("");
+  return it->get<double>();
+}
+
+}  // namespace
+
+nlohmann::json method_report(const MethodResult& r) {
+  const RetrievalMetrics& q = r.retrieval;
+  const PoseMetrics& p = r.pose;
+  nlohmann::json m;
+  m["precision_at_1"] = number(q.precision_at_1);
+  m["mrr"] = number(q.mrr);
+  m["miss_rate_at_fppi"] = {{"0.1", number(q.miss_rate_at_fppi_0_1)},
+                            {"1", number(q.miss_rate_at_fppi_1)},
+                            {"10", number(q.miss_rate_at_fppi_10)}};
+  m["pose_recall_20cm_5deg"] = number(p.recall);
+  m["pose_auc"] = number(p.auc);
+  m["median_position_error_m"] = number(p.median_position_error_m);
+  m["median_rotation_error_deg"] = number(p.median_rotation_error_deg);
+  m["mean_inlier_ratio"] = number(p.mean_inlier_ratio);
+  m["match_ms_per_frame"] = number(p.mean_match_ms);
+  m["total_ms_per_frame"] = number(p.mean_total_ms);
+  m["log_average_miss_rate"] = number(q.log_average_miss_rate);
+  m["background_rejection_rate"] = number(q.background_rejection_rate);
+  m["frames_localized"] = p.num_localized;
+  m["frames_correct"] = p.num_correct;
+
+  nlohmann::json mr = {{"n", nlohmann::json::array()}, {"fppi", nlohmann::json::array()},
+                       {"miss_rate", nlohmann::json::array()}};
+  for (const MissRatePoint& pt : q.miss_rate_curve) {
+    mr["n"].push_back(pt.n);
+    mr["fppi"].push_back(number(pt.fppi));
+    mr["miss_rate"].push_back(number(pt.miss_rate));
+  }
+  m["miss_rate_curve"] = mr;
+  nlohmann::json pr = {{"threshold", nlohmann::json::array()}, {"recall", nlohmann::json::array()},
+                       {"precision", nlohmann::json::array()}};
+  for (const PosePrPoint& pt : p.pr_curve) {
+    pr["threshold"].push_back(number(pt.threshold));
+    pr["recall"].push_back(number(pt.recall));
+    pr["precision"].push_back(number(pt.precision));
+  }
+  m["pose_pr_curve"] = pr;
+
+  nlohmann::json f;
+  nlohmann::json localized = nlohmann::json::array(), correct = nlohmann::json::array();
+  for (size_t i = 0; i < p.correct.size(); ++i) {
+    localized.push_back(std::isfinite(p.position_error_m[i]) ? 1 : 0);
+    correct.push_back(p.correct[i] ? 1 : 0);
+  }
+  f["localized"] = localized;
+  f["correct"] = correct;
+  f["position_error_m"] = numbers(p.position_error_m);
+  f["rotation_error_deg"] = numbers(p.rotation_error_deg);
+  f["inlier_ratio"] = numbers(p.inlier_ratio);
+  if (!r.frames.empty()) {
+    std::vector<double> match, total;
+    for (const FrameOutcome& o : r.frames) {
+      match.push_back(o.match_ms);
+      total.push_back(o.total_ms);
+    }
+    f["match_ms"] = numbers(match);
+    f["total_ms"] = numbers(total);
+  }
+  m["per_frame"] = f;
+  return m;
+}
+
+nlohmann::json build_report(const DatasetCounts& dataset, const std::vector<MethodResult>& methods) {
+  nlohmann::json report;
+  report["dataset"] = {{"map_frames", dataset.map_frames},
+                       {"query_frames", dataset.query_frames},
+                       {"landmarks", dataset.landmarks},
+                       {"query_keypoints", dataset.query_keypoints},
+                       {"query_keypoints_with_truth", dataset.query_keypoints_with_truth}};
+  report["methods"] = nlohmann::json::object();
+  std::set<std::string> seen;
+  for (const MethodResult& r : methods) {
+    LMB_CHECK(!r.name.empty(), "build_report: a method has an empty name");
+    LMB_CHECK(seen.insert(r.name).second, "build_report: method '" << r.name << "' appears twice");
+    LMB_CHECK(r.frames.empty() || static_cast<int64_t>(r.frames.size()) == r.pose.num_frames,
+              "build_report: method '" << r.name << "' has " << r.frames.size() << " frame outcomes but "
+                                       << r.pose.num_frames << " evaluated frames");
+    report["methods"][r.name] = method_report(r);
+  }
+  return report;
+}
+
+void write_report(const std::filesystem::path& path, const nlohmann::json& report) {
+  const std::string text = report.dump(2) + "\n";
+  write_file_atomically(path, text.data(), text.size());
+}
+
+std::string format_results_table(const nlohmann::json& report) {
+  std::string out;
+  char line[512];
+  std::snprintf(line, sizeof(line), "%-24s %7s %7s %8s %8s %7s %9s %9s %7s %10s %10s\n", "method", "P@1", "MRR",
+                "MR@1FP", "recall", "AUC", "med_pos_m", "med_rot_d", "inlier", "match_ms", "total_ms");
+  out += line;
+  const auto methods = report.find("methods");
+  if (methods == report.end() || !methods->is_object()) return out;
+  for (const auto& [name, m] : methods->items()) {
+    const auto mr = m.find("miss_rate_at_fppi");
+    const double mr1 = (mr != m.end() && mr->is_object()) ? scalar(*mr, "1") : std::nan("");
+    std::snprintf(line, sizeof(line), "%-24s %7.4f %7.4f %8.4f %8.4f %7.4f %9.3f %9.3f %7.4f %10.3f %10.3f\n",
+                  name.c_str(), scalar(m, "precision_at_1"), scalar(m, "mrr"), mr1,
+                  scalar(m, "pose_recall_20cm_5deg"), scalar(m, "pose_auc"), scalar(m, "median_position_error_m"),
+                  scalar(m, "median_rotation_error_deg"), scalar(m, "mean_inlier_ratio"),
+                  scalar(m, "match_ms_per_frame"), scalar(m, "total_ms_per_frame"));
+    out += line;
+  }
+  return out;
+}
+
+}  // namespace lmb

@@ -1,0 +1,118 @@
+#include "train/import/split_rule.h"
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "common/error.h"
+
+namespace lmb {
+
+namespace {
+
+double parse_number(const std::string& token, const std::string& rule, const char* what) {
+  size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(token, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  LMB_CHECK(!token.empty() && used == token.size() && std::isfinite(value),
+            "--split '" << rule << "': " << what << " '" << token << "' is not a number");
+  return value;
+}
+
+}  // namespace
+
+SplitRule parse_split_rule(const std::string& text) {
+  SplitRule rule;
+  const size_t colon = text.find(':');
+  LMB_CHECK(colon != std::string::npos,
+            "--split '" << text << "': expected every:N, first:F, time:A:B or list:FILE");
+  const std::string kind = text.substr(0, colon);
+  const std::string arg = text.substr(colon + 1);
+  if (kind == "every") {
+    rule.kind = SplitRule::Kind::kEvery;
+    const double n = parse_number(arg, text, "N");
+    LMB_CHECK(n >= 1 && n == std::floor(n) && n < 1e9, "--split '" << text << "': N must be an integer >= 1");
+    rule.every = static_cast<int>(n);
+  } else if (kind == "first") {
+    rule.kind = SplitRule::Kind::kFirst;
+    rule.first_fraction = parse_number(arg, text, "F");
+    LMB_CHECK(rule.first_fraction > 0 && rule.first_fraction <= 1,
+              "--split '" << text << "': F must be in (0, 1]");
+  } else if (kind == "time") {
+    rule.kind = SplitRule::Kind::kTime;
+    const size_t second = arg.find(':');
+    LMB_CHECK(second != std::string::npos, "--split '" << text << "': expected time:A:B (seconds)");
+    rule.time_begin_s = parse_number(arg.substr(0, second), text, "A");
+    rule.time_end_s = parse_number(arg.substr(second + 1), text, "B");
+    LMB_CHECK(rule.time_begin_s < rule.time_end_s, "--split '" << text << "': A must be smaller than B");
+  } else if (kind == "list") {
+    rule.kind = SplitRule::Kind::kList;
+    rule.list_file = arg;
+    std::ifstream in(rule.list_file);
+    LMB_CHECK(!arg.empty() && in.good(), "--split '" << text << "': cannot open list file '" << arg << "'");
+    std::string line;
+    int number = 0;
+    std::set<std::string> seen;
+    while (std::getline(in, line)) {
+      ++number;
+      std::istringstream fields(line);
+      std::string entry;
+      if (!(fields >> entry) || entry[0] == '#') continue;
+      LMB_CHECK(seen.insert(entry).second, arg << " line " << number << ": duplicate entry " << entry);
+      rule.list.push_back(entry);
+    }
+    LMB_CHECK(!rule.list.empty(), arg << ": the split list names no frame");
+  } else {
+    LMB_FAIL("--split '" << text << "': unknown rule '" << kind << "' (expected every, first, time or list)");
+  }
+  return rule;
+}
+
+std::vector<bool> assign_map_frames(const SplitRule& rule, const std::vector<SplitFrame>& frames,
+                                    bool frames_have_time) {
+  const size_t n = frames.size();
+  std::vector<bool> is_map(n, false);
+  switch (rule.kind) {
+    case SplitRule::Kind::kEvery:
+      for (size_t i = 0; i < n; ++i) is_map[i] = i % static_cast<size_t>(rule.every) == 0;
+      break;
+    case SplitRule::Kind::kFirst: {
+      const size_t count = static_cast<size_t>(std::llround(rule.first_fraction * static_cast<double>(n)));
+      for (size_t i = 0; i < n && i < count; ++i) is_map[i] = true;
+      break;
+    }
+    case SplitRule::Kind::kTime: {
+      LMB_CHECK(frames_have_time, "--split time:A:B needs frame timestamps, which this collection lacks");
+      if (n == 0) break;
+      const double t0 = frames.front().time_s;
+      for (size_t i = 0; i < n; ++i) {
+        const double t = frames[i].time_s - t0;
+        is_map[i] = t >= rule.time_begin_s && t < rule.time_end_s;
+      }
+      break;
+    }
+    case SplitRule::Kind::kList: {
+      std::map<std::string, size_t> by_key;
+      for (size_t i = 0; i < n; ++i) {
+        for (const std::string& key : frames[i].keys) by_key.emplace(key, i);
+      }
+      for (const std::string& entry : rule.list) {
+        const auto it = by_key.find(entry);
+        LMB_CHECK(it != by_key.end(), rule.list_file.string() << ": entry '" << entry << "' names no frame");
+        is_map[it->second] = true;
+      }
+      break;
+    }
+  }
+  bool any = false;
+  for (bool b : is_map) any = any || b;
+  LMB_CHECK(n == 0 || any, "--split: the rule leaves no map frame among " << n << " frames");
+  return is_map;
+}
+
+}  // namespace lmb

@@ -1,0 +1,81 @@
+// The mapper: a collection (COLMAP sparse model + images) -> lmb::LandmarkMap. Map and query frames
+// are mapped jointly so that query keypoints get their true landmark; landmarks need >= 3 map-frame
+// observations, so query-only tracks never become landmarks.
+//
+//   detect (BRISK/ORB) -> frame pairs by pose -> guided matching -> conflict-free tracks ->
+//   OpenGV triangulation + refinement -> landmarks with a quality score -> LandmarkMap
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/landmark_map.h"
+#include "train/mapping/frame_pairs.h"
+#include "train/mapping/guided_matching.h"
+#include "train/mapping/keypoint_detection.h"
+#include "train/mapping/triangulation.h"
+
+namespace lmb {
+
+struct MapperOptions {
+  DetectorOptions detector;
+  PairOptions pairs;
+  MatchingOptions matching;
+  TriangulationOptions triangulation;
+  int min_map_observations = 3;           // landmarks need this many inlier map-frame observations
+  std::string query_prefix = "query/";    // image names starting with it are query frames ("" = none)
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // world up axis (unit); gravity is -up
+  int threads = 2;
+  void check() const;  // throws lmb::Error naming the field
+};
+
+// One frame's input to the mapping core: pose, camera and detected features.
+struct MapperFrame {
+  std::string name;
+  camera_t camera = 0;  // index into the cameras passed along
+  Rigid3d cam_from_world;
+  bool is_query = false;
+  std::vector<Keypoint> keypoints;
+  std::vector<uint8_t> descriptors;  // keypoints.size() * descriptor_bytes
+};
+
+struct MapperStats {
+  int num_map_frames = 0;
+  int num_query_frames = 0;
+  int64_t num_keypoints = 0;
+  int64_t num_pairs = 0;
+  int64_t num_matches = 0;
+  int64_t num_tracks = 0;             // tracks of >= 2 keypoints before triangulation
+  int64_t num_landmarks = 0;
+  int64_t num_map_observations = 0;   // map keypoints with a landmark
+  int64_t num_query_observations = 0; // query keypoints with a landmark
+  double mean_map_observations = 0;   // per landmark
+  double mean_reprojection_error_px = 0;
+  double detect_seconds = 0, match_seconds = 0, triangulate_seconds = 0, total_seconds = 0;
+};
+
+// Parses "+z", "-z", "+y", "-y", "+x", "-x" (a missing sign means +); throws lmb::Error otherwise.
+Eigen::Vector3d parse_up_axis(const std::string& text);
+
+// Landmark quality used for top-K selection (higher is better):
+//   log(1 + map observations) * exp(-mean reprojection error / 2 px) * (1 - exp(-angle / 10 deg))
+// where angle is the largest triangulation angle between two observations.
+float landmark_quality(int num_map_observations, double mean_reprojection_error_px, double triangulation_angle_deg);
+
+// The mapping core on already detected features (everything after detection). frames keep their
+// order in the map. Throws lmb::Error on inconsistent input (camera index, descriptor sizes).
+LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::vector<MapperFrame>& frames,
+                               const std::string& detector, int descriptor_bytes, const MapperOptions& options,
+                               MapperStats* stats = nullptr);
+
+// Reads `collection_dir`/sparse/{cameras,images,points3D}.txt and the images under
+// `collection_dir`/images, detects keypoints and runs build_landmark_map. Frames are in image-id
+// order. Throws lmb::Error naming the file and reason (missing or unreadable image, image size not
+// the camera's, bad model files).
+LandmarkMap map_collection(const std::filesystem::path& collection_dir, const MapperOptions& options,
+                           MapperStats* stats = nullptr);
+
+}  // namespace lmb

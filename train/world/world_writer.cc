@@ -1,0 +1,194 @@
+#include "train/world/world_writer.h"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <system_error>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/error.h"
+#include "common/io/colmap_model.h"
+#include "train/world/renderer.h"
+#include "train/world/trajectory.h"
+
+namespace fs = std::filesystem;
+
+namespace lmb {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void write_png(const fs::path& path, const cv::Mat& image) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 3});
+  } catch (const cv::Exception& e) {
+    LMB_FAIL(path.string() << ": cannot write image: " << e.what());
+  }
+  LMB_CHECK(ok, path.string() << ": cannot write image");
+}
+
+nlohmann::json lighting_json(const Lighting& l) {
+  return {{"ambient", l.ambient},   {"lamp_power", l.lamp_power}, {"lamp_range_m", l.lamp_range_m},
+          {"lamp_scale", l.lamp_scale}, {"emissive", l.emissive}, {"gain", l.gain},
+          {"exponent", l.exponent}, {"noise_sigma", l.noise_sigma}};
+}
+
+// Prepares the output: checks that out_dir may be replaced and creates the temporary folder.
+fs::path make_temp_dir(const fs::path& out_dir) {
+  std::error_code ec;
+  if (fs::exists(out_dir, ec)) {
+    LMB_CHECK(fs::is_directory(out_dir, ec), out_dir.string() << ": exists and is not a folder");
+    LMB_CHECK(fs::is_empty(out_dir, ec) || fs::exists(out_dir / "world.json", ec),
+              out_dir.string() << ": exists and is neither empty nor a world folder (no world.json); "
+                                  "refusing to overwrite it");
+  }
+  fs::path parent = out_dir.parent_path();
+  if (parent.empty()) parent = ".";
+  fs::create_directories(parent, ec);
+  LMB_CHECK(!ec && fs::is_directory(parent), parent.string() << ": cannot create output folder: " << ec.message());
+  const fs::path tmp = parent / ("." + out_dir.filename().string() + ".tmp-" + std::to_string(::getpid()));
+  fs::remove_all(tmp, ec);
+  for (const char* sub : {"sparse", "images/map", "images/query", "depth/map", "depth/query"}) {
+    fs::create_directories(tmp / sub, ec);
+    LMB_CHECK(!ec, tmp.string() << ": cannot create output folder: " << ec.message());
+  }
+  // Probe writability (create_directories can succeed on some read-only mounts as root).
+  const fs::path probe = tmp / ".probe";
+  {
+    std::ofstream f(probe);
+    LMB_CHECK(f.good(), out_dir.string() << ": output folder is not writable");
+  }
+  fs::remove(probe, ec);
+  return tmp;
+}
+
+void commit_dir(const fs::path& tmp, const fs::path& out_dir) {
+  std::error_code ec;
+  fs::path old;
+  if (fs::exists(out_dir, ec)) {
+    old = tmp.string() + ".old";
+    fs::remove_all(old, ec);
+    fs::rename(out_dir, old, ec);
+    LMB_CHECK(!ec, out_dir.string() << ": cannot replace the existing folder: " << ec.message());
+  }
+  fs::rename(tmp, out_dir, ec);
+  LMB_CHECK(!ec, out_dir.string() << ": cannot move the finished world into place: " << ec.message());
+  if (!old.empty()) fs::remove_all(old, ec);
+}
+
+}  // namespace
+
+WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir,
+                            const std::function<void(int, int)>& progress) {
+  options.check();
+  LMB_CHECK(!out_dir.empty(), "world: --out is required");
+  const fs::path tmp = make_temp_dir(out_dir);
+  try {
+    WorldWriteStats stats;
+    const auto t0 = std::chrono::steady_clock::now();
+    const World world = build_world(options);
+    const Camera camera = world_camera();
+    const RayTable rays(camera, options.supersampling);
+    const Session sessions[2] = {make_map_session(world, options.map_frames),
+                                 make_query_session(world, options.query_frames)};
+    stats.build_seconds = seconds_since(t0);
+    stats.summary = world.summary;
+
+    const auto t1 = std::chrono::steady_clock::now();
+    ColmapModel model;
+    model.cameras[1] = camera;
+    const int total = options.map_frames + options.query_frames;
+    int done = 0;
+    for (int si = 0; si < 2; ++si) {
+      const Session& session = sessions[si];
+      for (size_t i = 0; i < session.cam_from_world.size(); ++i) {
+        char name[64];
+        std::snprintf(name, sizeof(name), "%s/%06zu.png", session.name.c_str(), i);
+        const RenderedFrame frame = render_frame(world, rays, session.cam_from_world[i], session.lighting,
+                                                 static_cast<uint64_t>(si) << 32 | i, options.threads);
+        write_png(tmp / "images" / name, frame.image);
+        write_png(tmp / "depth" / name, frame.depth_mm);
+        ColmapImage im;
+        im.image_id = static_cast<int>(model.images.size()) + 1;
+        im.camera_id = 1;
+        im.name = name;
+        im.cam_from_world = session.cam_from_world[i];
+        model.images.push_back(im);
+        ++done;
+        if (progress) progress(done, total);
+      }
+    }
+    write_colmap_text(model, tmp / "sparse");
+    stats.map_frames = static_cast<int>(sessions[0].cam_from_world.size());
+    stats.query_frames = static_cast<int>(sessions[1].cam_from_world.size());
+
+    const WorldSummary& s = world.summary;
+    nlohmann::json j;
+    j["format"] = "lmb-world";
+    j["format_version"] = 1;
+    j["preset"] = options.preset;
+    j["seed"] = options.seed;
+    j["non_aliased"] = options.non_aliased;
+    j["units"] = "m";
+    j["up_axis"] = {0, 0, 1};
+    j["gravity"] = {0, 0, -1};
+    j["counts"] = {{"map_frames", stats.map_frames},   {"query_frames", stats.query_frames},
+                   {"doors", s.doors},                 {"posters", s.posters},
+                   {"poster_textures", s.poster_textures}, {"pillars", s.pillars},
+                   {"room_plates", s.plates},          {"signs", s.signs},
+                   {"stains", s.stains},               {"objects", s.objects},
+                   {"lamps", s.lamps},                 {"floor_tiles", s.floor_tiles},
+                   {"ceiling_panels", s.ceiling_panels}, {"textures", s.textures}};
+    j["camera"] = {{"camera_id", 1},
+                   {"model", camera_model_name(camera.model)},
+                   {"width", camera.width},
+                   {"height", camera.height},
+                   {"params", camera.params}};
+    j["geometry"] = {{"kind", "straight corridor"},
+                     {"length_m", world.length},
+                     {"width_m", world.width},
+                     {"height_m", world.height},
+                     {"x_range", {0.0, world.length}},
+                     {"y_range", {-world.width / 2, world.width / 2}},
+                     {"z_range", {0.0, world.height}},
+                     {"floor_tile_m", world.tile_size},
+                     {"ceiling_panel_m", world.panel_size},
+                     {"lamp_spacing_m", world.lamp_spacing},
+                     {"boxes", world.boxes.size()}};
+    for (const Session& session : sessions) {
+      j["sessions"][session.name] = {{"frames", session.cam_from_world.size()},
+                                     {"image_dir", "images/" + session.name},
+                                     {"depth_dir", "depth/" + session.name},
+                                     {"lateral_offset_m", session.lateral_m},
+                                     {"camera_height_m", session.height_m},
+                                     {"yaw_amplitude_deg", session.yaw_amplitude_deg},
+                                     {"yaw_period_m", session.yaw_period_m},
+                                     {"lighting", lighting_json(session.lighting)}};
+    }
+    j["images"] = {{"format", "png"}, {"channels", 1}, {"bit_depth", 8}};
+    j["depth"] = {{"format", "png"}, {"bit_depth", 16}, {"kind", "z-depth of the pixel centre"},
+                  {"units", "mm"}, {"invalid", 0}};
+    {
+      std::ofstream f(tmp / "world.json");
+      f << j.dump(2) << '\n';
+      LMB_CHECK(f.good(), (tmp / "world.json").string() << ": write failed");
+    }
+    stats.render_seconds = seconds_since(t1);
+    commit_dir(tmp, out_dir);
+    return stats;
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+}
+
+}  // namespace lmb
