@@ -10,7 +10,8 @@
  *   lmb_model_free(model);
  *
  * Conventions are those of the C++ API (infer/localizer.h): keypoints in pixels of the distorted
- * image, OpenCV convention (centre of the top-left pixel at (0, 0)), size = detector diameter in
+ * image, COLMAP convention (centre of the top-left pixel at (0.5, 0.5): add 0.5 to an OpenCV
+ * KeyPoint::pt), size = detector diameter in
  * pixels, angle in degrees or -1; descriptors n rows of lmb_model_descriptor_bytes() bytes;
  * gravity_in_cam the down direction in the camera frame (x right, y down, z forward); the pose is
  * cam_from_world (x_cam = R x_world + t), R as a unit quaternion (w, x, y, z).

@@ -7,10 +7,10 @@
 // Steps: quantize each descriptor to its visual word, place the keypoints in the gravity-aligned
 // normalized plane (common/context_embedding.h), classify them (infer/classifier.h), then feed the
 // matches to estimate_absolute_pose (infer/pose_estimator.h): each keypoint's best match, or its
-// pose_top_k best, pixel (keypoint + 0.5, COLMAP's pixel convention) <-> the class's 3D landmark.
+// pose_top_k best, keypoint pixel <-> the class's 3D landmark.
 //
-// Inputs: keypoints in pixels of the distorted image with OpenCV's convention (centre of the
-// top-left pixel at (0, 0)), scale = detector diameter in pixels (lmb::Keypoint); descriptors:
+// Inputs: keypoints in pixels of the distorted image with COLMAP's convention (centre of the
+// top-left pixel at (0.5, 0.5); add 0.5 to an OpenCV KeyPoint::pt), scale = detector diameter in pixels (lmb::Keypoint); descriptors:
 // keypoints.size() rows of model.descriptor_bytes() bytes; gravity_in_cam: the direction of gravity
 // (down) in the camera frame (x right, y down, z forward), any non-zero length.
 //

@@ -169,11 +169,11 @@ class LMB_INFER_EXPORT Model {
 
 namespace detail {
 // LEB128 varint gap coding of an ascending id list (first id, then differences), and its
-// bounds-checked inverse: decode throws lmb::Error naming `what` when the bytes end early, hold
+// bounds-checked inverse (internal: not exported from the shared library): decode throws lmb::Error naming `what` when the bytes end early, hold
 // extra bytes, a gap is zero after the first id, or an id exceeds max_id.
-LMB_INFER_EXPORT std::string encode_ascending_ids(const std::vector<int32_t>& ids);
-LMB_INFER_EXPORT std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t count,
-                                                           int32_t max_id, const std::string& what);
+std::string encode_ascending_ids(const std::vector<int32_t>& ids);
+std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t count,
+                                          int32_t max_id, const std::string& what);
 }  // namespace detail
 
 }  // namespace lmb

@@ -299,7 +299,7 @@ TEST(Geometry, NormalizeKeypointPinholeKnownAnswer) {
   cam.params = {500, 400, 320, 240};
   Eigen::Vector2d p;
   double s = 0;
-  normalize_keypoint(cam, Keypoint{99.5f, 39.5f, 20.f, -1.f}, &p, &s);
+  normalize_keypoint(cam, Keypoint{100.f, 40.f, 20.f, -1.f}, &p, &s);
   EXPECT_NEAR(p.x(), (100.0 - 320.0) / 500.0, 1e-12);
   EXPECT_NEAR(p.y(), (40.0 - 240.0) / 400.0, 1e-12);
   EXPECT_NEAR(s, 20.0 / 500.0, 1e-12);  // measured along x
@@ -319,8 +319,7 @@ TEST(Geometry, NormalizeKeypointWithDistortionUndistorts) {
   const Eigen::Vector2d pixel = cam.img_from_cam(truth);
   Eigen::Vector2d p;
   double s = 0;
-  normalize_keypoint(cam, Keypoint{static_cast<float>(pixel.x() - 0.5),
-                                   static_cast<float>(pixel.y() - 0.5), 10.f, -1},
+  normalize_keypoint(cam, Keypoint{static_cast<float>(pixel.x()), static_cast<float>(pixel.y()), 10.f, -1},
                      &p, &s);
   EXPECT_NEAR(p.x(), truth.x(), 1e-5);
   EXPECT_NEAR(p.y(), truth.y(), 1e-5);
@@ -356,7 +355,7 @@ TEST(Geometry, FrameFromDetectionsRotatesByGravity) {
   cam.height = 480;
   cam.params = {512, 320, 240};
   // Gravity pointing to image +x (camera rolled by 90 degrees): p' = (-p_y, p_x).
-  const Keypoint kps[2] = {{319.5f + 64.f, 239.5f, 8.f, -1}, {319.5f, 239.5f + 128.f, 16.f, -1}};
+  const Keypoint kps[2] = {{320.f + 64.f, 240.f, 8.f, -1}, {320.f, 240.f + 128.f, 16.f, -1}};
   const uint8_t words[2] = {0, 1};
   const FrameKeypoints f =
       frame_keypoints_from_detections(cam, kps, words, 2, Eigen::Vector3d(1, 0, 0), "frame 3");

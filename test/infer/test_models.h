@@ -143,8 +143,8 @@ inline TestWorld make_test_world(int32_t num_classes, int32_t num_inliers, int32
     int32_t cls = -1;
     if (i < num_inliers) {
       cls = (i * 7) % num_classes;
-      kp.x = static_cast<float>(pixels[cls].x() - 0.5);
-      kp.y = static_cast<float>(pixels[cls].y() - 0.5);
+      kp.x = static_cast<float>(pixels[cls].x());
+      kp.y = static_cast<float>(pixels[cls].y());
       code_descriptor(cls, rng, desc.data());
     } else {
       kp.x = static_cast<float>(rng.uniform(0, 639));

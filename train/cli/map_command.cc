@@ -61,6 +61,9 @@ void add_map_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-keypoints", args->options.detector.max_keypoints, "Keypoints per image (strongest)")
       ->capture_default_str();
+  cmd->add_option("--gravity", args->options.gravity_file,
+                 "Per-image gravity file (IMAGE_NAME gx gy gz: down, camera frame); replaces --up")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--up", args->up, "World up axis: +x, -x, +y, -y, +z, -z (gravity is -up)")
       ->capture_default_str();
   cmd->add_option("--threads", args->options.threads, "Worker threads")->capture_default_str();

@@ -1,5 +1,7 @@
 #include "train/mapping/mapper.h"
 
+#include "common/io/gravity_file.h"
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -120,7 +122,8 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
     out.name = in.name;
     out.camera = in.camera;
     out.cam_from_world = in.cam_from_world;
-    out.gravity_in_cam = (in.cam_from_world.rotation * (-options.up)).normalized();
+    out.gravity_in_cam = in.gravity_in_cam ? in.gravity_in_cam->normalized()
+                                         : (in.cam_from_world.rotation * (-options.up)).normalized();
     out.is_query = in.is_query;
     out.first_keypoint = static_cast<int64_t>(map.keypoints.size());
     out.num_keypoints = static_cast<int32_t>(in.keypoints.size());
@@ -231,14 +234,17 @@ LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& 
   LMB_CHECK(fs::is_directory(image_dir), image_dir.string() << ": missing image folder");
   ColmapModel model;
   try {
-    model = read_colmap_text(sparse);
+    model = read_colmap_model(sparse);
   } catch (const Error& e) {
     // Errors that do not name their file yet (e.g. an unknown camera model) get the folder.
     const std::string message = e.what();
     if (message.find(sparse.string()) != std::string::npos) throw;
     LMB_FAIL(sparse.string() << ": " << message);
   }
-  LMB_CHECK(!model.images.empty(), (sparse / "images.txt").string() << ": no images");
+  LMB_CHECK(!model.images.empty(), sparse.string() << ": the sparse model has no images");
+  check_collection_images(model, image_dir);
+  std::map<std::string, Eigen::Vector3d> gravity;
+  if (!options.gravity_file.empty()) gravity = read_gravity_file(options.gravity_file, model);
 
   std::vector<Camera> cameras;
   std::map<int, camera_t> camera_index;
@@ -254,8 +260,7 @@ LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& 
     f.camera = camera_index.at(image.camera_id);
     f.cam_from_world = image.cam_from_world;
     f.is_query = !options.query_prefix.empty() && image.name.rfind(options.query_prefix, 0) == 0;
-    const fs::path path = image_dir / image.name;
-    LMB_CHECK(fs::is_regular_file(path), path.string() << ": image listed in images.txt is missing");
+    if (!gravity.empty()) f.gravity_in_cam = gravity.at(image.name);
   }
 
   const int previous_cv_threads = cv::getNumThreads();

@@ -7,6 +7,9 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
+
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -28,6 +31,9 @@ struct MapperOptions {
   int min_map_observations = 3;           // landmarks need this many inlier map-frame observations
   std::string query_prefix = "query/";    // image names starting with it are query frames ("" = none)
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // world up axis (unit); gravity is -up
+  // Optional per-image gravity (common/io/gravity_file.h: IMAGE_NAME gx gy gz, down, camera
+  // frame); when set it replaces `up` for every frame.
+  std::filesystem::path gravity_file;
   int threads = 2;
   void check() const;  // throws lmb::Error naming the field
 };
@@ -38,6 +44,7 @@ struct MapperFrame {
   camera_t camera = 0;  // index into the cameras passed along
   Rigid3d cam_from_world;
   bool is_query = false;
+  std::optional<Eigen::Vector3d> gravity_in_cam;  // unit, down; unset: from MapperOptions::up
   std::vector<Keypoint> keypoints;
   std::vector<uint8_t> descriptors;  // keypoints.size() * descriptor_bytes
 };

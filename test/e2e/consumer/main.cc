@@ -156,8 +156,8 @@ ModelAndFrame make_model_and_frame(const lmb::Camera& camera) {
     for (auto& b : desc) b = static_cast<uint8_t>(rng.below(256));
     if (i < 50) {
       const int c = i;
-      kp.x = static_cast<float>(pixels[c].x() - 0.5);  // OpenCV pixel convention
-      kp.y = static_cast<float>(pixels[c].y() - 0.5);
+      kp.x = static_cast<float>(pixels[c].x());  // COLMAP pixel convention (common/types.h)
+      kp.y = static_cast<float>(pixels[c].y());
       desc[0] = static_cast<uint8_t>(code_of(c) & 0xFF);
       desc[1] = static_cast<uint8_t>(code_of(c) >> 8);
     } else {
