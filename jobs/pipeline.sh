@@ -38,14 +38,16 @@ stage "inspect: the map and its descriptor aliasing"
 if [ ! -f "$out/run/model.bin" ]; then
   stage "train: shared-stump classifier"
   "$lboost" train --map "$out/map.h5" --vocab "$out/vocab.lbv" --out "$out/run" \
-    --threads "$threads" ${LMB_TRAIN_ARGS:-}
+    --threads "$threads" ${LMB_TRAIN_ARGS:---rounds 300}
 fi
 if [ ! -f "$out/model.lbm" ]; then
   stage "export: model.lbm"
   "$lboost" export --run "$out/run" --map "$out/map.h5" --vocab "$out/vocab.lbv" --out "$out/model.lbm"
 fi
 stage "localize: the query frames"
+# Until the classifier's background margin is calibrated (see README "Status"), the main job keeps
+# every keypoint's best class and lets RANSAC sort the matches with the best margins.
 "$lboost" localize --model "$out/model.lbm" --map "$out/map.h5" --out "$out/poses.json" \
-  --threads "$threads"
+  --threads "$threads" ${LMB_LOCALIZE_ARGS:---min-margin=-1e300 --max-correspondences 100 --ransac-iterations 2000}
 
 printf '\nmain job done in %.0f s; outputs in %s\n' "$(echo "$(seconds) - $t0" | bc)" "$out"

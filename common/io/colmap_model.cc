@@ -1,3 +1,4 @@
+#include "common/text_parse.h"
 #include "common/io/colmap_model.h"
 
 #include <algorithm>
@@ -50,16 +51,7 @@ double parse_finite(std::istringstream& in, const std::string& at, const char* f
   std::string token;
   in >> token;
   LMB_CHECK(!in.fail(), at << ": cannot read field '" << field << "'");
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(token, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  LMB_CHECK(used == token.size(), at << ": field '" << field << "' is not a number: '" << token << "'");
-  LMB_CHECK(std::isfinite(value), at << ": field '" << field << "' is not finite");
-  return value;
+  return parse_finite_number(token, at, std::string("field '") + field + "'");
 }
 
 }  // namespace

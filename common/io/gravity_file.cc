@@ -1,3 +1,4 @@
+#include "common/text_parse.h"
 #include "common/io/gravity_file.h"
 
 #include <cmath>
@@ -11,23 +12,6 @@
 namespace lmb {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-double parse_component(const std::string& token, const std::string& at, const char* field) {
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(token, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  LMB_CHECK(used == token.size() && !token.empty(), at << ": " << field << " is not a number: '" << token << "'");
-  LMB_CHECK(std::isfinite(value), at << ": " << field << " is not finite");
-  return value;
-}
-
-}  // namespace
 
 std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path) {
   std::ifstream in(path);
@@ -46,8 +30,8 @@ std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path) {
     std::string token;
     while (fields >> token) tokens.push_back(token);
     LMB_CHECK(tokens.size() == 4, at << ": expected 4 fields (IMAGE_NAME GX GY GZ), got " << tokens.size());
-    const Eigen::Vector3d g(parse_component(tokens[1], at, "GX"), parse_component(tokens[2], at, "GY"),
-                            parse_component(tokens[3], at, "GZ"));
+    const Eigen::Vector3d g(parse_finite_number(tokens[1], at, "GX"), parse_finite_number(tokens[2], at, "GY"),
+                            parse_finite_number(tokens[3], at, "GZ"));
     LMB_CHECK(g.norm() >= 1e-9, at << ": gravity of image " << tokens[0] << " is the zero vector");
     LMB_CHECK(gravity.emplace(tokens[0], g.normalized()).second, at << ": duplicate image name " << tokens[0]);
   }

@@ -5,26 +5,10 @@
 #include <map>
 #include <sstream>
 
+#include "common/text_parse.h"
 #include "common/error.h"
 
 namespace lmb {
-
-namespace {
-
-double parse_number(const std::string& token, const std::string& rule, const char* what) {
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(token, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  LMB_CHECK(!token.empty() && used == token.size() && std::isfinite(value),
-            "--split '" << rule << "': " << what << " '" << token << "' is not a number");
-  return value;
-}
-
-}  // namespace
 
 SplitRule parse_split_rule(const std::string& text) {
   SplitRule rule;
@@ -35,20 +19,20 @@ SplitRule parse_split_rule(const std::string& text) {
   const std::string arg = text.substr(colon + 1);
   if (kind == "every") {
     rule.kind = SplitRule::Kind::kEvery;
-    const double n = parse_number(arg, text, "N");
+    const double n = parse_finite_number(arg, "--split '" + text + "'", "N");
     LMB_CHECK(n >= 1 && n == std::floor(n) && n < 1e9, "--split '" << text << "': N must be an integer >= 1");
     rule.every = static_cast<int>(n);
   } else if (kind == "first") {
     rule.kind = SplitRule::Kind::kFirst;
-    rule.first_fraction = parse_number(arg, text, "F");
+    rule.first_fraction = parse_finite_number(arg, "--split '" + text + "'", "F");
     LMB_CHECK(rule.first_fraction > 0 && rule.first_fraction <= 1,
               "--split '" << text << "': F must be in (0, 1]");
   } else if (kind == "time") {
     rule.kind = SplitRule::Kind::kTime;
     const size_t second = arg.find(':');
     LMB_CHECK(second != std::string::npos, "--split '" << text << "': expected time:A:B (seconds)");
-    rule.time_begin_s = parse_number(arg.substr(0, second), text, "A");
-    rule.time_end_s = parse_number(arg.substr(second + 1), text, "B");
+    rule.time_begin_s = parse_finite_number(arg.substr(0, second), "--split '" + text + "'", "A");
+    rule.time_end_s = parse_finite_number(arg.substr(second + 1), "--split '" + text + "'", "B");
     LMB_CHECK(rule.time_begin_s < rule.time_end_s, "--split '" << text << "': A must be smaller than B");
   } else if (kind == "list") {
     rule.kind = SplitRule::Kind::kList;

@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
+#include "common/text_parse.h"
 #include "common/error.h"
 #include "common/io/colmap_model.h"
 #include "train/import/collection_writer.h"
@@ -40,19 +41,6 @@ void for_each_data_line(const fs::path& path, Fn fn) {
     fn(number, tokens);
   }
   LMB_CHECK(!in.bad(), path.string() << ": read error");
-}
-
-double to_number(const std::string& token, const std::string& at, const char* field) {
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(token, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  LMB_CHECK(used == token.size(), at << ": " << field << " is not a number: '" << token << "'");
-  LMB_CHECK(std::isfinite(value), at << ": " << field << " is not finite");
-  return value;
 }
 
 std::string at_line(const fs::path& path, int number) { return path.string() + " line " + std::to_string(number); }
@@ -91,7 +79,7 @@ std::vector<TumImage> read_tum_image_list(const fs::path& path) {
     LMB_CHECK(tokens.size() == 2, at << ": expected 2 fields (timestamp filename), got " << tokens.size());
     TumImage im;
     im.timestamp = tokens[0];
-    im.time_s = to_number(tokens[0], at, "timestamp");
+    im.time_s = parse_finite_number(tokens[0], at, "timestamp");
     im.file = tokens[1];
     LMB_CHECK(images.empty() || im.time_s > images.back().time_s,
               at << ": timestamp " << tokens[0] << " is not after the previous one");
@@ -108,7 +96,7 @@ TumTrajectory read_tum_trajectory(const fs::path& path) {
     LMB_CHECK(tokens.size() == 8, at << ": expected 8 fields (timestamp tx ty tz qx qy qz qw), got " << tokens.size());
     const char* names[8] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
     double v[8];
-    for (int k = 0; k < 8; ++k) v[k] = to_number(tokens[k], at, names[k]);
+    for (int k = 0; k < 8; ++k) v[k] = parse_finite_number(tokens[k], at, names[k]);
     LMB_CHECK(trajectory.time_s.empty() || v[0] > trajectory.time_s.back(),
               at << ": timestamp " << tokens[0] << " is not after the previous one");
     trajectory.time_s.push_back(v[0]);
@@ -124,12 +112,12 @@ TumAccelerometer read_tum_accelerometer(const fs::path& path) {
   for_each_data_line(path, [&](int number, const std::vector<std::string>& tokens) {
     const std::string at = at_line(path, number);
     LMB_CHECK(tokens.size() == 4, at << ": expected 4 fields (timestamp ax ay az), got " << tokens.size());
-    const double t = to_number(tokens[0], at, "timestamp");
+    const double t = parse_finite_number(tokens[0], at, "timestamp");
     LMB_CHECK(accel.time_s.empty() || t >= accel.time_s.back(),
               at << ": timestamp " << tokens[0] << " is before the previous one");
     accel.time_s.push_back(t);
-    accel.accel_mps2.emplace_back(to_number(tokens[1], at, "ax"), to_number(tokens[2], at, "ay"),
-                                  to_number(tokens[3], at, "az"));
+    accel.accel_mps2.emplace_back(parse_finite_number(tokens[1], at, "ax"), parse_finite_number(tokens[2], at, "ay"),
+                                  parse_finite_number(tokens[3], at, "az"));
   });
   LMB_CHECK(!accel.time_s.empty(), path.string() << ": no reading");
   return accel;
@@ -187,7 +175,7 @@ Camera parse_camera_line(const std::string& text) {
             "--camera '" << text << "': expected MODEL WIDTH HEIGHT PARAMS...");
   camera.model = camera_model_from_name(model);
   std::string token;
-  while (in >> token) camera.params.push_back(to_number(token, "--camera", "parameter"));
+  while (in >> token) camera.params.push_back(parse_finite_number(token, "--camera", "parameter"));
   camera.check("--camera");
   return camera;
 }

@@ -1,0 +1,14 @@
+// Parsing numbers out of text files with errors that name the place.
+#pragma once
+
+#include <string>
+
+namespace lmb {
+
+// Parses a whole token as a finite double. Throws lmb::Error "<where>: <field> is not a number:
+// '<token>'" for an empty token, trailing characters or an unparsable one, and "<where>: <field>
+// is not finite" for NaN, infinity or overflow.
+double parse_finite_number(const std::string& token, const std::string& where,
+                           const std::string& field);
+
+}  // namespace lmb
