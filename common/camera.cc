@@ -9,14 +9,14 @@
 
 namespace lmb {
 
-CameraModel camera_model_from_name(const std::string& name) {
+CameraModel camera_model_from_name(const std::string& name, const std::string& where) {
   if (name == "SIMPLE_PINHOLE") return CameraModel::kSimplePinhole;
   if (name == "PINHOLE") return CameraModel::kPinhole;
   if (name == "SIMPLE_RADIAL") return CameraModel::kSimpleRadial;
   if (name == "RADIAL") return CameraModel::kRadial;
   if (name == "OPENCV") return CameraModel::kOpenCV;
   if (name == "FULL_OPENCV") return CameraModel::kFullOpenCV;
-  LMB_FAIL("unsupported camera model '"
+  LMB_FAIL(where << ": unsupported camera model '"
            << name
            << "' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)");
 }

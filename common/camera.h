@@ -21,8 +21,9 @@ enum class CameraModel : int {
 };
 
 // COLMAP's model name ("PINHOLE", ...) and id; throw lmb::Error for models this project does not
-// represent (fisheye models, FOV, THIN_PRISM_FISHEYE).
-CameraModel camera_model_from_name(const std::string& name);
+// represent (fisheye models, FOV, THIN_PRISM_FISHEYE). The name's error is prefixed by `where`
+// (the file and line, or the flag, it comes from).
+CameraModel camera_model_from_name(const std::string& name, const std::string& where);
 CameraModel camera_model_from_id(int colmap_id);
 std::string camera_model_name(CameraModel model);
 int camera_model_num_params(CameraModel model);

@@ -250,6 +250,49 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
     tables_[table_offset_[w] + (local_x[i] + 1) * side + (local_y[i] + 1)] = 1;
   }
   for (int32_t w = 0; w < W; ++w) prefix_sum_2d(tables_.data() + table_offset_[w], word_side_[w]);
+
+  // Blocked dominance counts over all keypoints (see dom_coarse_ in the header); for frames up
+  // to kMaxDominanceKeypoints (larger ones take count_all from the word tables).
+  dom_coarse_.clear();
+  dom_mask_.clear();
+  if (n > kMaxDominanceKeypoints) return;
+  const int32_t blocks = n / 64 + 1;
+  const size_t stride = static_cast<size_t>(n) + 1;
+  dom_coarse_.assign(static_cast<size_t>(blocks) * stride, 0);
+  dom_mask_.assign(static_cast<size_t>(blocks) * stride, 0);
+  std::vector<int32_t> by_y(static_cast<size_t>(n));  // keypoint of each y rank
+  for (int32_t i = 0; i < n; ++i) by_y[rank_y_[i]] = i;
+  for (int32_t iy = 1; iy <= n; ++iy) {
+    const int32_t rx = rank_x_[by_y[iy - 1]];  // the keypoint with y rank iy - 1
+    for (int32_t b = 0; b < blocks; ++b) {
+      const size_t at = static_cast<size_t>(b) * stride + iy;
+      dom_coarse_[at] = static_cast<uint16_t>(dom_coarse_[at - 1] + (rx < 64 * b ? 1 : 0));
+      dom_mask_[at] = dom_mask_[at - 1] | (rx / 64 == b ? uint64_t{1} << (rx % 64) : 0);
+    }
+  }
+}
+
+namespace {
+// Bit count without the libgcc call the baseline x86-64 ISA (no POPCNT) would make.
+inline int32_t bit_count(uint64_t x) {
+  x = x - ((x >> 1) & 0x5555555555555555ull);
+  x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+  x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0Full;
+  return static_cast<int32_t>((x * 0x0101010101010101ull) >> 56);
+}
+}  // namespace
+
+inline int32_t FrameContext::dominance(int32_t ix, int32_t iy) const {
+  const size_t at = static_cast<size_t>(ix / 64) * (static_cast<size_t>(n_) + 1) + iy;
+  const uint64_t below = (uint64_t{1} << (ix % 64)) - 1;
+  return dom_coarse_[at] + bit_count(dom_mask_[at] & below);
+}
+
+inline int32_t FrameContext::word_dominance(int32_t w, int32_t ix, int32_t iy) const {
+  const int32_t W = num_words_;
+  const int64_t side = word_side_[w];
+  return tables_[table_offset_[w] + local_rank_x_[static_cast<size_t>(ix) * W + w] * side +
+                 local_rank_y_[static_cast<size_t>(iy) * W + w]];
 }
 
 FrameContext::Bounds FrameContext::bounds(int32_t k, int32_t r) const {
@@ -437,7 +480,6 @@ void FrameContext::compute_dims(int32_t k, const DimPlan& plan, const uint8_t* d
   merge(y_[k], plan.corners_y_, sorted_y_, ranks.data() + 2 * U);
   const int32_t rx = rank_x_[k], ry = rank_y_[k];
   const int32_t* dims = plan.dims_.data();
-  int32_t counts[256];
   for (int32_t u = 0; u < U; ++u) {
     Bounds b;
     b.ix0 = ranks[2 * u];
@@ -447,9 +489,27 @@ void FrameContext::compute_dims(int32_t k, const DimPlan& plan, const uint8_t* d
     b.anchor_inside = b.ix0 <= rx && rx < b.ix1 && b.iy0 <= ry && ry < b.iy1;
     const int32_t begin = plan.dim_begin_[u], end = plan.dim_begin_[u + 1];
     const int32_t base = plan.used_regions_[u] * W;
-    int32_t total = 0;
-    counts_from_bounds(k, b, counts, &total);
-    for (int32_t j = begin; j < end; ++j) out[j] = context_bin(counts[dims[j] - base], total);
+    if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {  // empty (the anchor cannot be inside)
+      std::fill(out + begin, out + end, uint8_t{0});
+      continue;
+    }
+    if (dom_mask_.empty()) {  // a large frame: all words' counts
+      int32_t counts[256];
+      int32_t total = 0;
+      counts_from_bounds(k, b, counts, &total);
+      for (int32_t j = begin; j < end; ++j) out[j] = context_bin(counts[dims[j] - base], total);
+      continue;
+    }
+    // Only the plan's words of the region; count_all from the dominance structure.
+    const int32_t total = dominance(b.ix1, b.iy1) - dominance(b.ix0, b.iy1) -
+                          dominance(b.ix1, b.iy0) + dominance(b.ix0, b.iy0) - b.anchor_inside;
+    for (int32_t j = begin; j < end; ++j) {
+      const int32_t w = dims[j] - base;
+      const int32_t count = word_dominance(w, b.ix1, b.iy1) - word_dominance(w, b.ix0, b.iy1) -
+                            word_dominance(w, b.ix1, b.iy0) + word_dominance(w, b.ix0, b.iy0) -
+                            (b.anchor_inside && word_[k] == w);
+      out[j] = context_bin(count, total);
+    }
   }
   const int32_t context_dims = plan.layout_.num_context_dims();
   for (int32_t j = plan.num_context_; j < plan.size(); ++j) {

@@ -67,21 +67,20 @@ std::string Vocabulary::to_payload() const {
 }
 
 Vocabulary Vocabulary::from_payload(const std::string& payload, const std::string& what) {
+  // The portable binary archive starts with one endianness byte (read by the archive's
+  // constructor), then the two int32 counts.
+  const size_t header = 1 + 2 * sizeof(int32_t);
+  LMB_CHECK(payload.size() >= header, what << ": truncated vocabulary header (" << payload.size()
+                                             << " payload bytes, expected at least " << header << ")");
   std::istringstream is(payload);
   cereal::PortableBinaryInputArchive ar(is);
   int32_t k = 0, b = 0;
-  try {
-    ar(k, b);
-  } catch (const std::exception& e) {
-    LMB_FAIL(what << ": truncated vocabulary header (" << e.what() << ")");
-  }
+  ar(k, b);
   LMB_CHECK(k >= kMinVocabularyWords && k <= kMaxVocabularyWords,
             what << ": num_words = " << k << " must be in " << kMinVocabularyWords << ".."
                  << kMaxVocabularyWords);
   LMB_CHECK(b >= 1 && b <= kMaxDescriptorBytes,
             what << ": descriptor_bytes = " << b << " must be in 1.." << kMaxDescriptorBytes);
-  // The portable binary archive starts with one endianness byte, then the two int32 counts.
-  const size_t header = 1 + 2 * sizeof(int32_t);
   const size_t body = static_cast<size_t>(k) * static_cast<size_t>(b);
   LMB_CHECK(payload.size() == header + body,
             what << ": payload of " << payload.size() << " bytes, expected " << header + body

@@ -2,14 +2,16 @@
 //
 // Per keypoint: the feature values of the model's used dims (common/context_embedding.h,
 // FrameContext::compute_dims), then the class scores
-//   dense:          all C + 1 classes, stump by stump (each stump adds a + b or b to its sharing
-//                   set's classes);
+//   dense:          all C + 1 classes;
 //   inverted file:  only the keypoint word's candidate classes (classes whose training
-//                   observations quantize to the same word) and the background, class by class
-//                   over each class's own stump list; only the dims those classes read are
-//                   computed.
-// Both sum a class's score in training order, so the score of a class is bit-identical in both
-// modes and to the trainer's BoostModel::scores.
+//                   observations quantize to the same word) and the background; only the dims
+//                   those classes read are computed.
+// classify() works on batches of kBatch keypoints of the same word: the stump outputs of the
+// batch are tabulated once (stump-major, kBatch doubles a stump), then each class's score is
+// summed over its own stump list for the whole batch at once (kBatch independent lanes, SIMD).
+// Every score is summed in training order with the same doubles as the trainer's
+// BoostModel::scores, so a class's score is bit-identical in both modes, in dense_scores() and
+// class_score(), and to the trainer's.
 //
 // Ranking and rejection: the landmark classes (never the background) whose score exceeds the
 // background's score by more than min_margin and is at least min_score, best first (ties: smaller
@@ -66,6 +68,9 @@ struct KeypointMatches {
 
 class LMB_INFER_EXPORT Classifier {
  public:
+  // Keypoints scored together (one SIMD lane each).
+  static constexpr int32_t kBatch = 32;
+
   // Throws lmb::Error for a null model or invalid options.
   Classifier(std::shared_ptr<const Model> model, const ClassifierOptions& options = {});
 
@@ -90,19 +95,31 @@ class LMB_INFER_EXPORT Classifier {
   const ClassifierOptions& options() const { return options_; }
 
  private:
-  // Appends keypoint k's ranked matches given the scores of `num` classes `classes` (scores
-  // aligned with them) and the background score.
-  void rank(const int32_t* classes, const double* scores, int32_t num, double background,
-            KeypointMatches* out);
+  // A ranked candidate while a batch is scored.
+  struct Candidate {
+    double score;
+    int32_t cls;
+  };
+  // Scores one batch of keypoints `ids` (count <= kBatch) against `classes` (ascending, num of
+  // them) and the background; values_ holds their used-dim values. Appends every keypoint's ranked
+  // matches to pending_ as (keypoint, match).
+  void score_batch(const int32_t* ids, int32_t count, const int32_t* classes, int32_t num);
+  // Offers class `cls` with `score` to keypoint lane j (background score bg).
+  void offer(int32_t j, int32_t cls, double score, double bg);
 
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;
   FrameContext context_;
-  std::vector<uint8_t> values_;
-  std::vector<uint8_t> word_values_;
-  std::vector<double> scores_;
-  std::vector<int32_t> all_classes_;
-  std::vector<int32_t> order_;
+  std::vector<uint8_t> values_;       // kBatch rows of used_dims().size() values
+  std::vector<uint8_t> word_values_;  // one keypoint's values of its word's dims
+  std::vector<double> stump_out_;     // M x kBatch stump outputs of the batch
+  std::vector<double> class_out_;     // kBatch scores of one class
+  std::vector<double> background_;    // kBatch background scores
+  std::vector<int32_t> all_classes_;  // 0..C-1
+  std::vector<std::vector<Candidate>> lanes_;  // per lane: passing candidates (pruned to top_k)
+  std::vector<Candidate> cutoff_;              // per lane: worst kept once pruned
+  std::vector<int32_t> order_, word_begin_;    // keypoints grouped by word
+  std::vector<std::pair<int32_t, ClassMatch>> pending_;
 };
 
 }  // namespace lmb

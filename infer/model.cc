@@ -309,9 +309,13 @@ Model::Model(ModelData data) : data_(std::move(data)) {
   class_stump_begin_.assign(static_cast<size_t>(C) + 2, 0);
   for (int32_t c = 0; c <= C; ++c) class_stump_begin_[c + 1] = class_stump_begin_[c] + class_count[c];
   class_stumps_.resize(static_cast<size_t>(class_stump_begin_[C + 1]));
+  class_stump_index_.resize(class_stumps_.size());
   std::vector<int64_t> fill(class_stump_begin_.begin(), class_stump_begin_.end() - 1);
   for (size_t m = 0; m < M; ++m) {
-    for (int32_t c : data_.stumps[m].classes) class_stumps_[fill[c]++] = dense_stumps_[m];
+    for (int32_t c : data_.stumps[m].classes) {
+      class_stump_index_[fill[c]] = static_cast<int32_t>(m);
+      class_stumps_[fill[c]++] = dense_stumps_[m];
+    }
   }
 
   const int32_t W = data_.vocabulary.num_words();

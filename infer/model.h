@@ -135,6 +135,8 @@ class LMB_INFER_EXPORT Model {
   // records, copied so that one class's loop reads contiguous memory.
   const std::vector<int64_t>& class_stump_begin() const { return class_stump_begin_; }  // C + 2
   const std::vector<DenseStump>& class_stumps() const { return class_stumps_; }
+  // The same entries as stump indices (into dense_stumps()), for the batched classifier.
+  const std::vector<int32_t>& class_stump_index() const { return class_stump_index_; }
 
   // Inverted file in CSR form: word w's candidate classes are [word_class_begin()[w],
   // word_class_begin()[w + 1]) of word_classes(), ascending.
@@ -158,6 +160,7 @@ class LMB_INFER_EXPORT Model {
   std::vector<int32_t> stump_classes_;
   std::vector<int64_t> class_stump_begin_;
   std::vector<DenseStump> class_stumps_;
+  std::vector<int32_t> class_stump_index_;
   std::vector<int32_t> word_class_begin_;
   std::vector<int32_t> word_classes_;
   std::vector<int32_t> word_used_begin_;

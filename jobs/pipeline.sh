@@ -1,14 +1,28 @@
 #!/usr/bin/env bash
-# The main job: world -> map -> vocab -> train -> export -> localize for one world preset.
+# The main job: world -> map -> vocab -> train (mpirun, 2 ranks) -> export -> localize -> eval for
+# one world preset, ending with the results table.
 #   jobs/pipeline.sh [PRESET] [OUT_DIR]
 # Stages whose output exists are kept (rerun after a failure continues where it stopped); delete
-# OUT_DIR to start over. LBOOST points at the lboost binary (default: build/train/lboost).
+# OUT_DIR to start over. LBOOST points at the lboost binary (default: build/train/lboost);
+# LMB_RANKS sets the training ranks (default 2; 1 = one process without mpirun); LMB_WORLD_ARGS,
+# LMB_TRAIN_ARGS, LMB_LOCALIZE_ARGS and LMB_EVAL_ARGS add or replace stage flags.
 set -euo pipefail
 preset=${1:-default}
 out=${2:-out/$preset}
 here=$(cd "$(dirname "$0")/.." && pwd)
 lboost=${LBOOST:-$here/build/train/lboost}
 threads=${LMB_THREADS:-$(nproc)}
+ranks=${LMB_RANKS:-2}
+if [ "$ranks" -gt 1 ]; then
+  # OpenMPI refuses root without these, and more ranks than cores without oversubscription.
+  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+  export OMPI_MCA_btl_vader_single_copy_mechanism=none
+  train_cmd=(mpirun -n "$ranks" "$lboost" train)
+  train_threads=1  # per rank: each rank builds its own feature columns
+else
+  train_cmd=("$lboost" train)
+fi
+default_train_args="--rounds 1000 --top-k 1000"
 mkdir -p "$out"
 
 stage() { printf '\n== %s\n' "$*"; }
@@ -17,37 +31,16 @@ t0=$(seconds)
 
 if [ ! -d "$out/world" ]; then
   stage "world: rendering the '$preset' world"
-  "$lboost" world --preset "$preset" --seed 1 --out "$out/world" --threads "$threads"
-fi
-if [ ! -d "$out/vocab_world" ]; then
-  # The vocabulary is trained on images that are not the map's: another seed of the world.
-  stage "vocab images: an unrelated world (seed 1001)"
-  "$lboost" world --preset tiny --seed 1001 --out "$out/vocab_world" --threads "$threads"
+  "$lboost" world --preset "$preset" --seed 1 --out "$out/world" --threads "$threads" ${LMB_WORLD_ARGS:-}
 fi
 if [ ! -f "$out/map.h5" ]; then
   stage "map: detection, guided matching, triangulation"
   "$lboost" map --collection "$out/world" --out "$out/map.h5" --threads "$threads"
 fi
-if [ ! -f "$out/vocab.lbv" ]; then
-  stage "vocab: 16 binary words by k-majority"
-  "$lboost" vocab --images "$out/vocab_world/images" --out "$out/vocab.lbv" --words 16 --seed 7
-fi
-stage "inspect: the map and its descriptor aliasing"
-"$lboost" inspect "$out/map.h5" --threads "$threads" | tee "$out/inspect.txt"
+# shellcheck source=jobs/model_stages.sh
+source "$here/jobs/model_stages.sh"
+model_stages
 
-if [ ! -f "$out/run/model.bin" ]; then
-  stage "train: shared-stump classifier"
-  "$lboost" train --map "$out/map.h5" --vocab "$out/vocab.lbv" --out "$out/run" \
-    --threads "$threads" ${LMB_TRAIN_ARGS:---rounds 300}
-fi
-if [ ! -f "$out/model.lbm" ]; then
-  stage "export: model.lbm"
-  "$lboost" export --run "$out/run" --map "$out/map.h5" --vocab "$out/vocab.lbv" --out "$out/model.lbm"
-fi
-stage "localize: the query frames"
-# Until the classifier's background margin is calibrated (see README "Status"), the main job keeps
-# every keypoint's best class and lets RANSAC sort the matches with the best margins.
-"$lboost" localize --model "$out/model.lbm" --map "$out/map.h5" --out "$out/poses.json" \
-  --threads "$threads" ${LMB_LOCALIZE_ARGS:---min-margin=-1e300 --max-correspondences 100 --ransac-iterations 2000}
-
+stage "results ($out/report.json, plots in $out/plots)"
+grep -v '^\[' "$out/results.txt"
 printf '\nmain job done in %.0f s; outputs in %s\n' "$(echo "$(seconds) - $t0" | bc)" "$out"

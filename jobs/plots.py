@@ -12,8 +12,8 @@ Inputs
     "pose_pr_curve":   {"threshold": [...], "recall": [...], "precision": [...]}
     "per_frame":       {"match_ms": [...], "total_ms": [...], "inlier_ratio": [...], ...}
   RUN_DIR/metrics.jsonl (`lboost train`): one JSON object a round with at least "round" (0-based),
-    "cost", "validation_p1" (null or -1 when not evaluated), "sharing_size"; a resumed run may
-    repeat rounds, the last line of a round wins.
+    "cost", "validation_p1" (null or -1 when not evaluated), "sharing_size", optionally
+    "validation_p1_landmarks"; a resumed run may repeat rounds, the last line of a round wins.
 
 Outputs (in PLOT_DIR)
   miss_rate_fppi.png   average miss rate vs false positives per query (log x)       [report]
@@ -206,13 +206,17 @@ def plot_training(rows, out_dir):
     ax.set_ylabel("training cost (exponential loss)", color="#1f77b4")
     ax.tick_params(axis="y", labelcolor="#1f77b4")
     ax.grid(True, alpha=0.3)
-    val = [(r["round"] + 1, r.get("validation_p1")) for r in rows]
-    val = [(a, b) for a, b in val if b is not None and b >= 0]
     ax2 = ax.twinx()
-    if val:
-        ax2.plot([v[0] for v in val], [v[1] for v in val], "o-", color="#d62728", markersize=3,
-                 label="validation precision@1")
-        ax2.set_ylim(0.0, 1.0)
+    # validation_p1: the background class competes; validation_p1_landmarks: ranking the landmark
+    # classes only (as `lboost eval` does without background rejection).
+    for key, fmt, label in (("validation_p1", "-", "validation precision@1"),
+                            ("validation_p1_landmarks", "--", "validation precision@1, landmark classes only")):
+        val = [(r["round"] + 1, r.get(key)) for r in rows]
+        val = [(a, b) for a, b in val if b is not None and b >= 0]
+        if val:
+            ax2.plot([v[0] for v in val], [v[1] for v in val], fmt, color="#d62728",
+                     marker="o" if len(val) <= 60 else None, markersize=3, label=label)
+    ax2.set_ylim(0.0, 1.0)
     ax2.set_ylabel("validation precision@1", color="#d62728")
     ax2.tick_params(axis="y", labelcolor="#d62728")
     lines = ax.get_legend_handles_labels()

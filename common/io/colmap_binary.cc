@@ -239,6 +239,8 @@ void read_points(const fs::path& path, ColmapModel* model) {
     for (ColmapTrackElement& e : p.track) {
       e.image_id = in.read_id32("track image_id");
       e.point2d_idx = in.read_id32("track point2D_idx");
+      const std::string why = colmap_track_error(*model, e);
+      if (!why.empty()) in.fail(why);
     }
     model->points.push_back(std::move(p));
   }

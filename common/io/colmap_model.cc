@@ -64,6 +64,19 @@ Eigen::Quaterniond checked_rotation(double qw, double qx, double qy, double qz, 
   return Eigen::Quaterniond(qw / norm, qx / norm, qy / norm, qz / norm);
 }
 
+std::string colmap_track_error(const ColmapModel& model, const ColmapTrackElement& element) {
+  const auto it = std::lower_bound(model.images.begin(), model.images.end(), element.image_id,
+                                   [](const ColmapImage& im, int id) { return im.image_id < id; });
+  if (it == model.images.end() || it->image_id != element.image_id) {
+    return "track refers to image " + std::to_string(element.image_id) + ", which the model lacks";
+  }
+  if (!it->points2d.empty() && (element.point2d_idx < 0 || static_cast<size_t>(element.point2d_idx) >= it->points2d.size())) {
+    return "track refers to 2D point " + std::to_string(element.point2d_idx) + " of image " +
+           std::to_string(element.image_id) + ", which has " + std::to_string(it->points2d.size());
+  }
+  return "";
+}
+
 ColmapModel read_colmap_text(const fs::path& sparse_dir) {
   ColmapModel model;
   const fs::path cameras_path = sparse_dir / "cameras.txt";
@@ -72,7 +85,7 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     std::istringstream in(line);
     Camera camera;
     const int id = parse<int>(in, at, "CAMERA_ID");
-    camera.model = camera_model_from_name(parse<std::string>(in, at, "MODEL"));
+    camera.model = camera_model_from_name(parse<std::string>(in, at, "MODEL"), at);
     camera.width = parse<int>(in, at, "WIDTH");
     camera.height = parse<int>(in, at, "HEIGHT");
     std::string token;
@@ -167,6 +180,8 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
         e.image_id = parse<int>(pair, at, "TRACK[].IMAGE_ID");
         e.point2d_idx = parse<int>(pair, at, "TRACK[].POINT2D_IDX");
         LMB_CHECK(e.point2d_idx >= 0, at << ": TRACK[].POINT2D_IDX " << e.point2d_idx << " is negative");
+        const std::string why = colmap_track_error(model, e);
+        LMB_CHECK(why.empty(), at << ": " << why);
         p.track.push_back(e);
       }
       model.points.push_back(p);

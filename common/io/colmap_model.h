@@ -82,6 +82,11 @@ ColmapModel read_colmap_model(const std::filesystem::path& sparse_dir, ColmapFor
 // decode pixels: a corrupt body is only found by the decoder.
 void check_collection_images(const ColmapModel& model, const std::filesystem::path& image_dir);
 
+// Why a 3D point's track element does not fit `model` (images sorted by id): "" when it refers to
+// an image of the model and, when that image has 2D points, to one of them; else the reason.
+// Both readers check every track element with it.
+std::string colmap_track_error(const ColmapModel& model, const ColmapTrackElement& element);
+
 // Checks that a quaternion read from a file is a rotation: finite and of unit norm within 1e-3
 // (then normalized), else throws naming `where`.
 Eigen::Quaterniond checked_rotation(double qw, double qx, double qy, double qz, const std::string& where);

@@ -32,8 +32,12 @@ std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path) {
     LMB_CHECK(tokens.size() == 4, at << ": expected 4 fields (IMAGE_NAME GX GY GZ), got " << tokens.size());
     const Eigen::Vector3d g(parse_finite_number(tokens[1], at, "GX"), parse_finite_number(tokens[2], at, "GY"),
                             parse_finite_number(tokens[3], at, "GZ"));
-    LMB_CHECK(g.norm() >= 1e-9, at << ": gravity of image " << tokens[0] << " is the zero vector");
-    LMB_CHECK(gravity.emplace(tokens[0], g.normalized()).second, at << ": duplicate image name " << tokens[0]);
+    // Scaled by the largest component first: components near the double range (1e308) must not
+    // overflow the norm (Eigen's stableNormalized does for 1.7e308).
+    const double scale = g.cwiseAbs().maxCoeff();
+    LMB_CHECK(scale > 0.0 && scale * (g / scale).norm() >= 1e-9,
+              at << ": gravity of image " << tokens[0] << " is the zero vector");
+    LMB_CHECK(gravity.emplace(tokens[0], (g / scale).normalized()).second, at << ": duplicate image name " << tokens[0]);
   }
   LMB_CHECK(!in.bad(), path.string() << ": read error");
   return gravity;

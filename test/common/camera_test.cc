@@ -77,7 +77,7 @@ TEST(Camera, ProjectRejectsPointsBehind) {
 }
 
 TEST(Camera, RejectsBadModelsAndParameters) {
-  EXPECT_THROW(camera_model_from_name("OPENCV_FISHEYE"), Error);
+  EXPECT_THROW(camera_model_from_name("OPENCV_FISHEYE", "test"), Error);
   EXPECT_THROW(camera_model_from_id(5), Error);
   EXPECT_THROW(camera_model_from_id(42), Error);
   Camera c = make(CameraModel::kPinhole, {500, 500, 320, 240});
@@ -92,7 +92,7 @@ TEST(Camera, RejectsBadModelsAndParameters) {
   EXPECT_THROW(c.check(), Error);
   for (int id : {0, 1, 2, 3, 4, 6}) {
     EXPECT_EQ(static_cast<int>(camera_model_from_id(id)), id);
-    EXPECT_EQ(camera_model_from_name(camera_model_name(camera_model_from_id(id))), camera_model_from_id(id));
+    EXPECT_EQ(camera_model_from_name(camera_model_name(camera_model_from_id(id)), "test"), camera_model_from_id(id));
   }
 }
 

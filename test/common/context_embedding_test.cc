@@ -196,6 +196,29 @@ TEST(FrameContext, ComputeDimsEqualsBruteForceWithAndWithoutAPlan) {
   }
 }
 
+// Frames above FrameContext::kMaxDominanceKeypoints take count_all from the word tables in the
+// DimPlan path: the same bytes as the raw dims path.
+TEST(FrameContext, PlanOnFramesBeyondTheDominanceLimitEqualsRawDims) {
+  const ContextRegions regions = test_regions(60, 6);
+  const int bytes = 8;
+  const int n = FrameContext::kMaxDominanceKeypoints + 300;
+  const FrameKeypoints frame = align(dyadic_frame(n, 77));
+  std::vector<uint8_t> descriptors(static_cast<size_t>(n) * bytes, 0x5A);
+  std::vector<int32_t> dims;
+  for (int32_t d = 0; d < regions.size() * kWords; d += 7) dims.push_back(d);
+  FrameContext ctx(regions, kWords);
+  ctx.reset(frame);
+  std::vector<uint8_t> all(static_cast<size_t>(n) * dims.size());
+  ctx.compute_dims_all(dims.data(), static_cast<int32_t>(dims.size()), descriptors.data(), bytes, all.data());
+  const DimPlan plan(regions, EmbeddingLayout{regions.size(), kWords, bytes}, dims);
+  std::vector<uint8_t> planned(all.size(), 0xEE);
+  ctx.compute_dims_all(plan, descriptors.data(), planned.data());
+  ASSERT_EQ(planned, all);
+  int nonzero = 0;
+  for (uint8_t v : all) nonzero += v > 0;
+  EXPECT_GT(nonzero, 1000);
+}
+
 // Invariance under exact (dyadic) similarity transforms applied to positions, scales and gravity.
 TEST(FrameContext, EmbeddingIsExactlyInvariantUnderTranslationScalingAndRotationWithGravity) {
   const ContextRegions regions = test_regions();

@@ -151,6 +151,29 @@ TEST(Vocabulary, FileRoundTripAndRejections) {
   std::filesystem::remove(bad_path);
 }
 
+// Regression (found by test/fuzz/fuzz_vocabulary): a file whose valid header wraps an empty or
+// short payload made cereal throw its own exception instead of lmb::Error. The first case is the
+// fuzzer's input: "LMBVOCAB", version 1, payload length 0, CRC 0.
+TEST(Vocabulary, EmptyOrShortPayloadIsAnErrorNotACrash) {
+  const auto path = temp_path("short.lbv");
+  const std::string fuzz_input("LMBVOCAB\x01\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 24);
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << fuzz_input;
+  }
+  try {
+    Vocabulary::load(path);
+    ADD_FAILURE() << "an empty payload was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), path.string() + ": truncated vocabulary header (0 payload bytes, expected at least 9)");
+  }
+  const std::string payload = Vocabulary(8, std::vector<uint8_t>(4 * 8, 7)).to_payload();
+  for (size_t n = 0; n < 9; ++n) {
+    EXPECT_THROW(Vocabulary::from_payload(payload.substr(0, n), "short.lbv"), Error) << n << " bytes";
+  }
+  std::filesystem::remove(path);
+}
+
 TEST(Vocabulary, BadOptionsAndInputsThrow) {
   const auto x = clustered(4, 10, 8, 0.1, 2);
   VocabularyTrainOptions o;

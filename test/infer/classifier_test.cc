@@ -111,14 +111,51 @@ TEST(ClassifierTest, ValuesAndScoresEqualTheReference) {
   EXPECT_GT(nonzero_context, 50);  // the context path was exercised
 }
 
+// classify() against the reference: every keypoint's matches are the classes (its word's
+// candidates with the inverted file) whose reference score beats the background's by more than
+// the margin, best first (ties: smaller class), at most top_k. Returns the keypoints matched.
+int expect_classify_matches_reference(const std::shared_ptr<const Model>& model, const test::TestFrame& tf,
+                                      const ClassifierOptions& o) {
+  const ModelData& d = model->data();
+  std::vector<uint8_t> words;
+  const FrameKeypoints frame = frame_of(tf, model->vocabulary(), &words);
+  Classifier classifier(model, o);
+  const KeypointMatches got = classifier.classify(frame, tf.descriptors.data());
+  EXPECT_EQ(got.num_keypoints(), frame.size());
+  int matched = 0;
+  for (int32_t k = 0; k < frame.size(); ++k) {
+    const std::vector<uint8_t> v = reference_vector(*model, frame, k, tf.descriptors.data() + k * d.descriptor_bytes);
+    const double bg = reference_score(d, v, d.num_classes);
+    std::vector<std::pair<double, int32_t>> expected;  // (-score, class)
+    for (int32_t c = 0; c < d.num_classes; ++c) {
+      if (o.use_inverted_file) {
+        const auto& list = d.inverted_file[frame.word[k]];
+        if (!std::binary_search(list.begin(), list.end(), c)) continue;
+      }
+      const double s = reference_score(d, v, c);
+      if (s - bg > o.min_margin) expected.emplace_back(-s, c);
+    }
+    std::sort(expected.begin(), expected.end());
+    if (static_cast<int>(expected.size()) > o.top_k) expected.resize(static_cast<size_t>(o.top_k));
+    EXPECT_EQ(got.count(k), static_cast<int32_t>(expected.size())) << "keypoint " << k;
+    if (got.count(k) != static_cast<int32_t>(expected.size())) return matched;
+    for (int32_t j = 0; j < got.count(k); ++j) {
+      const ClassMatch& m = got.of(k)[j];
+      EXPECT_EQ(m.cls, expected[j].second);
+      EXPECT_EQ(m.score, -expected[j].first);
+      EXPECT_EQ(m.background_score, bg);
+      EXPECT_EQ(m.landmark, d.class_landmark[m.cls]);
+    }
+    matched += got.count(k) > 0;
+  }
+  return matched;
+}
+
 TEST(ClassifierTest, RankingTopKAndBackgroundRejection) {
   ModelData data = random_model_data(12, 80, 12);
   data.bias[12] += 3.0;  // a stronger background, so that some keypoints are rejected
   const auto model = std::make_shared<const Model>(std::move(data));
-  const ModelData& d = model->data();
   const test::TestWorld world = test::make_test_world(30, 30, 30, 5);
-  std::vector<uint8_t> words;
-  const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
   for (int top_k : {1, 3}) {
     for (double margin : {0.0, 0.3}) {
       for (bool inverted : {false, true}) {
@@ -126,37 +163,28 @@ TEST(ClassifierTest, RankingTopKAndBackgroundRejection) {
         o.top_k = top_k;
         o.min_margin = margin;
         o.use_inverted_file = inverted;
-        Classifier classifier(model, o);
-        const KeypointMatches got = classifier.classify(frame, world.frame.descriptors.data());
-        ASSERT_EQ(got.num_keypoints(), frame.size());
-        int matched = 0;
-        for (int32_t k = 0; k < frame.size(); ++k) {
-          const std::vector<uint8_t> v =
-              reference_vector(*model, frame, k, world.frame.descriptors.data() + k * d.descriptor_bytes);
-          const double bg = reference_score(d, v, d.num_classes);
-          std::vector<std::pair<double, int32_t>> expected;  // (-score, class)
-          for (int32_t c = 0; c < d.num_classes; ++c) {
-            if (inverted) {
-              const auto& list = d.inverted_file[frame.word[k]];
-              if (!std::binary_search(list.begin(), list.end(), c)) continue;
-            }
-            const double s = reference_score(d, v, c);
-            if (s - bg > margin) expected.emplace_back(-s, c);
-          }
-          std::sort(expected.begin(), expected.end());
-          if (static_cast<int>(expected.size()) > top_k) expected.resize(static_cast<size_t>(top_k));
-          ASSERT_EQ(got.count(k), static_cast<int32_t>(expected.size())) << "keypoint " << k;
-          for (int32_t j = 0; j < got.count(k); ++j) {
-            const ClassMatch& m = got.of(k)[j];
-            EXPECT_EQ(m.cls, expected[j].second);
-            EXPECT_EQ(m.score, -expected[j].first);
-            EXPECT_EQ(m.background_score, bg);
-            EXPECT_EQ(m.landmark, d.class_landmark[m.cls]);
-          }
-          matched += got.count(k) > 0;
-        }
+        const int matched = expect_classify_matches_reference(model, world.frame, o);
         EXPECT_GT(matched, 0);
-        EXPECT_LT(matched, frame.size());  // some keypoints rejected as background
+        EXPECT_LT(matched, static_cast<int>(world.frame.keypoints.size()));  // some rejected as background
+      }
+    }
+  }
+}
+
+// Many classes and keypoints: several batches of Classifier::kBatch keypoints per word, and
+// more passing classes than the ranking keeps (its pruning to the best top_k).
+TEST(ClassifierTest, ManyClassesAndKeypointsEqualTheReference) {
+  const auto model = std::make_shared<const Model>(random_model_data(260, 120, 15));
+  const test::TestWorld world = test::make_test_world(260, 150, 150, 6);
+  ASSERT_GT(world.frame.keypoints.size(), static_cast<size_t>(4 * Classifier::kBatch));
+  for (int top_k : {1, 7, 300}) {
+    for (double margin : {-std::numeric_limits<double>::infinity(), 0.0}) {
+      for (bool inverted : {false, true}) {
+        ClassifierOptions o;
+        o.top_k = top_k;
+        o.min_margin = margin;
+        o.use_inverted_file = inverted;
+        EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0);
       }
     }
   }

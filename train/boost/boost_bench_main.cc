@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 
 #include "common/error.h"
+#include "common/machine_info.h"
 #include "train/boost/boost_bench.h"
 
 int main(int argc, char** argv) {
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
   app.add_option("--mining-interval", o.boost.mining_interval, "mining interval (rounds)");
   CLI11_PARSE(app, argc, argv);
   try {
+    std::fprintf(stderr, "lmb_boost_bench: machine %s\n", lmb::machine_info().summary().c_str());
     const lmb::BoostBenchResult r = lmb::run_boost_bench(o);
     std::printf("%s\n", r.to_json().c_str());
   } catch (const lmb::Error& e) {

@@ -16,8 +16,15 @@ void TrainingSetOptions::check() const {
 }
 
 void BoostOptions::check() const {
+  LMB_CHECK(std::isfinite(negative_weight_ratio) && negative_weight_ratio >= 0.0,
+            "boost options: negative_weight_ratio must be finite and >= 0, got " << negative_weight_ratio);
+  LMB_CHECK(background_negatives >= 0,
+            "boost options: background_negatives must be >= 0 (0 = all), got " << background_negatives);
+  LMB_CHECK(learning_rate > 0.0 && learning_rate <= 1.0,
+            "boost options: learning_rate must be in (0, 1], got " << learning_rate);
   LMB_CHECK(num_rounds > 0, "boost options: num_rounds must be > 0, got " << num_rounds);
   LMB_CHECK(dims_per_round > 0, "boost options: dims_per_round must be > 0, got " << dims_per_round);
+  LMB_CHECK(candidate_dims >= 0, "boost options: candidate_dims must be >= 0 (0 = all dims), got " << candidate_dims);
   LMB_CHECK(max_thresholds_per_dim >= 0 && max_thresholds_per_dim <= 255,
             "boost options: max_thresholds_per_dim must be in [0, 255], got " << max_thresholds_per_dim);
   LMB_CHECK(negatives_per_class >= 0,
@@ -44,6 +51,11 @@ void BoostOptions::check() const {
 void BoostOptions::check(int32_t num_dims) const {
   check();
   LMB_CHECK(num_dims > 0, "boost options: the features have no dimensions");
+  LMB_CHECK(candidate_dims <= num_dims, "boost options: candidate_dims (" << candidate_dims
+                                            << ") exceeds the feature dimension (" << num_dims << ")");
+  LMB_CHECK(candidate_dims == 0 || dims_per_round <= candidate_dims,
+            "boost options: dims_per_round (|F_m| = " << dims_per_round << ") exceeds candidate_dims ("
+                                                      << candidate_dims << ")");
   LMB_CHECK(dims_per_round <= num_dims, "boost options: dims_per_round (|F_m| = "
                                             << dims_per_round << ") exceeds the feature dimension ("
                                             << num_dims << ")");

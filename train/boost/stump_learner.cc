@@ -181,7 +181,6 @@ void SerialStumpLearner::initialize() {
 void SerialStumpLearner::bootstrap_negatives() {
   const int32_t C = set_.num_classes;
   const int64_t S = set_.num_samples();
-  const int32_t n_neg = options_.negatives_per_class;
   const double radius = options_.exclusion_radius;
   auto initial_weight = [&](int64_t s) { return set_.sample_weight.empty() ? 1.0 : static_cast<double>(set_.sample_weight[s]); };
   auto excluded = [&](int32_t c, int64_t s) {
@@ -214,15 +213,24 @@ void SerialStumpLearner::bootstrap_negatives() {
   std::vector<int64_t> prefix;
   std::vector<int64_t> chosen;
   std::vector<std::pair<uint64_t, int64_t>> keyed;
+  negative_unit_.assign(static_cast<size_t>(C1_), 1.0);
   for (int32_t c = 0; c < C1_; ++c) {
+    double positive_total = 0.0;
     for (int64_t s : positives[c]) {
       samples.push_back(s);
       codes.push_back(c * 2);
       weights.push_back(initial_weight(s));
+      positive_total += initial_weight(s);
     }
     lists.clear();
+    int32_t n_neg = options_.negatives_per_class;
     if (c == C) {
       lists.push_back(&landmark_train);
+      if (options_.background_negatives > 0) {
+        n_neg = options_.background_negatives;
+      } else {
+        n_neg = static_cast<int32_t>(std::min<size_t>(landmark_train.size(), std::numeric_limits<int32_t>::max()));
+      }
     } else {
       std::vector<int32_t> words;
       for (int64_t s : positives[c]) {
@@ -260,10 +268,16 @@ void SerialStumpLearner::bootstrap_negatives() {
       }
     }
     std::sort(chosen.begin(), chosen.end());
+    // Balanced classes: the negatives share negative_weight_ratio x the positives' total weight.
+    double negative_total = 0.0;
+    for (int64_t s : chosen) negative_total += initial_weight(s);
+    if (options_.negative_weight_ratio > 0.0 && negative_total > 0.0 && positive_total > 0.0) {
+      negative_unit_[c] = options_.negative_weight_ratio * positive_total / negative_total;
+    }
     for (int64_t s : chosen) {
       samples.push_back(s);
       codes.push_back(c * 2 + 1);
-      weights.push_back(initial_weight(s));
+      weights.push_back(negative_unit_[c] * initial_weight(s));
     }
   }
   weight_exponent_ = 0;
@@ -667,7 +681,9 @@ RoundStats SerialStumpLearner::run_round() {
   stats.cost_before = exp_loss();
 
   const std::vector<int32_t> round_dims =
-      draw_round_dims(options_.seed, stats.round, features_.num_dims, options_.dims_per_round);
+      draw_round_dims(options_.seed, stats.round,
+                      options_.candidate_dims > 0 ? options_.candidate_dims : features_.num_dims,
+                      options_.dims_per_round);
   const StumpRecord best = reduce_best(search_impl(choose_dims(stats.round, round_dims), &stats));
 
   const auto tu = Clock::now();
@@ -680,9 +696,13 @@ RoundStats SerialStumpLearner::run_round() {
   double alpha = 0.0, beta = 0.0;
   std::vector<uint8_t> above;
   SharedStump stump;
+  const double nu = options_.learning_rate;
+  for (double& kc : k) kc *= nu;
   if (best.valid()) {
     for (int32_t c : best.classes) in_s[c] = 1;
     fit_alpha_beta(best, &alpha, &beta);
+    alpha *= nu;
+    beta *= nu;
     stump_above(best.dim, best.theta, &above);
     stump.dim = best.dim;
     stump.theta = static_cast<uint8_t>(best.theta);
@@ -837,8 +857,10 @@ int64_t SerialStumpLearner::mine_hard_negatives() {
       negs.insert(it, s);
       new_samples.push_back(s);
       new_codes.push_back(c * 2 + 1);
-      // A negative's weight is exp(-z H) = exp(H(s, c)), stored relative to 2^weight_exponent_.
-      new_weights.push_back(std::exp(static_cast<double>(sc) - log_scale));
+      // A negative's weight is its initial weight times exp(-z H) = exp(H(s, c)), stored relative
+      // to 2^weight_exponent_: the weight it would have had in L-_c from the start.
+      const double w0 = negative_unit_[c] * (set_.sample_weight.empty() ? 1.0 : static_cast<double>(set_.sample_weight[s]));
+      new_weights.push_back(w0 * std::exp(static_cast<double>(sc) - log_scale));
     }
   }
   if (new_samples.empty()) return 0;
@@ -861,6 +883,81 @@ int64_t SerialStumpLearner::mine_hard_negatives() {
   weights.insert(weights.end(), new_weights.begin(), new_weights.end());
   rebuild_entry_index(samples, codes, weights);
   return static_cast<int64_t>(new_samples.size());
+}
+
+SerialStumpLearner::State SerialStumpLearner::save_state() {
+  initialize();
+  State st;
+  st.model = model_;
+  st.entry_code = entry_code_;
+  st.entry_weight = entry_weight_;
+  st.entry_sample.reserve(entry_code_.size());
+  for (int64_t s = 0; s + 1 < static_cast<int64_t>(sample_offset_.size()); ++s) {
+    for (int64_t e = sample_offset_[s]; e < sample_offset_[s + 1]; ++e) st.entry_sample.push_back(s);
+  }
+  st.weight_exponent = weight_exponent_;
+  st.tracked_samples = tracked_samples_;
+  st.num_validation_rows = num_validation_rows_;
+  st.tracked_scores = tracked_scores_;
+  st.class_offset = class_offset_;
+  st.negative_unit = negative_unit_;
+  st.last_validation = last_validation_;
+  return st;
+}
+
+void SerialStumpLearner::restore_state(const State& st) {
+  const int64_t S = set_.num_samples();
+  const size_t E = st.entry_sample.size();
+  LMB_CHECK(st.entry_code.size() == E && st.entry_weight.size() == E,
+            "learner state: " << E << " entry samples but " << st.entry_code.size() << " codes and "
+                              << st.entry_weight.size() << " weights");
+  for (size_t i = 0; i < E; ++i) {
+    LMB_CHECK(st.entry_sample[i] >= 0 && st.entry_sample[i] < S,
+              "learner state: entry " << i << " has sample " << st.entry_sample[i] << " of " << S);
+    LMB_CHECK(st.entry_code[i] >= 0 && (st.entry_code[i] >> 1) < C1_,
+              "learner state: entry " << i << " has class " << (st.entry_code[i] >> 1) << " of " << C1_);
+    LMB_CHECK(std::isfinite(st.entry_weight[i]) && st.entry_weight[i] >= 0.0,
+              "learner state: entry " << i << " has weight " << st.entry_weight[i]);
+    LMB_CHECK(i == 0 || st.entry_sample[i - 1] < st.entry_sample[i] ||
+                  (st.entry_sample[i - 1] == st.entry_sample[i] && st.entry_code[i - 1] < st.entry_code[i]),
+              "learner state: entries are not in (sample, code) order at " << i);
+  }
+  LMB_CHECK(static_cast<int64_t>(st.model.bias.size()) == C1_ && static_cast<int64_t>(st.class_offset.size()) == C1_,
+            "learner state: " << st.model.bias.size() << " biases and " << st.class_offset.size()
+                              << " class offsets for " << C1_ << " classes");
+  LMB_CHECK(st.model.num_dims == features_.num_dims && st.model.num_classes == set_.num_classes,
+            "learner state: a model of " << st.model.num_classes << " classes x " << st.model.num_dims
+                                         << " dims for " << set_.num_classes << " x " << features_.num_dims);
+  LMB_CHECK(static_cast<int32_t>(st.model.stumps.size()) <= options_.num_rounds,
+            "learner state: " << st.model.stumps.size() << " rounds done, more than boost.num_rounds "
+                              << options_.num_rounds);
+  st.model.check();
+  LMB_CHECK(static_cast<int64_t>(st.negative_unit.size()) == C1_,
+            "learner state: " << st.negative_unit.size() << " negative weights for " << C1_ << " classes");
+  for (double u : st.negative_unit) {
+    LMB_CHECK(std::isfinite(u) && u > 0.0, "learner state: negative weight " << u);
+  }
+  LMB_CHECK(st.num_validation_rows >= 0 && st.num_validation_rows <= static_cast<int64_t>(st.tracked_samples.size()),
+            "learner state: " << st.num_validation_rows << " validation rows of " << st.tracked_samples.size());
+  for (int64_t s : st.tracked_samples) {
+    LMB_CHECK(s >= 0 && s < S, "learner state: tracked sample " << s << " of " << S);
+  }
+  LMB_CHECK(st.tracked_scores.size() == st.tracked_samples.size() * static_cast<size_t>(C1_),
+            "learner state: " << st.tracked_scores.size() << " tracked scores for " << st.tracked_samples.size()
+                              << " rows x " << C1_ << " classes");
+  std::vector<int64_t> samples = st.entry_sample;
+  std::vector<int32_t> codes = st.entry_code;
+  std::vector<double> weights = st.entry_weight;
+  rebuild_entry_index(samples, codes, weights);
+  weight_exponent_ = st.weight_exponent;
+  tracked_samples_ = st.tracked_samples;
+  num_validation_rows_ = st.num_validation_rows;
+  tracked_scores_ = st.tracked_scores;
+  class_offset_ = st.class_offset;
+  negative_unit_ = st.negative_unit;
+  model_ = st.model;
+  last_validation_ = st.last_validation;
+  initialized_ = true;
 }
 
 }  // namespace lmb

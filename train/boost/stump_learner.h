@@ -185,6 +185,7 @@ class SerialStumpLearner {
   std::vector<std::vector<int64_t>> class_negatives_;  // per class: sorted negative samples
   std::vector<int64_t> class_w_, class_y_;             // per class fixed-point totals
   std::vector<double> class_q_;                        // Y^2 / W
+  std::vector<double> negative_unit_;  // per class: initial weight of a negative (class balance)
 
   // Per-dim scratch.
   std::vector<int64_t> hist_;          // ((bucket - 1) * C1 + class) * 2 + neg; all zero between passes
@@ -205,6 +206,30 @@ class SerialStumpLearner {
 
   BoostModel model_;
   double last_validation_ = -1.0;
+
+ public:
+  // Everything that changes during training, for checkpoints (train/dist/checkpoint_h5.h):
+  // restoring it into a learner built on the same features, set and options continues the run
+  // bit for bit. The negative sets L-_c are the entries with z = -1; per-round scratch (fixed-point
+  // weights, class totals, histograms) is recomputed from these at the start of every round.
+  struct State {
+    BoostModel model;                   // stumps so far (rounds done = stumps.size()) and biases
+    std::vector<int64_t> entry_sample;  // entries, sample-major, (sample, code) ascending
+    std::vector<int32_t> entry_code;    // class * 2 + (z < 0)
+    std::vector<double> entry_weight;   // stored weights; true = stored * 2^weight_exponent
+    int32_t weight_exponent = 0;
+    std::vector<int64_t> tracked_samples;  // validation rows first, then the mining pool
+    int64_t num_validation_rows = 0;
+    std::vector<float> tracked_scores;     // tracked_samples.size() x (C + 1), row-major
+    std::vector<double> class_offset;      // C + 1: sum of k_c over the rounds
+    std::vector<double> negative_unit;     // C + 1: initial weight of a negative of each class
+    double last_validation = -1.0;
+  };
+  // Initializes the learner first if no round ran yet.
+  State save_state();
+  // Throws lmb::Error when the state does not fit this learner's set and options (sizes, classes,
+  // samples, dims out of range, more rounds than options().num_rounds).
+  void restore_state(const State& state);
 };
 
 }  // namespace lmb

@@ -22,8 +22,11 @@ struct Field {
 template <class T>
 Field int_field(const std::string& key, T* v) {
   return {[v](const toml::node& n, const std::string& where) {
+            // is_integer() first: toml++'s value<int64_t>() of a float node such as 1e37 casts it
+            // to int64 before its range check (undefined behaviour, found by fuzz_train_config).
+            LMB_CHECK(n.is_integer(), where << ": expected an integer");
             const auto x = n.value<int64_t>();
-            LMB_CHECK(x.has_value() && n.is_integer(), where << ": expected an integer");
+            LMB_CHECK(x.has_value(), where << ": expected an integer");
             LMB_CHECK(*x >= static_cast<int64_t>(std::numeric_limits<T>::lowest()) &&
                           static_cast<uint64_t>(*x < 0 ? 0 : *x) <= static_cast<uint64_t>(std::numeric_limits<T>::max()),
                       where << ": " << *x << " is out of range");
@@ -62,7 +65,11 @@ Schema schema(TrainConfig* c) {
   BoostOptions& b = c->boost;
   bs.emplace("num_rounds", int_field("num_rounds", &b.num_rounds));
   bs.emplace("dims_per_round", int_field("dims_per_round", &b.dims_per_round));
+  bs.emplace("candidate_dims", int_field("candidate_dims", &b.candidate_dims));
   bs.emplace("max_thresholds_per_dim", int_field("max_thresholds_per_dim", &b.max_thresholds_per_dim));
+  bs.emplace("negative_weight_ratio", double_field("negative_weight_ratio", &b.negative_weight_ratio));
+  bs.emplace("background_negatives", int_field("background_negatives", &b.background_negatives));
+  bs.emplace("learning_rate", double_field("learning_rate", &b.learning_rate));
   bs.emplace("negatives_per_class", int_field("negatives_per_class", &b.negatives_per_class));
   bs.emplace("max_negatives_per_class", int_field("max_negatives_per_class", &b.max_negatives_per_class));
   bs.emplace("mining_interval", int_field("mining_interval", &b.mining_interval));
@@ -85,6 +92,8 @@ Schema schema(TrainConfig* c) {
   rs.emplace("max_aspect", double_field("max_aspect", &r.max_aspect));
   rs.emplace("max_offset", double_field("max_offset", &r.max_offset));
   s["features"].emplace("threads", int_field("threads", &c->feature_threads));
+  s["checkpoint"].emplace("interval", int_field("interval", &c->checkpoint_interval));
+  s["checkpoint"].emplace("keep", int_field("keep", &c->checkpoint_keep));
   return s;
 }
 
@@ -96,6 +105,8 @@ void TrainConfig::check() const {
   regions.check();
   LMB_CHECK(feature_threads >= 1 && feature_threads <= 256,
             "config: features.threads must be in 1..256, got " << feature_threads);
+  LMB_CHECK(checkpoint_interval >= 0, "config: checkpoint.interval must be >= 0, got " << checkpoint_interval);
+  LMB_CHECK(checkpoint_keep >= 1, "config: checkpoint.keep must be >= 1, got " << checkpoint_keep);
 }
 
 void apply_train_config_toml(const std::string& text, const std::string& what, TrainConfig* config) {

@@ -3,12 +3,13 @@
 // checkpoint can hash to refuse a changed config.
 //
 //   [training_set]  top_k_landmarks, min_train_observations, validation_fraction, background_cap, seed
-//   [boost]         num_rounds, dims_per_round, max_thresholds_per_dim, negatives_per_class,
+//   [boost]         num_rounds, dims_per_round, candidate_dims, max_thresholds_per_dim, negatives_per_class,
 //                   max_negatives_per_class, mining_interval, mining_pool_size, mined_per_sample,
 //                   exclusion_radius, validation_interval, max_validation_samples,
 //                   sharing_single_starts, sharing_max_iterations, refine_top, screening_step, seed
 //   [regions]       num_regions, seed, min_area, max_area, max_aspect, max_offset
 //   [features]      threads
+//   [checkpoint]    interval, keep (train/dist/checkpoint_h5.h; not compared on resume)
 #pragma once
 
 #include <filesystem>
@@ -24,6 +25,8 @@ struct TrainConfig {
   BoostOptions boost;
   ContextRegionOptions regions;
   int feature_threads = 1;
+  int32_t checkpoint_interval = 100;  // rounds between checkpoints (0 = only on a signal and at the end)
+  int32_t checkpoint_keep = 3;        // newest checkpoints kept
   void check() const;  // every part's check(); throws lmb::Error naming the field
 };
 

@@ -16,6 +16,7 @@
 #include "common/context_regions.h"
 #include "common/error.h"
 #include "common/io/map_h5.h"
+#include "common/machine_info.h"
 #include "common/random.h"
 #include "common/vocabulary.h"
 #include "train/cli/commands.h"
@@ -108,6 +109,8 @@ void run_context_bench(const ContextBenchArgs& a) {
   LMB_CHECK(a.naive_samples >= 1, "--naive-samples must be >= 1");
   LMB_CHECK(a.used_dims >= 1, "--used-dims must be >= 1");
   nlohmann::json report;
+  const MachineInfo machine = machine_info();
+  spdlog::info("bench context: machine {}", machine.summary());
 
   auto t = Clock::now();
   const LandmarkMap map = a.map_path.empty() ? synthetic_map(a) : read_map_h5(a.map_path);
@@ -281,6 +284,7 @@ void run_context_bench(const ContextBenchArgs& a) {
 
   if (!a.json_path.empty()) {
     report["map"] = source;
+    report["machine"] = {{"cpu_model", machine.cpu_model}, {"logical_cores", machine.logical_cores}};
     report["frames"] = map.frames.size();
     report["keypoints"] = map.keypoints.size();
     report["dims"] = layout.num_dims();

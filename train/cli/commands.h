@@ -5,6 +5,11 @@
 
 namespace lmb::cli {
 
+// Thrown by a command to end `lboost` with this exit code and no error line (e.g. 75 = requeue).
+struct CommandExit {
+  int code = 0;
+};
+
 void add_world_command(CLI::App& app);
 void add_map_command(CLI::App& app);
 void add_inspect_command(CLI::App& app);
@@ -12,6 +17,7 @@ void add_vocab_command(CLI::App& app);
 void add_train_command(CLI::App& app);
 void add_export_command(CLI::App& app);
 void add_localize_command(CLI::App& app);
+void add_eval_command(CLI::App& app);
 void add_bench_infer_command(CLI::App& app);  // `bench infer`, after add_bench_command
 void add_import_command(CLI::App& app);  // `import` group: `import tum`, `import colmap`
 void add_bench_command(CLI::App& app);  // `bench` group: `bench context`, ...

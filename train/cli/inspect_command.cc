@@ -37,10 +37,11 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
   }
   std::vector<int32_t> obs;
   double error_sum = 0, quality_min = 0, quality_max = 0;
-  int64_t at_least_10 = 0, with_query = 0;
+  int64_t at_least_5 = 0, at_least_10 = 0, with_query = 0;
   for (const Landmark& l : map.landmarks) {
     obs.push_back(l.num_map_observations);
     error_sum += l.mean_reprojection_error;
+    at_least_5 += l.num_map_observations >= 5 ? 1 : 0;
     at_least_10 += l.num_map_observations >= 10 ? 1 : 0;
     with_query += l.num_query_observations > 0 ? 1 : 0;
   }
@@ -63,6 +64,7 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
   j["map_keypoints_with_landmark"] = map_with;
   j["query_keypoints_with_landmark"] = query_with;
   j["landmarks"] = map.landmarks.size();
+  j["landmarks_with_5_map_observations"] = at_least_5;
   j["landmarks_with_10_map_observations"] = at_least_10;
   j["landmarks_seen_by_queries"] = with_query;
   j["map_observations_per_landmark"] = {
@@ -113,7 +115,8 @@ void run_inspect(const InspectArgs& args) {
   std::printf("keypoints: %lld map (%lld with a landmark), %lld query (%lld with a true landmark)\n",
               j["map_keypoints"].get<long long>(), j["map_keypoints_with_landmark"].get<long long>(),
               j["query_keypoints"].get<long long>(), j["query_keypoints_with_landmark"].get<long long>());
-  std::printf("landmarks: %zu (%lld with >= 10 map observations, %lld seen by queries)\n", map.landmarks.size(),
+  std::printf("landmarks: %zu (%lld with >= 5 and %lld with >= 10 map observations, %lld seen by queries)\n",
+              map.landmarks.size(), j["landmarks_with_5_map_observations"].get<long long>(),
               j["landmarks_with_10_map_observations"].get<long long>(), j["landmarks_seen_by_queries"].get<long long>());
   std::printf("map observations per landmark: mean %.2f, median %d, max %d\n",
               j["map_observations_per_landmark"]["mean"].get<double>(),

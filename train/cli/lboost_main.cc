@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   lmb::cli::add_train_command(app);
   lmb::cli::add_export_command(app);
   lmb::cli::add_localize_command(app);
+  lmb::cli::add_eval_command(app);
   lmb::cli::add_import_command(app);
   lmb::cli::add_bench_command(app);
   lmb::cli::add_bench_infer_command(app);
@@ -28,6 +29,8 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const lmb::cli::CommandExit& e) {
+    return e.code;
   } catch (const lmb::Error& e) {
     const auto subs = app.get_subcommands();
     std::fprintf(stderr, "lboost %s: error: %s\n", subs.empty() ? "" : subs[0]->get_name().c_str(),

@@ -1,11 +1,18 @@
-// lboost train: trains the shared-stump classifier of a landmark map (single process; the MPI
-// layer of issue #5 wraps the same learner).
+// lboost train: trains the shared-stump classifier of a landmark map, on one process or on MPI
+// ranks (`mpirun -n R lboost train ...`, `srun --mpi=pmix lboost train ...`; train/dist/).
 //   lboost train --map map.h5 --vocab vocab.lbv --out RUN_DIR [--config cfg.toml] [--rounds N]
 //                [--dims-per-round N] [--top-k N] [--seed S] [--threads N]
-// Writes RUN_DIR/config.toml (effective config), log.txt, metrics.jsonl (one line per round) and
-// model.bin (train/boost/boost_model.h: cereal portable binary in the "LMBBOOST" container) and
-// summary.json (final validation P@1 next to the Hamming nearest-neighbour baseline).
+//                [--checkpoint-interval N] [--checkpoint-keep K]
+//   lboost train --synthetic small|medium|paper --out RUN_DIR ...   (synthetic problem of
+//                train/boost/synthetic_problem.h instead of a map: tests, job tests, benchmarks)
+// Rank 0 writes RUN_DIR/config.toml (effective config), log.txt, metrics.jsonl (one line per
+// round), checkpoints/ckpt-*.h5, model.bin (train/boost/boost_model.h: cereal portable binary in
+// the "LMBBOOST" container) and summary.json (final validation P@1 next to the Hamming
+// nearest-neighbour baseline; per-rank memory and communication). Each rank builds only the
+// feature columns it owns. A run resumes from the newest valid checkpoint of RUN_DIR; after
+// SIGTERM / SIGUSR1 it checkpoints and exits with code 75 (requeue).
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -25,9 +32,15 @@
 #include "common/vocabulary.h"
 #include "train/boost/round_log.h"
 #include "train/boost/stump_learner.h"
+#include "train/boost/synthetic_problem.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
 #include "train/cli/commands.h"
+#include "train/dist/checkpoint_h5.h"
+#include "train/dist/communicator.h"
+#include "train/dist/dist_bench.h"
+#include "train/dist/feature_parallel_learner.h"
+#include "train/dist/training_job.h"
 #include "train/features/build_features.h"
 
 namespace lmb::cli {
@@ -44,31 +57,199 @@ struct TrainArgs {
   std::optional<int32_t> top_k;
   std::optional<uint64_t> seed;
   std::optional<int> threads;
+  std::optional<int32_t> checkpoint_interval;
+  std::optional<int32_t> checkpoint_keep;
+  std::string synthetic;
 };
 
 // Precision@1 of exact Hamming nearest-neighbour matching (descriptor only) of the held-out
-// observations against every training sample's descriptor: the baseline the classifier must beat.
-double hamming_nn_validation_p1(const LandmarkMap& map, const TrainingSet& set) {
+// observations against the training samples' descriptors: the baselines the classifier must beat.
+// `all`: against every training sample, background included (compare with validation_p1, where
+// the background class competes too); `landmarks`: against the landmark classes' samples only
+// (compare with validation_p1_landmarks).
+struct HammingBaseline {
+  double all = -1.0;
+  double landmarks = -1.0;
+};
+HammingBaseline hamming_nn_validation_p1(const LandmarkMap& map, const TrainingSet& set) {
   std::vector<int64_t> train, validation;
   for (int64_t s = 0; s < set.num_samples(); ++s) {
     (set.sample_is_validation[s] ? validation : train).push_back(s);
   }
-  if (validation.empty()) return -1.0;
-  int64_t correct = 0;
+  HammingBaseline out;
+  if (validation.empty()) return out;
+  int64_t correct_all = 0, correct_landmarks = 0;
   for (int64_t v : validation) {
     const uint8_t* q = map.descriptor(set.sample_keypoint[v]);
-    int best = 1 << 30;
-    int32_t best_class = -1;
+    int best_all = 1 << 30, best_landmark = 1 << 30;
+    int32_t class_all = -1, class_landmark = -1;
     for (int64_t s : train) {
       const int d = hamming_distance(q, map.descriptor(set.sample_keypoint[s]), map.descriptor_bytes);
-      if (d < best) {
-        best = d;
-        best_class = set.sample_class[s];
+      const int32_t c = set.sample_class[s];
+      if (d < best_all) {
+        best_all = d;
+        class_all = c;
+      }
+      if (c != set.background_class() && d < best_landmark) {
+        best_landmark = d;
+        class_landmark = c;
       }
     }
-    correct += best_class == set.sample_class[v];
+    correct_all += class_all == set.sample_class[v];
+    correct_landmarks += class_landmark == set.sample_class[v];
   }
-  return static_cast<double>(correct) / static_cast<double>(validation.size());
+  const double n = static_cast<double>(validation.size());
+  out.all = static_cast<double>(correct_all) / n;
+  out.landmarks = static_cast<double>(correct_landmarks) / n;
+  return out;
+}
+
+// The training data of this rank: the set (replicated) and the feature columns it owns.
+struct RankData {
+  TrainingSet set;
+  FeatureMatrix features;
+  std::string source;  // checked on resume
+  HammingBaseline hamming;
+};
+
+SyntheticBoostOptions synthetic_preset(const std::string& name) {
+  SyntheticBoostOptions o;
+  if (name == "small") return o;
+  if (name == "medium") {
+    o.num_classes = 1000;
+    o.num_background = 2000;
+    o.context_dims = 4096;
+    o.descriptor_bits = 256;
+    o.signature_dims = 16;
+    return o;
+  }
+  if (name == "paper") return paper_shape_synthetic_options();
+  LMB_FAIL("--synthetic: unknown preset '" << name << "' (small, medium, paper)");
+}
+
+RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Communicator& comm) {
+  RankData d;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!a.synthetic.empty()) {
+    SyntheticBoostProblem p = make_synthetic_boost_problem(synthetic_preset(a.synthetic));
+    d.set = std::move(p.set);
+    d.features = comm.distributed() ? keep_rank_columns(std::move(p.features), comm.rank(), comm.size())
+                                    : std::move(p.features);
+    d.source = "synthetic:" + a.synthetic;
+  } else {
+    LMB_CHECK(!a.map.empty() && !a.vocab.empty(), "--map and --vocab are required (or --synthetic)");
+    const LandmarkMap map = read_map_h5(a.map);
+    const Vocabulary vocabulary = Vocabulary::load(a.vocab);
+    const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary, config.feature_threads);
+    const std::vector<int32_t> words(words8.begin(), words8.end());
+    d.set = build_training_set(map, words, config.training_set);
+    const ContextRegions regions(config.regions);
+    FeatureBuildOptions feature_options;
+    feature_options.num_threads = config.feature_threads;
+    if (comm.distributed()) {
+      feature_options.dims =
+          rank_dims(embedding_layout(map, regions, vocabulary).num_dims(), comm.rank(), comm.size());
+    }
+    d.features = build_training_features(map, regions, vocabulary, d.set.sample_keypoint, feature_options);
+    if (comm.rank() == 0) d.hamming = hamming_nn_validation_p1(map, d.set);
+    d.source = std::filesystem::absolute(a.map).lexically_normal().string();
+  }
+  int64_t validation = 0, background = 0;
+  for (int64_t s = 0; s < d.set.num_samples(); ++s) {
+    validation += d.set.sample_is_validation[s];
+    background += d.set.sample_class[s] == d.set.background_class();
+  }
+  spdlog::info("train: {} classes, {} samples ({} held out, {} background) from {}", d.set.num_classes,
+               d.set.num_samples(), validation, background, d.source);
+  spdlog::info("train: features {} samples x {} of {} dims on rank 0 of {} ({:.1f} MB) in {:.1f} s",
+               d.features.num_samples, d.features.num_stored_columns(), d.features.num_dims, comm.size(),
+               static_cast<double>(d.features.data.size()) / 1048576.0,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  if (d.hamming.all >= 0.0) {
+    spdlog::info("train: Hamming nearest-neighbour baseline, validation P@1 {:.4f} against every training "
+                 "sample, {:.4f} against the landmark classes' samples only", d.hamming.all, d.hamming.landmarks);
+  }
+  return d;
+}
+
+void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator& comm) {
+  const std::filesystem::path run_dir(a.out);
+  const std::string config_text = train_config_toml(config);
+  if (comm.rank() == 0) {
+    std::filesystem::create_directories(run_dir);
+    LMB_CHECK(std::filesystem::is_directory(run_dir), "--out " << a.out << ": not a folder");
+    write_file_atomically(run_dir / "config.toml", config_text.data(), config_text.size());
+  }
+  comm.barrier();
+
+  // Rank 0 logs to the console and RUN_DIR/log.txt; the other ranks print warnings and errors only.
+  auto previous = spdlog::default_logger();
+  auto console = std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
+  std::shared_ptr<spdlog::logger> logger;
+  if (comm.rank() == 0) {
+    auto file = std::make_shared<spdlog::sinks::basic_file_sink_mt>((run_dir / "log.txt").string(), false);
+    logger = std::make_shared<spdlog::logger>("train", spdlog::sinks_init_list{console, file});
+    logger->set_pattern("[%H:%M:%S] %v");
+  } else {
+    logger = std::make_shared<spdlog::logger>("train", console);
+    logger->set_pattern("[%H:%M:%S] rank " + std::to_string(comm.rank()) + ": %v");
+    logger->set_level(spdlog::level::warn);
+  }
+  logger->flush_on(spdlog::level::info);
+  spdlog::set_default_logger(logger);
+  struct Restore {
+    std::shared_ptr<spdlog::logger> logger;
+    ~Restore() { spdlog::set_default_logger(logger); }
+  } restore{previous};
+  if (comm.distributed()) spdlog::info("train: {} MPI ranks, feature-parallel", comm.size());
+
+  TrainingJobOptions job;
+  job.run_dir = run_dir;
+  job.config_toml = config_text;
+  job.checkpoint_interval = config.checkpoint_interval;
+  job.checkpoint_keep = config.checkpoint_keep;
+  job.data = a.synthetic.empty() ? std::filesystem::absolute(a.map).lexically_normal().string()
+                                  : "synthetic:" + a.synthetic;
+  const std::optional<Checkpoint> resume = find_resume_checkpoint(comm, job);
+
+  const RankData data = load_rank_data(a, config, comm);
+  FeatureParallelLearner learner(comm, data.features, data.set, config.boost);
+  std::optional<RoundLogger> round_log;
+  if (comm.rank() == 0) round_log.emplace(run_dir / "metrics.jsonl", config.boost.num_rounds);
+  const TrainingJobResult r = run_training_job(comm, learner, job, resume, [&](const RoundStats& s) { round_log->log(s); });
+
+  // Per-rank figures for the summary.
+  const int64_t max_rss_kb = comm.allreduce_max(static_cast<int64_t>(peak_rss_mb() * 1024.0));
+  const int64_t total_sent = comm.allreduce_sum(r.bytes_sent);
+  const int64_t max_rss_end_kb = comm.allreduce_max(static_cast<int64_t>(current_rss_mb() * 1024.0));
+  if (r.stopped) throw CommandExit{kRequeueExitCode};
+  if (comm.rank() != 0) return;
+  save_boost_model(run_dir / "model.bin", learner.model());
+  nlohmann::json summary;
+  summary["classes"] = data.set.num_classes;
+  summary["samples"] = data.set.num_samples();
+  summary["dims"] = data.features.num_dims;
+  summary["data"] = data.source;
+  summary["rounds"] = learner.rounds_done();
+  summary["ranks"] = comm.size();
+  summary["resumed_from_round"] = r.resumed_from;
+  summary["validation_p1"] = learner.validation_precision();
+  summary["validation_p1_landmarks"] = learner.validation_precision(true);
+  summary["hamming_nn_validation_p1"] = data.hamming.all;
+  summary["hamming_nn_validation_p1_landmarks"] = data.hamming.landmarks;
+  const int32_t n = std::max(1, r.rounds_run);
+  summary["seconds_per_round"] = r.round_seconds / n;
+  summary["checkpoint_seconds"] = r.checkpoint_seconds;
+  summary["peak_rss_mb_rank0"] = peak_rss_mb();
+  summary["peak_rss_mb_max_rank"] = static_cast<double>(max_rss_kb) / 1024.0;
+  summary["rss_mb_end_max_rank"] = static_cast<double>(max_rss_end_kb) / 1024.0;
+  summary["feature_mb_rank0"] = static_cast<double>(data.features.data.size()) / 1048576.0;
+  summary["bytes_sent_per_round_all_ranks"] = static_cast<double>(total_sent) / n;
+  summary["bytes_sent_per_round_rank0"] = static_cast<double>(r.bytes_sent) / n;
+  summary["bytes_received_per_round_rank0"] = static_cast<double>(r.bytes_received) / n;
+  const std::string summary_text = summary.dump(2) + "\n";
+  write_file_atomically(run_dir / "summary.json", summary_text.data(), summary_text.size());
+  spdlog::info("train: {} stumps written to {}", learner.model().stumps.size(), (run_dir / "model.bin").string());
 }
 
 void run_train(const TrainArgs& a) {
@@ -78,71 +259,25 @@ void run_train(const TrainArgs& a) {
   if (a.top_k) config.training_set.top_k_landmarks = *a.top_k;
   if (a.seed) config.boost.seed = config.training_set.seed = *a.seed;
   if (a.threads) config.feature_threads = *a.threads;
+  if (a.checkpoint_interval) config.checkpoint_interval = *a.checkpoint_interval;
+  if (a.checkpoint_keep) config.checkpoint_keep = *a.checkpoint_keep;
   config.check();
 
-  const std::filesystem::path run_dir(a.out);
-  std::filesystem::create_directories(run_dir);
-  LMB_CHECK(std::filesystem::is_directory(run_dir), "--out " << a.out << ": not a folder");
-  const std::string config_text = train_config_toml(config);
-  write_file_atomically(run_dir / "config.toml", config_text.data(), config_text.size());
-
-  // Log to the console and RUN_DIR/log.txt for the duration of the command.
-  auto previous = spdlog::default_logger();
-  auto console = std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
-  auto file = std::make_shared<spdlog::sinks::basic_file_sink_mt>((run_dir / "log.txt").string(), true);
-  auto logger = std::make_shared<spdlog::logger>("train", spdlog::sinks_init_list{console, file});
-  logger->set_pattern("[%H:%M:%S] %v");
-  spdlog::set_default_logger(logger);
-  struct Restore {
-    std::shared_ptr<spdlog::logger> logger;
-    ~Restore() { spdlog::set_default_logger(logger); }
-  } restore{previous};
-
-  const auto t0 = std::chrono::steady_clock::now();
-  const LandmarkMap map = read_map_h5(a.map);
-  const Vocabulary vocabulary = Vocabulary::load(a.vocab);
-  const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary, config.feature_threads);
-  const std::vector<int32_t> words(words8.begin(), words8.end());
-  const TrainingSet set = build_training_set(map, words, config.training_set);
-  int64_t validation = 0, background = 0;
-  for (int64_t s = 0; s < set.num_samples(); ++s) {
-    validation += set.sample_is_validation[s];
-    background += set.sample_class[s] == set.background_class();
+  MpiSession mpi;
+  Communicator comm = Communicator::world(mpi);
+  try {
+    train_on_ranks(a, config, comm);
+  } catch (const CommandExit&) {
+    throw;
+  } catch (const AgreedError&) {
+    throw;  // every rank stops together
+  } catch (const std::exception& e) {
+    if (!comm.distributed()) throw;
+    // One rank failed alone: the others may be waiting in a collective, so end the whole job.
+    std::fprintf(stderr, "lboost train: rank %d of %d: error: %s\n", comm.rank(), comm.size(), e.what());
+    std::fflush(stderr);
+    comm.abort(1);
   }
-  spdlog::info("train: {} classes, {} samples ({} held out, {} background) from {}", set.num_classes,
-               set.num_samples(), validation, background, a.map);
-  const ContextRegions regions(config.regions);
-  FeatureBuildOptions feature_options;
-  feature_options.num_threads = config.feature_threads;
-  const FeatureMatrix features =
-      build_training_features(map, regions, vocabulary, set.sample_keypoint, feature_options);
-  spdlog::info("train: features {} samples x {} dims ({:.1f} MB) in {:.1f} s", features.num_samples,
-               features.num_dims, static_cast<double>(features.data.size()) / 1048576.0,
-               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-
-  const double hamming_p1 = hamming_nn_validation_p1(map, set);
-  spdlog::info("train: Hamming nearest-neighbour baseline, validation P@1 {:.4f}", hamming_p1);
-  SerialStumpLearner learner(features, set, config.boost);
-  RoundLogger round_log(run_dir / "metrics.jsonl", config.boost.num_rounds);
-  double seconds = 0.0;
-  learner.train([&](const RoundStats& s) {
-    round_log.log(s);
-    seconds += s.seconds;
-  });
-  save_boost_model(run_dir / "model.bin", learner.model());
-  nlohmann::json summary;
-  summary["classes"] = set.num_classes;
-  summary["samples"] = set.num_samples();
-  summary["validation_samples"] = validation;
-  summary["dims"] = features.num_dims;
-  summary["rounds"] = learner.rounds_done();
-  summary["validation_p1"] = learner.validation_precision();
-  summary["validation_p1_landmarks"] = learner.validation_precision(true);
-  summary["hamming_nn_validation_p1"] = hamming_p1;
-  summary["seconds_per_round"] = seconds / std::max(1, learner.rounds_done());
-  const std::string summary_text = summary.dump(2) + "\n";
-  write_file_atomically(run_dir / "summary.json", summary_text.data(), summary_text.size());
-  spdlog::info("train: {} stumps written to {}", learner.model().stumps.size(), (run_dir / "model.bin").string());
 }
 
 }  // namespace
@@ -150,8 +285,13 @@ void run_train(const TrainArgs& a) {
 void add_train_command(CLI::App& app) {
   auto args = std::make_shared<TrainArgs>();
   auto* cmd = app.add_subcommand("train", "Train the shared-stump landmark classifier of a map");
-  cmd->add_option("--map", args->map, "map file (lboost map)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--vocab", args->vocab, "vocabulary file (lboost vocab)")->required()->check(CLI::ExistingFile);
+  auto* map = cmd->add_option("--map", args->map, "map file (lboost map)")->check(CLI::ExistingFile);
+  auto* vocab = cmd->add_option("--vocab", args->vocab, "vocabulary file (lboost vocab)")->check(CLI::ExistingFile);
+  cmd->add_option("--synthetic", args->synthetic,
+                  "train on a synthetic problem instead of a map: small, medium or paper (7,500 classes x "
+                  "16,896 dims; train/boost/synthetic_problem.h)")
+      ->excludes(map)
+      ->excludes(vocab);
   cmd->add_option("--out", args->out, "run folder: config.toml, log.txt, metrics.jsonl, model.bin")->required();
   cmd->add_option("--config", args->config, "TOML config ([training_set], [boost], [regions], [features])")
       ->check(CLI::ExistingFile);
@@ -160,6 +300,9 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--top-k", args->top_k, "training_set.top_k_landmarks");
   cmd->add_option("--seed", args->seed, "boost.seed and training_set.seed");
   cmd->add_option("--threads", args->threads, "features.threads (feature building only)");
+  cmd->add_option("--checkpoint-interval", args->checkpoint_interval,
+                  "checkpoint.interval: rounds between checkpoints (0 = only on SIGTERM/SIGUSR1 and at the end)");
+  cmd->add_option("--checkpoint-keep", args->checkpoint_keep, "checkpoint.keep: newest checkpoints kept");
   cmd->callback([args] { run_train(*args); });
 }
 

@@ -23,7 +23,16 @@ struct WorldArgs {
   int query_frames = -1;
   double length_m = -1.0;
   int threads = 2;
+  // Layout overrides (-1: the preset's value).
+  int poster_designs = -1;
+  double image_scale = -1.0;
+  double pillar_bay_m = -1.0, door_share = -1.0, poster_share = -1.0, sign_share = -1.0;
+  double wall_stains_per_m = -1.0, floor_stains_per_m = -1.0;
 };
+
+void override_if_set(double value, double* field) {
+  if (value != -1.0) *field = value;
+}
 
 void run_world(const WorldArgs& a) {
   WorldOptions o = world_preset(a.preset);
@@ -33,6 +42,14 @@ void run_world(const WorldArgs& a) {
   if (a.map_frames != -1) o.map_frames = a.map_frames;
   if (a.query_frames != -1) o.query_frames = a.query_frames;
   if (a.length_m != -1.0) o.length_m = a.length_m;
+  if (a.poster_designs != -1) o.poster_designs = a.poster_designs;
+  override_if_set(a.image_scale, &o.image_scale);
+  override_if_set(a.pillar_bay_m, &o.pillar_bay_m);
+  override_if_set(a.door_share, &o.door_share);
+  override_if_set(a.poster_share, &o.poster_share);
+  override_if_set(a.sign_share, &o.sign_share);
+  override_if_set(a.wall_stains_per_m, &o.wall_stains_per_m);
+  override_if_set(a.floor_stains_per_m, &o.floor_stains_per_m);
   o.check();
   LMB_CHECK(!a.out.empty(), "world: --out is required");
   spdlog::info("world: preset {} seed {} {} corridor {:.1f} m, {} map + {} query frames -> {}", o.preset, o.seed,
@@ -77,6 +94,14 @@ void add_world_command(CLI::App& app) {
   cmd->add_option("--query-frames", args->query_frames, "Override the preset's query frame count");
   cmd->add_option("--length", args->length_m, "Override the preset's corridor length (m)");
   cmd->add_option("--threads", args->threads, "Render threads")->capture_default_str();
+  cmd->add_option("--image-scale", args->image_scale, "Override: image size relative to 640 x 480");
+  cmd->add_option("--poster-designs", args->poster_designs, "Override: distinct poster designs (aliased world)");
+  cmd->add_option("--pillar-bay", args->pillar_bay_m, "Override: pillar spacing (m)");
+  cmd->add_option("--door-share", args->door_share, "Override: share of wall slots with a door");
+  cmd->add_option("--poster-share", args->poster_share, "Override: share of wall slots with a poster");
+  cmd->add_option("--sign-share", args->sign_share, "Override: share of wall slots with a unique sign");
+  cmd->add_option("--wall-stains", args->wall_stains_per_m, "Override: unique stains per metre of each side wall");
+  cmd->add_option("--floor-stains", args->floor_stains_per_m, "Override: unique floor stains per metre");
   cmd->add_flag("--stats", args->stats,
                 "After rendering, estimate landmark counts (BRISK + exact depth, voxel hashing)");
   cmd->callback([args] { run_world(*args); });

@@ -173,7 +173,7 @@ Camera parse_camera_line(const std::string& text) {
   Camera camera;
   LMB_CHECK(in >> model >> camera.width >> camera.height,
             "--camera '" << text << "': expected MODEL WIDTH HEIGHT PARAMS...");
-  camera.model = camera_model_from_name(model);
+  camera.model = camera_model_from_name(model, "--camera");
   std::string token;
   while (in >> token) camera.params.push_back(parse_finite_number(token, "--camera", "parameter"));
   camera.check("--camera");

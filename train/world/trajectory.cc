@@ -10,12 +10,13 @@
 
 namespace lmb {
 
-Camera world_camera() {
+Camera world_camera(double scale) {
   Camera c;
   c.model = CameraModel::kOpenCV;
-  c.width = 640;
-  c.height = 480;
-  c.params = {460.0, 460.0, 320.0, 240.0, -0.22, 0.05, 0.0008, -0.0005};
+  c.width = static_cast<int>(std::lround(640 * scale));
+  c.height = static_cast<int>(std::lround(480 * scale));
+  const double sx = c.width / 640.0, sy = c.height / 480.0;
+  c.params = {460.0 * sx, 460.0 * sy, 320.0 * sx, 240.0 * sy, -0.22, 0.05, 0.0008, -0.0005};
   return c;
 }
 

@@ -15,8 +15,10 @@
 
 namespace lmb {
 
-// The rendered camera: COLMAP OPENCV, 640 x 480, fx = fy = 460, k1 = -0.22, k2 = 0.05, small p1/p2.
-Camera world_camera();
+// The rendered camera: COLMAP OPENCV, 640 x 480, fx = fy = 460, k1 = -0.22, k2 = 0.05, small p1/p2;
+// `scale` resizes the image and the focal length and principal point along (same field of view
+// and distortion).
+Camera world_camera(double scale = 1.0);
 
 // cam_from_world of a camera at `centre` (world, metres) looking along heading `yaw` (radians,
 // 0 = +x, counter-clockwise about +z), tilted up by `pitch` and rolled by `roll` (radians, about the

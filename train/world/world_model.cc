@@ -24,6 +24,18 @@ void WorldOptions::check() const {
             "world: --query-frames must be >= 1, got " << query_frames);
   LMB_CHECK(poster_designs >= 1 && poster_designs <= 64,
             "world: poster designs must be in [1, 64], got " << poster_designs);
+  LMB_CHECK(std::isfinite(pillar_bay_m) && pillar_bay_m >= 1.5 && pillar_bay_m <= 100.0,
+            "world: pillar bay must be in [1.5, 100] m, got " << pillar_bay_m);
+  LMB_CHECK(door_share >= 0.0 && poster_share >= 0.0 && sign_share >= 0.0 &&
+                door_share + poster_share + sign_share <= 1.0,
+            "world: door, poster and sign shares must be >= 0 with a sum <= 1, got " << door_share << ", "
+                                                                                     << poster_share << ", " << sign_share);
+  LMB_CHECK(std::isfinite(wall_stains_per_m) && wall_stains_per_m >= 0.0 && wall_stains_per_m <= 10.0 &&
+                std::isfinite(floor_stains_per_m) && floor_stains_per_m >= 0.0 && floor_stains_per_m <= 10.0,
+            "world: stains per metre must be in [0, 10], got " << wall_stains_per_m << " (walls), "
+                                                             << floor_stains_per_m << " (floor)");
+  LMB_CHECK(std::isfinite(image_scale) && image_scale >= 0.25 && image_scale <= 2.0,
+            "world: image scale must be in [0.25, 2], got " << image_scale);
   LMB_CHECK(supersampling >= 1 && supersampling <= 4,
             "world: supersampling must be in [1, 4], got " << supersampling);
   LMB_CHECK(threads >= 1 && threads <= 64, "world: --threads must be in [1, 64], got " << threads);
@@ -39,14 +51,26 @@ WorldOptions world_preset(const std::string& name) {
     o.map_frames = 30;
     o.query_frames = 10;
   } else if (name == "default") {
-    // Estimated ~2,900 points seen in >= 3 map frames; the mapper keeps about 1,000-1,500 of them.
-    o.length_m = 16.0;
-    o.map_frames = 40;
+    // Strong aliasing at a small size (README "Measured"): dense half-resolution frames, many
+    // repeats of one door, two poster designs and pillars every 3 m, few unique stains and signs.
+    // 200 map frames (9 cm apart) give the classifier's top 1,000 landmarks about 5 training
+    // observations each; 100 gave 3-4, too few to learn from.
+    o.length_m = 18.0;
+    o.map_frames = 200;
     o.query_frames = 16;
+    o.image_scale = 0.5;
+    o.poster_designs = 2;
+    o.pillar_bay_m = 3.0;
+    o.door_share = 0.5;
+    o.poster_share = 0.4;
+    o.sign_share = 0.06;
+    o.wall_stains_per_m = 0.2;
+    o.floor_stains_per_m = 0.15;
   } else if (name == "paper") {
-    // Estimated (lboost world --stats): ~10,300 points seen in >= 10 map frames.
-    o.length_m = 60.0;
-    o.map_frames = 600;
+    // Dense frames (1,000 map frames on 37 m of walk, one each way) so that landmarks collect >= 10
+    // observations (README "Measured").
+    o.length_m = 40.0;
+    o.map_frames = 1000;
     o.query_frames = 150;
   } else {
     LMB_FAIL("world: unknown preset '" << name << "' (expected tiny, default or paper)");
@@ -136,7 +160,7 @@ class WorldBuilder {
   }
 
   void make_pillars() {
-    const double bay = 4.0, half = 0.2, depth = 0.25;
+    const double bay = o_.pillar_bay_m, half = 0.2, depth = 0.25;
     int k = 0;
     for (double x = bay; x < w_.length - 1.0; x += bay) {
       for (int side = 0; side < 2; ++side, ++k) {
@@ -169,7 +193,7 @@ class WorldBuilder {
       double c = edges[i] + layout_.uniform(0.05, 0.5);
       while (true) {
         const double r = layout_.uniform();
-        if (r < 0.45) {  // door + room plate
+        if (r < o_.door_share) {  // door + room plate
           if (c + 1.3 > end) break;
           const int door_index = w_.summary.doors++;
           const uint64_t s = texture_seed(kDoor, 0, door_index);
@@ -185,7 +209,7 @@ class WorldBuilder {
           opaque_.push_back({wall, c + 1.05, c + 1.27, 1.42, 1.54, pt, DecalMode::kOpaque});
           ++w_.summary.plates;
           c += 1.35 + layout_.uniform(0.1, 0.5);
-        } else if (r < 0.8) {  // poster from one of the designs
+        } else if (r < o_.door_share + o_.poster_share) {  // poster from one of the designs
           if (c + 0.6 > end) break;
           const int design = static_cast<int>(layout_.below(static_cast<uint64_t>(o_.poster_designs)));
           const int poster_index = w_.summary.posters++;
@@ -195,7 +219,7 @@ class WorldBuilder {
           if (w_.textures.size() > before) ++w_.summary.poster_textures;
           opaque_.push_back({wall, c, c + 0.6, 1.1, 1.95, t, DecalMode::kOpaque});
           c += 0.6 + layout_.uniform(0.15, 0.6);
-        } else if (r < 0.92) {  // a small unique sign
+        } else if (r < o_.door_share + o_.poster_share + o_.sign_share) {  // a small unique sign
           if (c + 0.32 > end) break;
           static const char* kWords[] = {"EXIT", "LAB", "FIRE", "STAIRS", "WC", "PRINT", "KITCHEN", "SERVER",
                                          "OFFICE", "STORE", "LIFT", "MEETING"};
@@ -276,7 +300,7 @@ class WorldBuilder {
   void make_stains() {
     int k = 0;
     for (Surface wall : {Surface::kWallRight, Surface::kWallLeft}) {
-      const int count = static_cast<int>(std::lround(w_.length * 0.7));
+      const int count = static_cast<int>(std::lround(w_.length * o_.wall_stains_per_m));
       for (int i = 0; i < count; ++i) {
         const double sa = layout_.uniform(0.1, 0.4), sb = layout_.uniform(0.06, 0.3);
         const double a0 = layout_.uniform(0.2, w_.length - 0.2 - sa), b0 = layout_.uniform(0.02, 1.6);
@@ -286,7 +310,7 @@ class WorldBuilder {
         multiply_.push_back({wall, a0, a0 + sa, b0, b0 + sb, t, DecalMode::kMultiply});
       }
     }
-    const int count = static_cast<int>(std::lround(w_.length * 0.5));
+    const int count = static_cast<int>(std::lround(w_.length * o_.floor_stains_per_m));
     for (int i = 0; i < count; ++i) {
       const double sa = layout_.uniform(0.15, 0.5), sb = layout_.uniform(0.15, 0.5);
       const double a0 = layout_.uniform(0.1, w_.length - 0.1 - sa);

@@ -31,6 +31,13 @@ struct WorldOptions {
   int map_frames = 40;
   int query_frames = 16;
   int poster_designs = 4;         // distinct poster designs of the aliased world
+  double pillar_bay_m = 4.0;      // pillar spacing along the corridor
+  double door_share = 0.45;       // share of wall slots that get a door (+ room plate)
+  double poster_share = 0.35;     // share of wall slots that get a poster
+  double sign_share = 0.12;       // share of wall slots that get a unique sign (the rest stay plain)
+  double wall_stains_per_m = 0.7; // unique stains per metre on each side wall
+  double floor_stains_per_m = 0.5;
+  double image_scale = 1.0;       // image size relative to 640 x 480 (the focal length scales along)
   int supersampling = 2;          // samples per pixel along each axis (anti-aliasing)
   int threads = 2;                // render threads
   double noise_sigma = 1.5;       // sensor noise, grey levels

@@ -95,7 +95,7 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     WorldWriteStats stats;
     const auto t0 = std::chrono::steady_clock::now();
     const World world = build_world(options);
-    const Camera camera = world_camera();
+    const Camera camera = world_camera(options.image_scale);
     const RayTable rays(camera, options.supersampling);
     const Session sessions[2] = {make_map_session(world, options.map_frames),
                                  make_query_session(world, options.query_frames)};
@@ -162,7 +162,14 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
                      {"floor_tile_m", world.tile_size},
                      {"ceiling_panel_m", world.panel_size},
                      {"lamp_spacing_m", world.lamp_spacing},
+                     {"pillar_bay_m", options.pillar_bay_m},
                      {"boxes", world.boxes.size()}};
+    j["layout"] = {{"poster_designs", options.poster_designs},
+                   {"door_share", options.door_share},
+                   {"poster_share", options.poster_share},
+                   {"sign_share", options.sign_share},
+                   {"wall_stains_per_m", options.wall_stains_per_m},
+                   {"floor_stains_per_m", options.floor_stains_per_m}};
     for (const Session& session : sessions) {
       j["sessions"][session.name] = {{"frames", session.cam_from_world.size()},
                                      {"image_dir", "images/" + session.name},

@@ -56,6 +56,18 @@ TEST_F(GravityFileTest, ReadsAndNormalizes) {
   EXPECT_EQ(read_gravity_file(path_, model_with({"map/a.jpg", "query/b.jpg"})).size(), 2u);
 }
 
+// Regression (found by test/fuzz/fuzz_gravity, its input below): components near the largest
+// double overflowed the norm to inf and "normalized" the vector to zero.
+TEST_F(GravityFileTest, HugeComponentsStillGiveUnitVectors) {
+  write("# Gravity hIMAGE_/2.png 0 1 0\nmap/2.png 0.100000000000000011e308 0.9000000000000011e308 "
+        "0.900000000000000000000000000000001\nquery/3.qng 0.001 2.5 1000\nbig.png 1.7e308 -1.7e308 0\n");
+  const auto g = read_gravity_file(path_);
+  ASSERT_EQ(g.size(), 3u);
+  for (const auto& [name, v] : g) EXPECT_NEAR(v.norm(), 1.0, 1e-12) << name;
+  EXPECT_TRUE(g.at("map/2.png").isApprox(Eigen::Vector3d(0.1, 0.9, 0).normalized(), 1e-12));
+  EXPECT_TRUE(g.at("big.png").isApprox(Eigen::Vector3d(1, -1, 0).normalized(), 1e-12));
+}
+
 TEST_F(GravityFileTest, WriteReadRoundTrip) {
   const std::map<std::string, Eigen::Vector3d> g = {{"x/1.png", Eigen::Vector3d(0.1, 0.7, -0.3).normalized()},
                                                     {"x/2.png", Eigen::Vector3d(0, 0, 1)}};

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 
@@ -11,63 +12,14 @@
 
 #include "common/error.h"
 #include "common/random.h"
+#include "test/common/io/test_maps.h"
 
 namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A random but self-consistent map: 2 cameras, 5 frames (2 queries), 40 keypoints, 6 landmarks.
-LandmarkMap random_map(uint64_t seed) {
-  Rng rng(seed);
-  LandmarkMap map;
-  map.detector = "BRISK";
-  map.descriptor_bytes = 64;
-  Camera a;
-  a.model = CameraModel::kOpenCV;
-  a.width = 640;
-  a.height = 480;
-  a.params = {510.25, 490.5, 318.125, 241.0, -0.2, 0.05, 0.001, -0.002};
-  Camera b;
-  b.model = CameraModel::kSimpleRadial;
-  b.width = 320;
-  b.height = 240;
-  b.params = {300.0, 160.0, 120.0, 0.01};
-  map.cameras = {a, b};
-  const int num_landmarks = 6;
-  map.landmarks.resize(num_landmarks);
-  int64_t first = 0;
-  for (int f = 0; f < 5; ++f) {
-    MapFrame frame;
-    frame.name = (f < 3 ? "map/" : "query/") + std::to_string(f) + ".png";
-    frame.camera = f % 2;
-    frame.cam_from_world.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(
-        rng.uniform(-3, 3), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized()));
-    frame.cam_from_world.translation = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
-    frame.gravity_in_cam = frame.cam_from_world.rotation * Eigen::Vector3d(0, 0, -1);
-    frame.is_query = f >= 3;
-    frame.first_keypoint = first;
-    frame.num_keypoints = 8;
-    first += 8;
-    for (int k = 0; k < 8; ++k) {
-      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 640)),
-                                       static_cast<float>(rng.uniform(0, 480)),
-                                       static_cast<float>(rng.uniform(5, 40)),
-                                       k == 0 ? -1.f : static_cast<float>(rng.uniform(0, 360))});
-      for (int b2 = 0; b2 < 64; ++b2) map.descriptors.push_back(static_cast<uint8_t>(rng.below(256)));
-      const landmark_t l = k < num_landmarks ? k : kInvalidLandmarkId;
-      map.keypoint_landmark.push_back(l);
-      if (l >= 0) ++(frame.is_query ? map.landmarks[l].num_query_observations : map.landmarks[l].num_map_observations);
-    }
-    map.frames.push_back(frame);
-  }
-  for (Landmark& l : map.landmarks) {
-    l.position = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()) * 10.0;
-    l.quality = static_cast<float>(rng.uniform(0, 5));
-    l.mean_reprojection_error = static_cast<float>(rng.uniform(0, 2));
-  }
-  return map;
-}
+using test::random_map;
 
 class MapH5Test : public ::testing::Test {
  protected:
@@ -365,6 +317,19 @@ TEST_F(MapH5Test, ObservationCountsMustMatch) {
     ds.write(v.data(), H5::PredType::NATIVE_INT32);
   });
   EXPECT_NE(msg.find("landmarks[0].num_map_observations"), std::string::npos) << msg;
+}
+
+// Regression (found by test/fuzz/fuzz_map_h5; the input is test/common/io/data/
+// fuzz_null_vlen_string.h5, a map.h5 with damaged bytes): libhdf5 returned a null pointer for the
+// variable-length 'format' attribute and HDF5's C++ wrapper crashed in strlen.
+TEST_F(MapH5Test, DamagedVariableLengthStringIsAnErrorNotACrash) {
+  const char* source = std::getenv("LMB_SOURCE_DIR");
+  ASSERT_NE(source, nullptr) << "LMB_SOURCE_DIR is not set (ctest sets it)";
+  const fs::path path = fs::path(source) / "test/common/io/data/fuzz_null_vlen_string.h5";
+  ASSERT_TRUE(fs::exists(path)) << path;
+  const std::string msg = read_error(path);
+  EXPECT_NE(msg.find(path.string() + ": "), std::string::npos) << msg;
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
 }
 
 TEST_F(MapH5Test, UnwritableFolderIsAnError) {

@@ -1,6 +1,7 @@
 # Driver of the ctest e2e/consumer_test (cmake -P). Installs the inference component of a build
 # tree into a fresh prefix, then builds and runs the consumer project against it twice: through
-# find_package(LandmarkBoost CONFIG) and through pkg-config.
+# find_package(LandmarkBoost CONFIG) and through pkg-config; then the optional OpenCV front-end
+# (component infer_cv) through find_package(... COMPONENTS infer_cv) and pkg-config.
 # Inputs: LMB_BUILD_DIR, CONSUMER_SOURCE_DIR, WORK_DIR, GENERATOR, CXX_COMPILER.
 cmake_minimum_required(VERSION 3.22)
 foreach(var LMB_BUILD_DIR CONSUMER_SOURCE_DIR WORK_DIR GENERATOR CXX_COMPILER)
@@ -39,12 +40,25 @@ foreach(header ${headers})
   endif()
 endforeach()
 
+# The optional OpenCV front-end (component infer_cv) into the same prefix, after the checks above:
+# its header and pkg-config file are the only installed files that may name OpenCV.
+run("install infer_cv" ${CMAKE_COMMAND} --install ${LMB_BUILD_DIR} --prefix ${prefix} --component infer_cv)
+foreach(file include/landmarkboost/infer/cv/feature_detection.h include/landmarkboost/common/detector_options.h)
+  if(NOT EXISTS ${prefix}/${file})
+    message(FATAL_ERROR "consumer test: ${file} is not installed")
+  endif()
+endforeach()
+
 # 1. CMake package.
 run("configure the consumer" ${CMAKE_COMMAND} -S ${CONSUMER_SOURCE_DIR} -B ${WORK_DIR}/build
     -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=${CXX_COMPILER}
     -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
 run("build the consumer" ${CMAKE_COMMAND} --build ${WORK_DIR}/build)
 run("run the consumer" ${WORK_DIR}/build/lmb_consumer)
+if(NOT EXISTS ${WORK_DIR}/build/lmb_consumer_cv)
+  message(FATAL_ERROR "consumer test: find_package found no LandmarkBoost::infer_cv after installing it")
+endif()
+run("run the OpenCV front-end consumer" ${WORK_DIR}/build/lmb_consumer_cv)
 
 # 2. pkg-config, from wherever the libdir is (lib or lib/<multiarch>).
 file(GLOB_RECURSE pc_files ${prefix}/*/landmarkboost-infer.pc)
@@ -74,4 +88,16 @@ run("build the consumer with pkg-config flags"
     ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/main.cc ${WORK_DIR}/c_check.o ${flags}
     -Wl,-rpath,${lib_dir} -o ${WORK_DIR}/lmb_consumer_pkgconfig)
 run("run the pkg-config consumer" ${WORK_DIR}/lmb_consumer_pkgconfig)
+# 3. The OpenCV front-end through pkg-config (landmarkboost-infer-cv requires opencv4).
+execute_process(COMMAND ${CMAKE_COMMAND} -E env PKG_CONFIG_PATH=${pc_dir}
+                        pkg-config --cflags --libs landmarkboost-infer-cv
+                OUTPUT_VARIABLE cv_flags OUTPUT_STRIP_TRAILING_WHITESPACE RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "consumer test: pkg-config --cflags --libs landmarkboost-infer-cv failed")
+endif()
+separate_arguments(cv_flags UNIX_COMMAND "${cv_flags}")
+run("build the OpenCV front-end consumer with pkg-config flags"
+    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/cv_main.cc ${cv_flags}
+    -Wl,-rpath,${lib_dir} -o ${WORK_DIR}/lmb_consumer_cv_pkgconfig)
+run("run the pkg-config OpenCV front-end consumer" ${WORK_DIR}/lmb_consumer_cv_pkgconfig)
 message(STATUS "consumer test: passed")

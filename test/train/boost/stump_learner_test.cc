@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 
@@ -169,6 +170,7 @@ TEST(StumpLearner, ChosenStumpEqualsExhaustiveSearch) {
     o.refine_top = 0;              // full search everywhere
     o.negatives_per_class = 8;
     o.mining_interval = 4;
+    o.learning_rate = 1.0;  // the model then stores the fitted a, b themselves (shrinkage scales them)
     SerialStumpLearner learner(p.features, p.set, o);
     learner.initialize();
     std::vector<int32_t> all_dims(static_cast<size_t>(p.features.num_dims));
@@ -213,6 +215,7 @@ TEST(StumpLearner, FastSharingReachesGreedyCostReduction) {
     o.refine_top = refine_top;
     o.max_thresholds_per_dim = max_thresholds;
     o.mining_interval = 0;
+    o.learning_rate = 1.0;  // the cost reduction is measured with the stored (unshrunk) stump
     SerialStumpLearner learner(p.features, p.set, o);
     learner.initialize();
     double ratio_sum = 0.0;
@@ -365,14 +368,21 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
     if (!p.set.sample_is_validation[s]) words[p.set.sample_class[s]].insert(p.set.sample_word[s]);
   }
   std::vector<int> negatives(static_cast<size_t>(C) + 1, 0);
+  std::vector<double> positive_weight(static_cast<size_t>(C) + 1, 0.0), negative_weight(positive_weight);
+  int64_t landmark_train = 0;
+  for (int64_t s = 0; s < p.set.num_samples(); ++s) {
+    landmark_train += !p.set.sample_is_validation[s] && p.set.sample_class[s] < C;
+  }
   for (const auto& e : learner.entries()) {
     EXPECT_FALSE(p.set.sample_is_validation[e.sample]);
-    EXPECT_DOUBLE_EQ(e.weight, 1.0);
     if (e.z > 0) {
+      EXPECT_DOUBLE_EQ(e.weight, 1.0);
       EXPECT_EQ(p.set.sample_class[e.sample], e.cls);
+      positive_weight[e.cls] += e.weight;
       continue;
     }
     ++negatives[e.cls];
+    negative_weight[e.cls] += e.weight;
     EXPECT_NE(p.set.sample_class[e.sample], e.cls);
     if (e.cls < C) {
       EXPECT_TRUE(words[e.cls].count(p.set.sample_word[e.sample])) << "class " << e.cls;
@@ -383,8 +393,14 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
   }
   for (int32_t c = 0; c <= C; ++c) {
     EXPECT_GT(negatives[c], 0) << "class " << c;
-    EXPECT_LE(negatives[c], o.negatives_per_class);
+    if (c < C) {
+      EXPECT_LE(negatives[c], o.negatives_per_class);
+    }
+    // Class balance (negative_weight_ratio 1): a class's negatives weigh as much as its positives.
+    EXPECT_NEAR(negative_weight[c], positive_weight[c], 1e-9 * positive_weight[c]) << "class " << c;
   }
+  // The background class has every landmark training sample as a negative (background_negatives 0).
+  EXPECT_EQ(negatives[C], landmark_train);
   learner.train();
   std::map<std::pair<int64_t, int32_t>, int> seen;
   std::vector<int> after(static_cast<size_t>(C) + 1, 0);
@@ -397,11 +413,70 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
     }
   }
   int grown = 0;
-  for (int32_t c = 0; c <= C; ++c) {
+  for (int32_t c = 0; c < C; ++c) {
     EXPECT_LE(after[c], o.max_negatives_per_class);
     grown += after[c] > negatives[c];
   }
   EXPECT_GT(grown, 0);
+}
+
+TEST(StumpLearner, LearningRateScalesTheFirstRoundExactly) {
+  // Before the first update every weight is the same whatever the learning rate, so the first
+  // stump (dim, theta, sharing set) is the same and a, b and the biases scale by nu exactly.
+  const SyntheticBoostProblem p = make_synthetic_boost_problem(SyntheticBoostOptions());
+  BoostOptions o;
+  o.num_rounds = 1;
+  o.dims_per_round = 60;
+  o.learning_rate = 1.0;
+  BoostOptions half = o;
+  half.learning_rate = 0.5;
+  SerialStumpLearner full_learner(p.features, p.set, o), half_learner(p.features, p.set, half);
+  full_learner.train();
+  half_learner.train();
+  const BoostModel& m1 = full_learner.model();
+  const BoostModel& m2 = half_learner.model();
+  ASSERT_EQ(m1.stumps.size(), 1u);
+  ASSERT_EQ(m2.stumps.size(), 1u);
+  EXPECT_EQ(m1.stumps[0].dim, m2.stumps[0].dim);
+  EXPECT_EQ(m1.stumps[0].theta, m2.stumps[0].theta);
+  EXPECT_EQ(m1.stumps[0].classes, m2.stumps[0].classes);
+  EXPECT_NE(m1.stumps[0].a, 0.0);
+  EXPECT_DOUBLE_EQ(m2.stumps[0].a, 0.5 * m1.stumps[0].a);
+  EXPECT_DOUBLE_EQ(m2.stumps[0].b, 0.5 * m1.stumps[0].b);
+  for (size_t c = 0; c < m1.bias.size(); ++c) EXPECT_DOUBLE_EQ(m2.bias[c], 0.5 * m1.bias[c]) << c;
+  BoostOptions bad = o;
+  bad.learning_rate = 0.0;
+  EXPECT_THROW(bad.check(), Error);
+  bad.learning_rate = 1.5;
+  EXPECT_THROW(bad.check(), Error);
+}
+
+TEST(StumpLearner, ClassBalanceKeepsAManyPositiveBackgroundFromWinningEverything) {
+  // Ten times more background samples than landmark samples. With unit weights and a few
+  // negatives, the background's constant drifts towards log(|L+| / |L-|) and it outscores the
+  // right landmark on many held-out samples; balanced weights and every landmark sample as a
+  // background negative (the defaults) keep precision@1 with rejection near the landmarks-only one.
+  SyntheticBoostOptions so;
+  so.num_background = 4000;
+  const SyntheticBoostProblem p = make_synthetic_boost_problem(so);
+  BoostOptions o;
+  o.num_rounds = 120;
+  o.dims_per_round = 100;
+  o.learning_rate = 1.0;  // converges within the test's 120 rounds
+  o.negatives_per_class = 40;
+  BoostOptions unit = o;
+  unit.negative_weight_ratio = 0.0;
+  unit.background_negatives = o.negatives_per_class;
+  SerialStumpLearner balanced(p.features, p.set, o), unbalanced(p.features, p.set, unit);
+  balanced.train();
+  unbalanced.train();
+  const double b = balanced.validation_precision(), b_lm = balanced.validation_precision(true);
+  const double u = unbalanced.validation_precision(), u_lm = unbalanced.validation_precision(true);
+  std::printf("background x10: P@1 with rejection / landmarks only: balanced %.3f / %.3f, unit weights %.3f / %.3f\n",
+              b, b_lm, u, u_lm);
+  EXPECT_LT(b_lm - b, 0.06);
+  EXPECT_GT(u_lm - u, 0.15);
+  EXPECT_GT(b, u + 0.08);
 }
 
 TEST(StumpLearner, RoundDimsAreACounterBasedDraw) {
@@ -482,6 +557,32 @@ TEST(StumpLearner, MostlyConstantFeaturesGiveConstantStumpsNotNaN) {
   });
   EXPECT_GT(constant, 0);
   EXPECT_NO_THROW(learner.model().check());
+}
+
+// candidate_dims restricts F_m to the leading (context) dims: a context-only classifier never
+// reads a descriptor bit, while the same problem without the restriction does.
+TEST(StumpLearner, CandidateDimsKeepsStumpsOnTheContextDims) {
+  const SyntheticBoostProblem p = make_synthetic_boost_problem(SyntheticBoostOptions());
+  BoostOptions o;
+  o.num_rounds = 30;
+  o.dims_per_round = 100;
+  o.mining_interval = 0;
+  o.validation_interval = 0;
+  const auto stump_dims = [&](const BoostOptions& options) {
+    SerialStumpLearner learner(p.features, p.set, options);
+    learner.train([](const RoundStats&) {});
+    std::vector<int32_t> dims;
+    for (const SharedStump& s : learner.model().stumps) dims.push_back(s.dim);
+    return dims;
+  };
+  const std::vector<int32_t> all = stump_dims(o);
+  EXPECT_TRUE(std::any_of(all.begin(), all.end(), [&](int32_t d) { return d >= p.context_dims; }));
+  o.candidate_dims = p.context_dims;
+  const std::vector<int32_t> context = stump_dims(o);
+  ASSERT_EQ(context.size(), 30u);
+  for (int32_t d : context) EXPECT_LT(d, p.context_dims);
+  o.candidate_dims = p.features.num_dims + 1;
+  EXPECT_THROW(SerialStumpLearner(p.features, p.set, o), Error);
 }
 
 }  // namespace

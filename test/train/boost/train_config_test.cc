@@ -41,6 +41,9 @@ TEST(TrainConfig, RejectsUnknownKeysWrongTypesAndSyntax) {
   EXPECT_NE(message("[bost]\n").find("[bost]"), std::string::npos);
   EXPECT_NE(message("[boost]\nnum_rounds = \"many\"\n").find("integer"), std::string::npos);
   EXPECT_NE(message("[boost]\nnum_rounds = 1e99\n").find("integer"), std::string::npos);
+  // Regression (found by test/fuzz/fuzz_train_config under UBSan): a float beyond the int64 range
+  // for an integer key was cast to int64 inside toml++ before any range check.
+  EXPECT_EQ(message("[boost]\nnum_rounds = 1e37\n"), "cfg.toml: boost.num_rounds: expected an integer");
   EXPECT_NE(message("[boost]\nnum_rounds = 99999999999\n").find("out of range"), std::string::npos);
   EXPECT_NE(message("[boost\n").find("cfg.toml"), std::string::npos);
   TrainConfig zero;

@@ -1,0 +1,18 @@
+// The machine a figure was measured on, for reports and benchmarks (DESIGN.md "Benchmark
+// protocol": every figure comes with the machine it came from).
+#pragma once
+
+#include <string>
+
+namespace lmb {
+
+struct MachineInfo {
+  std::string cpu_model;  // /proc/cpuinfo "model name" of the first processor ("unknown" if absent)
+  int logical_cores = 0;  // std::thread::hardware_concurrency()
+  std::string summary() const;  // e.g. "AMD EPYC, 2 logical cores"
+};
+
+// Reads /proc/cpuinfo (Linux); never throws.
+MachineInfo machine_info();
+
+}  // namespace lmb

@@ -1,0 +1,160 @@
+#!/usr/bin/env bash
+# The Slurm job scripts, for real, on a one-node slurm-wlm cluster started on this machine
+# (Debian bookworm, root): munged, slurmctld and slurmd with proctrack/linuxproc and task/none,
+# configuration, state and logs under a temporary folder.
+#
+#   jobs/slurm/test_one_node.sh [LBOOST]      (default build/train/lboost)
+#
+# 1. train.sbatch on 2 tasks (srun --mpi=pmix) is signalled mid-training with
+#    `scancel --signal=USR1 --batch`, checkpoints, is requeued (its ~2 min BeginTime is cut with
+#    `scontrol update starttime=now`), resumes and finishes; its model.bin must equal the model of
+#    an uninterrupted one-process run, byte for byte.
+# 2. sweep.sbatch as a 2-task job array over --dims-per-round: both tasks finish.
+# Installs slurm-wlm (apt) when missing. Stops only the daemons it started.
+set -euo pipefail
+here=$(cd "$(dirname "$0")/../.." && pwd)
+lboost=$(realpath "${1:-$here/build/train/lboost}")
+[ -x "$lboost" ] || { echo "test_one_node: no lboost at $lboost (build it first)"; exit 2; }
+[ "$(id -u)" -eq 0 ] || { echo "test_one_node: needs root (SlurmUser=root, munged as munge)"; exit 2; }
+
+if ! command -v slurmctld > /dev/null || ! command -v munged > /dev/null; then
+  echo "test_one_node: installing slurm-wlm and munge"
+  DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends slurm-wlm munge > /dev/null
+fi
+
+work=$(mktemp -d /tmp/lmb_slurm.XXXXXX)
+chmod 755 "$work"
+host=$(hostname -s)
+export SLURM_CONF=$work/slurm.conf
+cleanup() {
+  # Only the daemons this script started, by their pid files.
+  for f in "$work/slurmd.pid" "$work/slurmctld.pid" "$work/munge/munged.pid"; do
+    [ -f "$f" ] && kill "$(cat "$f")" 2> /dev/null || true
+  done
+  sleep 1
+  if [ "${LMB_KEEP_SLURM_DIR:-0}" = 1 ]; then echo "test_one_node: kept $work"; else rm -rf "$work"; fi
+}
+trap cleanup EXIT
+fail() {
+  echo "test_one_node: FAIL: $*" >&2
+  for f in "$work"/*.out "$work"/slurmctld.log "$work"/slurmd.log; do
+    [ -f "$f" ] && { echo "---- $f"; tail -n 40 "$f"; }
+  done
+  exit 1
+}
+
+# munged as the munge user, with its own socket under the work folder.
+mkdir -p "$work/munge"
+chown munge:munge "$work/munge"
+[ -f /etc/munge/munge.key ] || { /usr/sbin/mungekey --create 2> /dev/null || create-munge-key; }
+runuser -u munge -- /usr/sbin/munged --socket="$work/munge/munge.socket" --pid-file="$work/munge/munged.pid" \
+  --log-file="$work/munge/munged.log" --seed-file="$work/munge/munged.seed" --force
+sleep 1
+
+mkdir -p "$work/state" "$work/spool"
+cat > "$SLURM_CONF" << CONF
+ClusterName=lmbtest
+SlurmctldHost=$host
+SlurmUser=root
+SlurmdUser=root
+AuthType=auth/munge
+CryptoType=crypto/munge
+AuthInfo=socket=$work/munge/munge.socket
+MpiDefault=none
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+ReturnToService=2
+JobRequeue=1
+SchedulerType=sched/backfill
+SelectType=select/cons_tres
+SelectTypeParameters=CR_CPU
+StateSaveLocation=$work/state
+SlurmdSpoolDir=$work/spool
+SlurmctldPidFile=$work/slurmctld.pid
+SlurmdPidFile=$work/slurmd.pid
+SlurmctldLogFile=$work/slurmctld.log
+SlurmdLogFile=$work/slurmd.log
+SlurmctldPort=${LMB_SLURMCTLD_PORT:-6817}
+SlurmdPort=${LMB_SLURMD_PORT:-6818}
+KillWait=30
+NodeName=$host CPUs=2 State=UNKNOWN
+PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP OverSubscribe=YES
+CONF
+/usr/sbin/slurmctld -i -f "$SLURM_CONF"
+sleep 2
+/usr/sbin/slurmd -f "$SLURM_CONF"
+for _ in $(seq 60); do
+  sinfo -h -o %T 2> /dev/null | grep -q idle && break
+  sleep 1
+done
+sinfo -h -o %T | grep -q idle || fail "the node did not become idle: $(sinfo 2>&1)"
+echo "test_one_node: cluster up: $(sinfo -h -o '%P %D %T %c')"
+
+state_of() { scontrol show job "$1" 2> /dev/null | grep -o 'JobState=[A-Z_]*' | cut -d= -f2; }
+wait_state() {  # job, regex, seconds
+  for _ in $(seq "$3"); do
+    s=$(state_of "$1")
+    [[ "$s" =~ $2 ]] && return 0
+    sleep 1
+  done
+  fail "job $1 is $(state_of "$1"), expected $2 within $3 s"
+}
+
+export OMPI_MCA_btl_vader_single_copy_mechanism=none
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+args=(--synthetic medium --rounds "${LMB_TEST_ROUNDS:-150}" --dims-per-round 200 --checkpoint-interval 1000)
+
+# The uninterrupted reference: one process.
+"$lboost" train "${args[@]}" --out "$work/reference" > "$work/reference.log" 2>&1 || fail "reference run"
+
+# 1. Signal, checkpoint, requeue, resume, finish.
+cd "$work"
+job=$(LMB_REPO=$here LBOOST=$lboost sbatch --parsable --ntasks=2 --output="$work/train-%j.out" \
+  "$here/jobs/slurm/train.sbatch" "${args[@]}" --out "$work/run")
+echo "test_one_node: submitted train job $job"
+wait_state "$job" RUNNING 120
+for _ in $(seq 300); do
+  [ -f "$work/run/metrics.jsonl" ] && [ "$(wc -l < "$work/run/metrics.jsonl")" -ge 10 ] && break
+  sleep 0.2
+done
+[ -f "$work/run/metrics.jsonl" ] || fail "no training progress"
+echo "test_one_node: signalling job $job after $(wc -l < "$work/run/metrics.jsonl") rounds"
+scancel --signal=USR1 --batch "$job"
+# Requeued: PENDING again (or briefly REQUEUED) with a BeginTime; start it now.
+wait_state "$job" 'PENDING|REQUEUED' 120
+compgen -G "$work/run/checkpoints/ckpt-*.h5" > /dev/null || fail "no checkpoint after the signal"
+checkpoint=$(ls "$work/run/checkpoints" | tail -n 1)
+echo "test_one_node: job $job requeued with $checkpoint"
+# Start it now, once slurmd has finished killing the first run (starting a requeued job at once
+# races with that: "Job credential revoked"; Slurm's own ~2 min BeginTime avoids it).
+for _ in $(seq 60); do
+  sinfo -h -o %T | grep -q idle && break
+  sleep 1
+done
+sleep 10
+for _ in $(seq 30); do
+  scontrol update jobid="$job" starttime=now 2> /dev/null && break
+  sleep 1
+done
+wait_state "$job" 'COMPLETED|FAILED|CANCELLED|TIMEOUT' 600
+[ "$(state_of "$job")" = COMPLETED ] || fail "job $job ended $(state_of "$job")"
+out=$work/train-$job.out
+grep -q "checkpointed; requeueing" "$out" || fail "the job did not requeue itself"
+grep -q "resumed from" "$work/run/log.txt" || fail "the requeued job did not resume"
+cmp "$work/run/model.bin" "$work/reference/model.bin" || fail "the requeued job's model differs from the uninterrupted one"
+restarts=$(scontrol show job "$job" | grep -o 'Restarts=[0-9]*')
+echo "test_one_node: train job OK ($restarts, $(grep -o 'resumed from [^ ]*' "$work/run/log.txt" | head -n 1)), model identical"
+
+# 2. A job array sweep over --dims-per-round.
+array=$(LMB_REPO=$here LBOOST=$lboost LMB_SWEEP_FLAG=--dims-per-round LMB_SWEEP_VALUES="100 200" \
+  sbatch --parsable --array=0-1 --ntasks=1 --output="$work/sweep-%A_%a.out" \
+  "$here/jobs/slurm/sweep.sbatch" "$work/sweep" --synthetic small --rounds 30)
+echo "test_one_node: submitted sweep array $array"
+for i in 0 1; do wait_state "${array}_$i" 'COMPLETED|FAILED|CANCELLED' 300; done
+for v in 100 200; do
+  [ -f "$work/sweep/dims-per-round-$v/model.bin" ] || fail "sweep value $v has no model"
+  grep -q "dims_per_round = $v" "$work/sweep/dims-per-round-$v/config.toml" || fail "sweep value $v not applied"
+done
+echo "test_one_node: sweep OK"
+echo "test_one_node: PASS"

@@ -1,0 +1,154 @@
+// Writes the seed corpora of the fuzz targets, one folder per target under the given folder, with
+// the project's own writers: make_fuzz_seeds <out_dir>. scripts/fuzz.sh runs it before fuzzing.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "common/file_container.h"
+#include "common/io/colmap_binary.h"
+#include "common/io/colmap_model.h"
+#include "common/io/gravity_file.h"
+#include "common/io/map_h5.h"
+#include "common/vocabulary.h"
+#include "infer/model.h"
+#include "test/common/io/test_maps.h"
+#include "test/fuzz/fuzz_util.h"
+#include "test/infer/test_models.h"
+#include "train/boost/train_config.h"
+
+namespace lmb {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void put(const fs::path& dir, const std::string& name, const std::string& bytes) {
+  fs::create_directories(dir);
+  fuzz::write_file(dir / name, bytes);
+}
+
+std::string as_string(const std::vector<uint8_t>& v) { return std::string(v.begin(), v.end()); }
+
+// Two cameras, three images (2D points on two of them), two 3D points with tracks.
+ColmapModel small_colmap_model() {
+  ColmapModel m;
+  Camera a;
+  a.model = CameraModel::kSimpleRadial;
+  a.width = 640;
+  a.height = 480;
+  a.params = {500, 320, 240, -0.05};
+  Camera b;
+  b.model = CameraModel::kOpenCV;
+  b.width = 320;
+  b.height = 240;
+  b.params = {250, 251, 160, 120, -0.1, 0.01, 0.001, -0.001};
+  m.cameras = {{1, a}, {4, b}};
+  for (int i = 1; i <= 3; ++i) {
+    ColmapImage im;
+    im.image_id = i;
+    im.camera_id = i == 2 ? 4 : 1;
+    im.name = (i == 3 ? "query/" : "map/") + std::to_string(i) + ".png";
+    im.cam_from_world.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * i, Eigen::Vector3d(0.1, 1, 0.2).normalized()));
+    im.cam_from_world.translation = Eigen::Vector3d(0.5 * i, -0.25, 1.0);
+    if (i < 3) {
+      im.points2d = {{Eigen::Vector2d(10.5, 20.25), 7}, {Eigen::Vector2d(100, 50), ColmapPoint2D::kNoPoint3D},
+                     {Eigen::Vector2d(30, 40.5), 9}};
+    }
+    m.images.push_back(im);
+  }
+  for (int64_t id : {7, 9}) {
+    ColmapPoint3D p;
+    p.point3d_id = id;
+    p.xyz = Eigen::Vector3d(1.0 * id, 2.0, -3.5);
+    p.rgb << 10, 200, static_cast<uint8_t>(id);
+    p.error = 0.75;
+    p.track = {{1, id == 7 ? 0 : 2}, {2, id == 7 ? 0 : 2}};
+    m.points.push_back(p);
+  }
+  return m;
+}
+
+void make_seeds(const fs::path& out, const fs::path& scratch) {
+  fs::create_directories(scratch);
+  // model.lbm: the code model of the infer tests, with 3 and 40 classes.
+  for (int classes : {3, 40}) {
+    std::vector<Eigen::Vector3d> positions;
+    for (int c = 0; c < classes; ++c) positions.emplace_back(c, 0.5 * c, 2.0);
+    const Model model(test::make_code_model_data(positions));
+    put(out / "model", "code_" + std::to_string(classes) + ".lbm", as_string(model.to_bytes()));
+  }
+  // vocab.lbv: the infer tests' 4-word vocabulary and a 16-word one of 64-byte words.
+  {
+    put(out / "vocabulary", "test.lbv",
+        as_string(make_container(kVocabularyMagic, kVocabularyVersion, test::test_vocabulary().to_payload())));
+    std::vector<uint8_t> words(16 * 64);
+    for (size_t i = 0; i < words.size(); ++i) words[i] = static_cast<uint8_t>(i * 131 + 7);
+    const Vocabulary brisk(64, words);
+    put(out / "vocabulary", "brisk16.lbv",
+        as_string(make_container(kVocabularyMagic, kVocabularyVersion, brisk.to_payload())));
+  }
+  // map.h5: the map_h5 tests' random map and an empty map.
+  {
+    write_map_h5(test::random_map(1), scratch / "map.h5");
+    put(out / "map_h5", "random.h5", read_file(scratch / "map.h5"));
+    LandmarkMap empty;
+    empty.detector = "BRISK";
+    empty.descriptor_bytes = 64;
+    write_map_h5(empty, scratch / "empty.h5");
+    put(out / "map_h5", "empty.h5", read_file(scratch / "empty.h5"));
+  }
+  // COLMAP text and binary: the same small model, with and without points3D.
+  {
+    const ColmapModel m = small_colmap_model();
+    write_colmap_text(m, scratch / "text");
+    write_colmap_binary(m, scratch / "bin");
+    for (const char* ext : {"txt", "bin"}) {
+      const fs::path dir = scratch / (std::string(ext) == "txt" ? "text" : "bin");
+      const std::string cameras = read_file(dir / (std::string("cameras.") + ext));
+      const std::string images = read_file(dir / (std::string("images.") + ext));
+      const std::string points = read_file(dir / (std::string("points3D.") + ext));
+      const fs::path target = out / (std::string(ext) == "txt" ? "colmap_text" : "colmap_binary");
+      put(target, "model", fuzz::join_files({cameras, images, points}));
+      put(target, "model_no_points", fuzz::join_files({cameras, images}));
+    }
+  }
+  // TOML: the full default config and a short one.
+  put(out / "train_config", "defaults.toml", train_config_toml(TrainConfig{}));
+  put(out / "train_config", "short.toml",
+      "# a short config\n[boost]\nnum_rounds = 50\nexclusion_radius = 0.25\nscreening_step = true\n"
+      "[regions]\nnum_regions = 100\n[features]\nthreads = 2\n");
+  // Gravity.
+  write_gravity_file({{"map/1.png", Eigen::Vector3d(0, 1, 0)}, {"map/2.png", Eigen::Vector3d(0.1, 0.9, -0.2)},
+                      {"query/3.png", Eigen::Vector3d(1e-3, 2.5, 1e3)}},
+                     scratch / "gravity.txt");
+  put(out / "gravity", "gravity.txt", read_file(scratch / "gravity.txt"));
+}
+
+}  // namespace
+}  // namespace lmb
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s <out_dir>\n", argv[0]);
+    return 2;
+  }
+  const std::filesystem::path out = argv[1];
+  try {
+    lmb::make_seeds(out, out / ".scratch");
+    std::filesystem::remove_all(out / ".scratch");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "make_fuzz_seeds: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,82 @@
+// The OpenCV front-end (lmb_infer_cv): on a rendered image, the keypoints and descriptors an app
+// gets from a colour image equal the mapper's detection of the grayscale file with the mapper's
+// default settings, in COLMAP's pixel convention (OpenCV's pt + 0.5).
+#include "infer/cv/feature_detection.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/error.h"
+#include "train/mapping/mapper.h"
+#include "train/world/renderer.h"
+#include "train/world/trajectory.h"
+
+namespace lmb {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(InferCvTest, ColourImageGivesTheMappersKeypointsAndDescriptors) {
+  const World world = build_world(world_preset("tiny"));
+  const RayTable rays(world_camera(), 1);
+  const Session session = make_map_session(world, 3);
+  const MapperOptions mapper;  // the mapper's default detector settings
+  size_t total = 0;
+  for (int f = 0; f < 3; ++f) {
+    const RenderedFrame frame = render_frame(world, rays, session.cam_from_world[f], session.lighting, f, 2);
+    const fs::path path =
+        fs::temp_directory_path() / ("lmb_infer_cv_" + std::to_string(::getpid()) + ".png");
+    ASSERT_TRUE(cv::imwrite(path.string(), frame.image));
+    const cv::Mat gray = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);  // as the mapper reads
+    const cv::Mat colour = cv::imread(path.string(), cv::IMREAD_COLOR);    // as an app might
+    fs::remove(path);
+    ASSERT_EQ(colour.channels(), 3);
+
+    const ImageFeatures expected = detect_keypoints(gray, mapper.detector);
+    const ImageFeatures got = detect_features(colour);
+    ASSERT_EQ(got.keypoints.size(), expected.keypoints.size()) << "frame " << f;
+    ASSERT_EQ(got.descriptors, expected.descriptors) << "frame " << f;
+    for (size_t i = 0; i < got.keypoints.size(); ++i) {
+      EXPECT_EQ(got.keypoints[i].x, expected.keypoints[i].x) << i;
+      EXPECT_EQ(got.keypoints[i].y, expected.keypoints[i].y) << i;
+      EXPECT_EQ(got.keypoints[i].scale, expected.keypoints[i].scale) << i;
+      EXPECT_EQ(got.keypoints[i].angle, expected.keypoints[i].angle) << i;
+    }
+    EXPECT_EQ(got.descriptors.size(), got.keypoints.size() * 64);
+    total += got.keypoints.size();
+
+    // Pixel convention: every keypoint is one of OpenCV's BRISK keypoints moved by +0.5.
+    std::vector<cv::KeyPoint> raw;
+    cv::BRISK::create(mapper.detector.brisk_threshold, mapper.detector.brisk_octaves)->detect(gray, raw);
+    int found = 0;
+    for (const Keypoint& k : got.keypoints) {
+      for (const cv::KeyPoint& r : raw) {
+        if (r.pt.x + 0.5f == k.x && r.pt.y + 0.5f == k.y && r.size == k.scale) {
+          ++found;
+          break;
+        }
+      }
+    }
+    EXPECT_EQ(found, static_cast<int>(got.keypoints.size())) << "frame " << f;
+  }
+  EXPECT_GT(total, 100u);
+}
+
+TEST(InferCvTest, RejectsBadImagesAndOptions) {
+  EXPECT_THROW(detect_features(cv::Mat()), Error);
+  EXPECT_THROW(detect_features(cv::Mat(40, 40, CV_32FC1, cv::Scalar(0))), Error);
+  EXPECT_THROW(detect_features(cv::Mat(40, 40, CV_8UC2, cv::Scalar(0))), Error);
+  DetectorOptions o;
+  o.detector = "SIFT";
+  EXPECT_THROW(detect_features(cv::Mat(40, 40, CV_8UC1, cv::Scalar(0)), o), Error);
+  EXPECT_TRUE(detect_features(cv::Mat(40, 40, CV_8UC1, cv::Scalar(0))).keypoints.empty());
+}
+
+}  // namespace
+}  // namespace lmb
