@@ -9,8 +9,8 @@
 # (its own rgb.txt, links to the rest). The vocabulary is trained on unrelated images: a rendered
 # world (seed 1001), as in jobs/pipeline.sh, so no image of the sequence shapes the visual words.
 # Stages whose output exists are kept; delete OUT_DIR to start over. LBOOST points at the lboost
-# binary (default: build/train/lboost); LMB_TRAIN_ARGS (default --rounds 60 --top-k 1000, to keep
-# the run short), LMB_LOCALIZE_ARGS, LMB_EVAL_ARGS as in jobs/pipeline.sh.
+# binary (default: build/train/lboost); LMB_TRAIN_ARGS (default --rounds 600 --top-k 1000, about
+# 3 min of training here), LMB_LOCALIZE_ARGS, LMB_EVAL_ARGS as in jobs/pipeline.sh.
 set -euo pipefail
 data=${1:?usage: jobs/tum.sh DATA_DIR OUT_DIR}
 out=${2:?usage: jobs/tum.sh DATA_DIR OUT_DIR}
@@ -46,7 +46,7 @@ if [ ! -f "$out/map.h5" ]; then
   "$lboost" map --collection "$out/collection" --out "$out/map.h5" --gravity "$out/collection/gravity.txt" \
     --max-depth 6 --threads "$threads"
 fi
-default_train_args="--rounds 60 --top-k 1000"
+default_train_args="--rounds 600 --top-k 1000"
 # shellcheck source=jobs/model_stages.sh
 source "$here/jobs/model_stages.sh"
 model_stages
