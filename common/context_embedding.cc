@@ -3,8 +3,14 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
+#include "common/cpu_dispatch.h"
 #include "common/error.h"
 #include "common/hamming.h"
 
@@ -19,19 +25,6 @@ inline float region_bound(float p, float s, float c) {
   const float offset = s * c;
   const float bound = p + offset;
   return bound;
-}
-
-// First index i in the sorted array a[0, n) with a[i] >= v (n if none); branch-free.
-inline int32_t lower_bound_float(const float* a, int32_t n, float v) {
-  if (n == 0) return 0;
-  const float* base = a;
-  int32_t len = n;
-  while (len > 1) {
-    const int32_t half = len / 2;
-    base = (base[half] < v) ? base + half : base;
-    len -= half;
-  }
-  return static_cast<int32_t>(base - a) + (*base < v ? 1 : 0);
 }
 
 }  // namespace detail
@@ -139,20 +132,123 @@ FrameContext::FrameContext(const ContextRegions& regions, int32_t num_words)
   LMB_CHECK(num_words >= 1 && num_words <= 256,
             "frame context: num_words = " << num_words << " must be in 1..256");
   LMB_CHECK(regions.size() >= 1, "frame context: no context regions");
-  const int32_t R = regions.size();
-  corners_x_.resize(static_cast<size_t>(2 * R));
-  corners_y_.resize(static_cast<size_t>(2 * R));
-  for (int32_t r = 0; r < R; ++r) {
-    corners_x_[2 * r] = {regions[r].x0, 2 * r};
-    corners_x_[2 * r + 1] = {regions[r].x1, 2 * r + 1};
-    corners_y_[2 * r] = {regions[r].y0, 2 * r};
-    corners_y_[2 * r + 1] = {regions[r].y1, 2 * r + 1};
+}
+
+void FrameContext::Axis::build(int32_t n) {
+  // 2 cells a keypoint: most cells hold at most two keypoints.
+  cells = std::max(1, 2 * n);
+  lo = n > 0 ? sorted[0] : 0.f;
+  const float range = n > 0 ? sorted[n - 1] - lo : 0.f;
+  last = static_cast<float>(cells - 1);
+  inv = range > 0.f ? static_cast<float>(cells) / range : 0.f;
+  if (!std::isfinite(inv)) inv = 0.f;  // one cell: correct, only slower
+  sorted.resize(static_cast<size_t>(n) + 2, std::numeric_limits<float>::infinity());  // sentinels
+  start.resize(static_cast<size_t>(cells) + 1);
+  int32_t c = 0;
+  for (int32_t i = 0; i < n; ++i) {
+    const int32_t ci = cell(sorted[i]);
+    while (c <= ci) start[c++] = static_cast<uint16_t>(i);
   }
-  auto by_value = [](const Corner& a, const Corner& b) {
-    return a.c < b.c || (a.c == b.c && a.slot < b.slot);
-  };
-  std::sort(corners_x_.begin(), corners_x_.end(), by_value);
-  std::sort(corners_y_.begin(), corners_y_.end(), by_value);
+  while (c <= cells) start[c++] = static_cast<uint16_t>(n);
+}
+
+// (v - lo) * inv rounds monotonically in v, and the clamp and truncation are monotone: v <= w
+// implies cell(v) <= cell(w). Hence every coordinate at a rank below start[cell(v)] is < v and
+// every one at or above start[cell(v) + 1] is > v.
+inline int32_t FrameContext::Axis::cell(float v) const {
+  float t = (v - lo) * inv;
+  // Branch-free clamp to [0, cells - 1] (max / min instructions; NaN, impossible here, gives 0).
+  t = t > 0.f ? t : 0.f;
+  t = t < last ? t : last;
+  return static_cast<int32_t>(t);
+}
+
+inline int32_t FrameContext::Axis::rank(float v) const {
+  const int32_t c = cell(v);
+  const int32_t i = start[c], e = start[c + 1];
+  if (e - i <= 2) {  // branch-free (the sentinels make sorted[i + 1] readable)
+    return i + static_cast<int32_t>((i < e) & (sorted[i] < v)) +
+           static_cast<int32_t>((i + 1 < e) & (sorted[i + 1] < v));
+  }
+  return static_cast<int32_t>(std::lower_bound(sorted.data() + i, sorted.data() + e, v) -
+                              sorted.data());
+}
+
+namespace {
+
+constexpr int32_t kMaxRankBatch = 64;
+
+#if defined(__x86_64__)
+// FrameContext::Axis::ranks for 8 corners at a time: the bounds, cells and the first two
+// coordinates of each cell as in Axis::cell and Axis::rank (the same IEEE float operations:
+// separate multiply and add, max / min with the same operand order, truncation), with gathers;
+// lanes whose cell holds more than two coordinates finish with a binary search, as in rank().
+__attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const uint16_t* start,
+                                                     float lo, float inv, float last, float p,
+                                                     float s, const float* corners, int32_t m,
+                                                     int32_t* out) {
+  // Three passes over the corners (m <= kMaxRankBatch), so that the gathers of one pass do not
+  // wait on each other: bounds and cells; the cells' first ranks; the first two coordinates.
+  assert(m <= kMaxRankBatch);
+  alignas(32) float bounds[kMaxRankBatch];
+  alignas(32) int32_t cells[kMaxRankBatch], firsts[kMaxRankBatch], ends[kMaxRankBatch];
+  const __m256 vp = _mm256_set1_ps(p), vs = _mm256_set1_ps(s), vlo = _mm256_set1_ps(lo);
+  const __m256 vinv = _mm256_set1_ps(inv), vlast = _mm256_set1_ps(last);
+  for (int32_t i = 0; i < m; i += 8) {
+    const __m256 offset = _mm256_mul_ps(vs, _mm256_loadu_ps(corners + i));
+    const __m256 bound = _mm256_add_ps(vp, offset);
+    __m256 t = _mm256_mul_ps(_mm256_sub_ps(bound, vlo), vinv);
+    t = _mm256_max_ps(t, _mm256_setzero_ps());  // t > 0 ? t : 0
+    t = _mm256_min_ps(t, vlast);                // t < last ? t : last
+    _mm256_store_ps(bounds + i, bound);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(cells + i), _mm256_cvttps_epi32(t));
+  }
+  const __m256i low16 = _mm256_set1_epi32(0xFFFF);
+  for (int32_t i = 0; i < m; i += 8) {
+    // start[cell] | start[cell + 1] << 16: one 32-bit read at byte 2 * cell.
+    const __m256i cell = _mm256_load_si256(reinterpret_cast<const __m256i*>(cells + i));
+    const __m256i se = _mm256_i32gather_epi32(reinterpret_cast<const int*>(start), cell, 2);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(firsts + i), _mm256_and_si256(se, low16));
+    _mm256_store_si256(reinterpret_cast<__m256i*>(ends + i), _mm256_srli_epi32(se, 16));
+  }
+  const __m256i one = _mm256_set1_epi32(1), two = _mm256_set1_epi32(2);
+  for (int32_t i = 0; i < m; i += 8) {
+    const __m256 bound = _mm256_load_ps(bounds + i);
+    const __m256i first = _mm256_load_si256(reinterpret_cast<const __m256i*>(firsts + i));
+    const __m256i end = _mm256_load_si256(reinterpret_cast<const __m256i*>(ends + i));
+    const __m256i second = _mm256_add_epi32(first, one);
+    const __m256 v0 = _mm256_i32gather_ps(sorted, first, 4);  // sentinels past n
+    const __m256 v1 = _mm256_i32gather_ps(sorted, second, 4);
+    const __m256i below0 = _mm256_and_si256(_mm256_cmpgt_epi32(end, first),
+                                            _mm256_castps_si256(_mm256_cmp_ps(v0, bound, _CMP_LT_OQ)));
+    const __m256i below1 = _mm256_and_si256(_mm256_cmpgt_epi32(end, second),
+                                            _mm256_castps_si256(_mm256_cmp_ps(v1, bound, _CMP_LT_OQ)));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + i),
+                        _mm256_sub_epi32(_mm256_sub_epi32(first, below0), below1));
+    const int crowded = _mm256_movemask_ps(
+        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_sub_epi32(end, first), two)));
+    for (int32_t l = 0; crowded != 0 && l < 8; ++l) {  // rare: a binary search, as in rank()
+      if (crowded & (1 << l)) {
+        out[i + l] = static_cast<int32_t>(
+            std::lower_bound(sorted + firsts[i + l], sorted + ends[i + l], bounds[i + l]) - sorted);
+      }
+    }
+  }
+}
+#endif
+
+}  // namespace
+
+void FrameContext::Axis::ranks(float p, float s, const float* corners, int32_t m,
+                               int32_t* out) const {
+#if defined(__x86_64__)
+  static const bool has_avx2 = __builtin_cpu_supports("avx2");
+  if (has_avx2) {
+    axis_ranks_avx2(sorted.data(), start.data(), lo, inv, last, p, s, corners, m, out);
+    return;
+  }
+#endif
+  for (int32_t i = 0; i < m; ++i) out[i] = rank(detail::region_bound(p, s, corners[i]));
 }
 
 namespace {
@@ -229,8 +325,12 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
       ++next[word_[j]];
     }
   };
-  build_ranks(x_, sorted_x_, local_rank_x_, local_x, rank_x_);
-  build_ranks(y_, sorted_y_, local_rank_y_, local_y, rank_y_);
+  build_ranks(x_, axis_x_.sorted, local_rank_x_, local_x, rank_x_);
+  build_ranks(y_, axis_y_.sorted, local_rank_y_, local_y, rank_y_);
+  axis_x_.build(n);
+  axis_y_.build(n);
+  bin_magic_.resize(static_cast<size_t>(n) + 1);
+  for (int32_t t = 0; t <= n; ++t) bin_magic_[t] = context_bin_magic(t);
 
   // Per-word prefix tables.
   word_side_.assign(static_cast<size_t>(W), 1);
@@ -251,23 +351,50 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
   }
   for (int32_t w = 0; w < W; ++w) prefix_sum_2d(tables_.data() + table_offset_[w], word_side_[w]);
 
-  // Blocked dominance counts over all keypoints (see dom_coarse_ in the header); for frames up
-  // to kMaxDominanceKeypoints (larger ones take count_all from the word tables).
-  dom_coarse_.clear();
-  dom_mask_.clear();
+  // Byte copies of the word tables and local ranks for the DimPlan path when every word has at
+  // most 255 keypoints: half the bytes, rows padded to 16 bytes (a 64-byte line for up to 63
+  // keypoints), so more of them stay in L1.
+  small_words_ = n <= kMaxDominanceKeypoints &&
+                 *std::max_element(word_side_.begin(), word_side_.end()) <= 256;
+  if (small_words_) {
+    offset8_.resize(static_cast<size_t>(W));
+    stride8_.resize(static_cast<size_t>(W));
+    int32_t size = 0;
+    for (int32_t w = 0; w < W; ++w) {
+      offset8_[w] = size;
+      stride8_[w] = (word_side_[w] + 15) / 16 * 16;
+      size += word_side_[w] * stride8_[w];
+    }
+    tables8_.assign(static_cast<size_t>(size), 0);
+    for (int32_t w = 0; w < W; ++w) {
+      const int32_t side = word_side_[w];
+      for (int32_t a = 0; a < side; ++a) {
+        for (int32_t b = 0; b < side; ++b) {
+          tables8_[offset8_[w] + a * stride8_[w] + b] =
+              static_cast<uint8_t>(tables_[table_offset_[w] + a * side + b]);
+        }
+      }
+    }
+    local8_x_.assign(local_rank_x_.begin(), local_rank_x_.end());
+    local8_y_.assign(local_rank_y_.begin(), local_rank_y_.end());
+  }
+
+  // Blocked dominance counts over all keypoints (see dom_ in the header); for frames up to
+  // kMaxDominanceKeypoints (larger ones take count_all from the word tables).
+  dom_.clear();
   if (n > kMaxDominanceKeypoints) return;
-  const int32_t blocks = n / 64 + 1;
+  const int32_t blocks = n / kDomBlock + 1;
   const size_t stride = static_cast<size_t>(n) + 1;
-  dom_coarse_.assign(static_cast<size_t>(blocks) * stride, 0);
-  dom_mask_.assign(static_cast<size_t>(blocks) * stride, 0);
+  dom_.assign(static_cast<size_t>(blocks) * stride, 0);
   std::vector<int32_t> by_y(static_cast<size_t>(n));  // keypoint of each y rank
   for (int32_t i = 0; i < n; ++i) by_y[rank_y_[i]] = i;
   for (int32_t iy = 1; iy <= n; ++iy) {
     const int32_t rx = rank_x_[by_y[iy - 1]];  // the keypoint with y rank iy - 1
     for (int32_t b = 0; b < blocks; ++b) {
       const size_t at = static_cast<size_t>(b) * stride + iy;
-      dom_coarse_[at] = static_cast<uint16_t>(dom_coarse_[at - 1] + (rx < 64 * b ? 1 : 0));
-      dom_mask_[at] = dom_mask_[at - 1] | (rx / 64 == b ? uint64_t{1} << (rx % 64) : 0);
+      const uint64_t coarse = rx < kDomBlock * b ? uint64_t{1} << 48 : 0;
+      const uint64_t bit = rx / kDomBlock == b ? uint64_t{1} << (rx % kDomBlock) : 0;
+      dom_[at] = dom_[at - 1] + coarse + bit;  // no carry into the count: bits are set once
     }
   }
 }
@@ -283,42 +410,34 @@ inline int32_t bit_count(uint64_t x) {
 }  // namespace
 
 inline int32_t FrameContext::dominance(int32_t ix, int32_t iy) const {
-  const size_t at = static_cast<size_t>(ix / 64) * (static_cast<size_t>(n_) + 1) + iy;
-  const uint64_t below = (uint64_t{1} << (ix % 64)) - 1;
-  return dom_coarse_[at] + bit_count(dom_mask_[at] & below);
+  const uint64_t e = dom_[static_cast<size_t>(ix / kDomBlock) * (static_cast<size_t>(n_) + 1) + iy];
+  const uint64_t below = (uint64_t{1} << (ix % kDomBlock)) - 1;
+  return static_cast<int32_t>(e >> 48) + bit_count(e & below);
 }
 
 inline int32_t FrameContext::word_dominance(int32_t w, int32_t ix, int32_t iy) const {
   const int32_t W = num_words_;
+  if (small_words_) {
+    return tables8_[offset8_[w] + local8_x_[static_cast<size_t>(ix) * W + w] * stride8_[w] +
+                    local8_y_[static_cast<size_t>(iy) * W + w]];
+  }
   const int64_t side = word_side_[w];
   return tables_[table_offset_[w] + local_rank_x_[static_cast<size_t>(ix) * W + w] * side +
                  local_rank_y_[static_cast<size_t>(iy) * W + w]];
 }
 
-FrameContext::Bounds FrameContext::bounds(int32_t k, int32_t r) const {
-  const RegionRect& q = (*regions_)[r];
+inline FrameContext::Bounds FrameContext::bounds(int32_t k, const RegionRect& q) const {
   const float px = x_[k], py = y_[k], s = scale_[k];
   Bounds b;
-  b.ix0 = detail::lower_bound_float(sorted_x_.data(), n_, detail::region_bound(px, s, q.x0));
-  b.ix1 = detail::lower_bound_float(sorted_x_.data(), n_, detail::region_bound(px, s, q.x1));
-  b.iy0 = detail::lower_bound_float(sorted_y_.data(), n_, detail::region_bound(py, s, q.y0));
-  b.iy1 = detail::lower_bound_float(sorted_y_.data(), n_, detail::region_bound(py, s, q.y1));
+  b.ix0 = axis_x_.rank(detail::region_bound(px, s, q.x0));
+  b.ix1 = axis_x_.rank(detail::region_bound(px, s, q.x1));
+  b.iy0 = axis_y_.rank(detail::region_bound(py, s, q.y0));
+  b.iy1 = axis_y_.rank(detail::region_bound(py, s, q.y1));
   // lo <= x_k  <=>  ix0 <= rank_x(k), and x_k < hi  <=>  rank_x(k) < ix1 (ties included).
-  b.anchor_inside = b.ix0 <= rank_x_[k] && rank_x_[k] < b.ix1 && b.iy0 <= rank_y_[k] &&
-                    rank_y_[k] < b.iy1;
+  // (& rather than &&: no branches, see compute_dims.)
+  const int32_t rx = rank_x_[k], ry = rank_y_[k];
+  b.anchor_inside = (b.ix0 <= rx) & (rx < b.ix1) & (b.iy0 <= ry) & (ry < b.iy1);
   return b;
-}
-
-void FrameContext::merge_ranks(float p, float s, const std::vector<Corner>& corners,
-                               const std::vector<float>& sorted, int32_t* out) const {
-  const float* v = sorted.data();
-  int32_t i = 0;
-  const int32_t n = n_;
-  for (const Corner& c : corners) {
-    const float bound = detail::region_bound(p, s, c.c);
-    while (i < n && v[i] < bound) ++i;
-    out[c.slot] = i;
-  }
 }
 
 void FrameContext::counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts,
@@ -353,7 +472,7 @@ void FrameContext::counts_from_bounds(int32_t k, const Bounds& b, int32_t* count
 int32_t FrameContext::region_counts(int32_t k, int32_t r, int32_t* counts) const {
   assert(k >= 0 && k < n_ && r >= 0 && r < regions_->size());
   int32_t total = 0;
-  counts_from_bounds(k, bounds(k, r), counts, &total);
+  counts_from_bounds(k, bounds(k, (*regions_)[r]), counts, &total);
   return total;
 }
 
@@ -361,26 +480,17 @@ void FrameContext::embed_context(int32_t k, uint8_t* out) const {
   assert(k >= 0 && k < n_);
   const int32_t W = num_words_;
   const int32_t R = regions_->size();
-  std::vector<int32_t> ranks(static_cast<size_t>(4 * R));
-  merge_ranks(x_[k], scale_[k], corners_x_, sorted_x_, ranks.data());
-  merge_ranks(y_[k], scale_[k], corners_y_, sorted_y_, ranks.data() + 2 * R);
-  const int32_t rx = rank_x_[k], ry = rank_y_[k];
   int32_t counts[256];
   for (int32_t r = 0; r < R; ++r) {
-    Bounds b;
-    b.ix0 = ranks[2 * r];
-    b.ix1 = ranks[2 * r + 1];
-    b.iy0 = ranks[2 * R + 2 * r];
-    b.iy1 = ranks[2 * R + 2 * r + 1];
-    b.anchor_inside = b.ix0 <= rx && rx < b.ix1 && b.iy0 <= ry && ry < b.iy1;
     int32_t total = 0;
-    counts_from_bounds(k, b, counts, &total);
+    counts_from_bounds(k, bounds(k, (*regions_)[r]), counts, &total);
     uint8_t* o = out + static_cast<size_t>(r) * W;
     if (total == 0) {
       std::fill_n(o, W, uint8_t{0});
       continue;
     }
-    for (int32_t w = 0; w < W; ++w) o[w] = context_bin(counts[w], total);
+    const uint64_t magic = bin_magic_[total];
+    for (int32_t w = 0; w < W; ++w) o[w] = context_bin_fast(counts[w], total, magic);
   }
 }
 
@@ -396,7 +506,7 @@ void FrameContext::compute_dims(int32_t k, const int32_t* dims, int32_t num_dims
     const int32_t r = dims[i] / W;
     int32_t end = i + 1;
     while (end < num_dims && dims[end] < (r + 1) * W) ++end;
-    const Bounds b = bounds(k, r);
+    const Bounds b = bounds(k, (*regions_)[r]);
     int32_t total = 0;
     counts_from_bounds(k, b, counts, &total);
     for (int32_t j = i; j < end; ++j) out[j] = context_bin(counts[dims[j] - r * W], total);
@@ -438,79 +548,78 @@ DimPlan::DimPlan(const ContextRegions& regions, const EmbeddingLayout& layout,
   int32_t i = 0;
   while (i < n && layout_.is_context(dims_[i])) {
     const int32_t r = layout_.region_of(dims_[i]);
-    const int32_t u = static_cast<int32_t>(used_regions_.size());
     used_regions_.push_back(r);
+    corners_[0].push_back(regions[r].x0);
+    corners_[1].push_back(regions[r].x1);
+    corners_[2].push_back(regions[r].y0);
+    corners_[3].push_back(regions[r].y1);
     dim_begin_.push_back(i);
-    const RegionRect& q = regions[r];
-    corners_x_.push_back({q.x0, 2 * u});
-    corners_x_.push_back({q.x1, 2 * u + 1});
-    corners_y_.push_back({q.y0, 2 * u});
-    corners_y_.push_back({q.y1, 2 * u + 1});
-    while (i < n && layout_.is_context(dims_[i]) && layout_.region_of(dims_[i]) == r) ++i;
+    while (i < n && layout_.is_context(dims_[i]) && layout_.region_of(dims_[i]) == r) {
+      dim_word_.push_back(static_cast<uint8_t>(layout_.word_of(dims_[i])));
+      ++i;
+    }
   }
   dim_begin_.push_back(i);
   num_context_ = i;
-  auto by_value = [](const Corner& a, const Corner& b) {
-    return a.c < b.c || (a.c == b.c && a.slot < b.slot);
-  };
-  std::sort(corners_x_.begin(), corners_x_.end(), by_value);
-  std::sort(corners_y_.begin(), corners_y_.end(), by_value);
+  for (std::vector<float>& c : corners_) c.resize((c.size() + 7) / 8 * 8, 0.f);
 }
 
-void FrameContext::compute_dims(int32_t k, const DimPlan& plan, const uint8_t* descriptor,
-                                uint8_t* out) const {
+// Cloned for AVX2: the popcounts of dominance() become single instructions.
+LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
+                                                const uint8_t* descriptor, uint8_t* out) const {
   assert(k >= 0 && k < n_);
   assert(plan.layout_.num_words == num_words_ && plan.layout_.num_regions == regions_->size());
-  const int32_t W = num_words_;
   const int32_t U = plan.num_used_regions();
-  std::vector<int32_t> ranks(static_cast<size_t>(4 * U));
-  // The same merge as merge_ranks, over the plan's corners.
-  auto merge = [&](float p, const std::vector<DimPlan::Corner>& corners,
-                   const std::vector<float>& sorted, int32_t* dst) {
-    const float s = scale_[k];
-    const float* v = sorted.data();
-    int32_t i = 0;
-    for (const DimPlan::Corner& c : corners) {
-      const float bound = detail::region_bound(p, s, c.c);
-      while (i < n_ && v[i] < bound) ++i;
-      dst[c.slot] = i;
-    }
-  };
-  merge(x_[k], plan.corners_x_, sorted_x_, ranks.data());
-  merge(y_[k], plan.corners_y_, sorted_y_, ranks.data() + 2 * U);
+  const int32_t* dim_begin = plan.dim_begin_.data();
+  const uint8_t* dim_word = plan.dim_word_.data();
+  const int32_t word_k = word_[k];
+  const bool small_frame = !dom_.empty();
+  // Regions in chunks: first every region's rank bounds (independent chains of reads, 8 regions
+  // a step with AVX2 gathers), then the counts, where the test for an empty region no longer
+  // waits on them.
+  constexpr int32_t kChunk = kMaxRankBatch;
+  alignas(32) int32_t ranks[4][kChunk];  // ix0, ix1, iy0, iy1 of the chunk's regions
+  const float px = x_[k], py = y_[k], s = scale_[k];
   const int32_t rx = rank_x_[k], ry = rank_y_[k];
-  const int32_t* dims = plan.dims_.data();
-  for (int32_t u = 0; u < U; ++u) {
-    Bounds b;
-    b.ix0 = ranks[2 * u];
-    b.ix1 = ranks[2 * u + 1];
-    b.iy0 = ranks[2 * U + 2 * u];
-    b.iy1 = ranks[2 * U + 2 * u + 1];
-    b.anchor_inside = b.ix0 <= rx && rx < b.ix1 && b.iy0 <= ry && ry < b.iy1;
-    const int32_t begin = plan.dim_begin_[u], end = plan.dim_begin_[u + 1];
-    const int32_t base = plan.used_regions_[u] * W;
-    if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {  // empty (the anchor cannot be inside)
-      std::fill(out + begin, out + end, uint8_t{0});
-      continue;
-    }
-    if (dom_mask_.empty()) {  // a large frame: all words' counts
-      int32_t counts[256];
-      int32_t total = 0;
-      counts_from_bounds(k, b, counts, &total);
-      for (int32_t j = begin; j < end; ++j) out[j] = context_bin(counts[dims[j] - base], total);
-      continue;
-    }
-    // Only the plan's words of the region; count_all from the dominance structure.
-    const int32_t total = dominance(b.ix1, b.iy1) - dominance(b.ix0, b.iy1) -
-                          dominance(b.ix1, b.iy0) + dominance(b.ix0, b.iy0) - b.anchor_inside;
-    for (int32_t j = begin; j < end; ++j) {
-      const int32_t w = dims[j] - base;
-      const int32_t count = word_dominance(w, b.ix1, b.iy1) - word_dominance(w, b.ix0, b.iy1) -
-                            word_dominance(w, b.ix1, b.iy0) + word_dominance(w, b.ix0, b.iy0) -
-                            (b.anchor_inside && word_[k] == w);
-      out[j] = context_bin(count, total);
+  for (int32_t u0 = 0; u0 < U; u0 += kChunk) {
+    const int32_t m = std::min(kChunk, U - u0);
+    axis_x_.ranks(px, s, plan.corners_[0].data() + u0, m, ranks[0]);
+    axis_x_.ranks(px, s, plan.corners_[1].data() + u0, m, ranks[1]);
+    axis_y_.ranks(py, s, plan.corners_[2].data() + u0, m, ranks[2]);
+    axis_y_.ranks(py, s, plan.corners_[3].data() + u0, m, ranks[3]);
+    for (int32_t i = 0; i < m; ++i) {
+      Bounds b;
+      b.ix0 = ranks[0][i];
+      b.ix1 = ranks[1][i];
+      b.iy0 = ranks[2][i];
+      b.iy1 = ranks[3][i];
+      const int32_t begin = dim_begin[u0 + i], end = dim_begin[u0 + i + 1];
+      if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {  // empty (the anchor cannot be inside)
+        for (int32_t j = begin; j < end; ++j) out[j] = 0;
+        continue;
+      }
+      b.anchor_inside = (b.ix0 <= rx) & (rx < b.ix1) & (b.iy0 <= ry) & (ry < b.iy1);
+      if (!small_frame) {  // a large frame: all words' counts
+        int32_t counts[256];
+        int32_t total = 0;
+        counts_from_bounds(k, b, counts, &total);
+        for (int32_t j = begin; j < end; ++j) out[j] = context_bin(counts[dim_word[j]], total);
+        continue;
+      }
+      // Only the plan's words of the region; count_all from the dominance structure.
+      const int32_t total = dominance(b.ix1, b.iy1) - dominance(b.ix0, b.iy1) -
+                            dominance(b.ix1, b.iy0) + dominance(b.ix0, b.iy0) - b.anchor_inside;
+      const uint64_t magic = bin_magic_[total];
+      for (int32_t j = begin; j < end; ++j) {
+        const int32_t w = dim_word[j];
+        const int32_t count = word_dominance(w, b.ix1, b.iy1) - word_dominance(w, b.ix0, b.iy1) -
+                              word_dominance(w, b.ix1, b.iy0) + word_dominance(w, b.ix0, b.iy0) -
+                              (b.anchor_inside & (word_k == w));
+        out[j] = context_bin_fast(count, total, magic);
+      }
     }
   }
+  const int32_t* dims = plan.dims_.data();
   const int32_t context_dims = plan.layout_.num_context_dims();
   for (int32_t j = plan.num_context_; j < plan.size(); ++j) {
     out[j] = static_cast<uint8_t>(descriptor_bit(descriptor, dims[j] - context_dims));

@@ -73,6 +73,20 @@ inline uint8_t context_bin(int32_t count, int32_t total) {
                    : uint8_t{0};
 }
 
+// context_bin without a division: with m = context_bin_magic(total),
+// context_bin_fast(count, total, m) == context_bin(count, total) for 0 <= count <= total <= 65535.
+// m = floor(2^40 / total) + 1 (0 for total 0). Why it is exact: x = 255 * count + total / 2 <
+// 256 * total, and x * m / 2^40 = x / total + x * e / 2^40 with 0 < e <= 1; the error term is
+// below 256 * total / 2^40 < 1 / total (total < 2^16), less than the gap between the fraction
+// x / total - floor(x / total) <= 1 - 1 / total and the next integer. x * m < 2^48 + 2^24.
+inline uint64_t context_bin_magic(int32_t total) {
+  return total > 0 ? (uint64_t{1} << 40) / static_cast<uint64_t>(total) + 1 : 0;
+}
+inline uint8_t context_bin_fast(int32_t count, int32_t total, uint64_t magic) {
+  const uint64_t x = 255 * static_cast<uint64_t>(count) + static_cast<uint64_t>(total / 2);
+  return static_cast<uint8_t>((x * magic) >> 40);
+}
+
 // The image-plane direction of gravity (unit 2-vector), see the file comment. Sets *degenerate
 // when the fallback (0, 1) was used. Throws lmb::Error for a zero or non-finite vector.
 Eigen::Vector2d gravity_direction_in_image(const Eigen::Vector3d& gravity_in_cam,
@@ -109,8 +123,7 @@ FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypo
                                                const std::string& where);
 
 // A model's used dimensions, prepared once for fast per-keypoint evaluation: the used regions and
-// their corners sorted per axis (so each keypoint's region bounds are ranked by one merge, as in
-// FrameContext::embed_context).
+// their rectangles, each region's dims contiguous.
 class DimPlan {
  public:
   DimPlan() = default;
@@ -125,31 +138,30 @@ class DimPlan {
 
  private:
   friend class FrameContext;
-  struct Corner {
-    float c;
-    int32_t slot;  // 2 * used-region index + (0: lower, 1: upper)
-  };
   EmbeddingLayout layout_;
   std::vector<int32_t> dims_;
   std::vector<int32_t> used_regions_;  // region ids, ascending
+  // Their rectangles' corners, one array each (x0, x1, y0, y1), padded to a multiple of 8.
+  std::vector<float> corners_[4];
   std::vector<int32_t> dim_begin_;     // dims of used region u: [dim_begin_[u], dim_begin_[u+1])
+  std::vector<uint8_t> dim_word_;      // the word of each context dim
   int32_t num_context_ = 0;            // dims_[0, num_context_) are context dims
-  std::vector<Corner> corners_x_, corners_y_;
 };
 
 // Per-frame spatial index answering "how many keypoints of word w lie in region r of keypoint k" in
-// O(log n): keypoints sorted by x and by y, and per word a coordinate-compressed 2D prefix-count
-// table over its own points ((n_w + 1)^2 uint16 entries, about n^2 / W in all). A single query
-// (region_counts, compute_dims with a raw dim list) does 4 binary searches on the frame's sorted
-// coordinates, then 4 table reads per word; count_all is the sum over the words. embed_context
-// and the DimPlan overloads replace the binary searches by one merge per axis of the regions'
-// sorted corners with the sorted coordinates (O(R + n) per keypoint instead of O(R log n); the
-// same ranks, because a bound p + s * c is monotone in the corner c). The anchor is removed by
-// comparing its own ranks with the region's rank ranges. (A table over all keypoints for
-// count_all was measured slower: at (n+1)^2 entries it does not stay in cache.) The DimPlan
+// O(1) expected time: keypoints sorted by x and by y, and per word a coordinate-compressed 2D
+// prefix-count table over its own points ((n_w + 1)^2 uint16 entries, about n^2 / W in all). A
+// region bound p + s * c is ranked (keypoints below it along the axis) through a uniform grid over
+// the axis's sorted coordinates: the grid cell of a coordinate is a monotone function of it, so
+// the cell's first rank and the next cell's bracket the answer exactly, and the few keypoints of
+// the cell are compared with the bound directly (a binary search when there are more than
+// two). Then 4 table reads per word; count_all is the sum over the words. The anchor is
+// removed by comparing its own ranks with the region's rank ranges. (A table over all keypoints
+// for count_all was measured slower: at (n+1)^2 entries it does not stay in cache.) The DimPlan
 // overloads read only the plan's words of a region and take count_all from a blocked dominance
-// structure of ~n^2 / 6 bytes (64-keypoint bitmasks plus block prefix counts): 4 reads and
-// popcounts instead of one table lookup per word.
+// structure of ~n^2 / 6 bytes (48-keypoint bitmasks packed with block prefix counts): 4 reads and
+// popcounts instead of one table lookup per word; bins divide by multiplying with a per-frame
+// table of context_bin_magic.
 //
 // Usage: construct once per thread (buffers are reused), reset() per frame, then query from one
 // thread; the const query methods are safe to call concurrently after reset().
@@ -157,7 +169,7 @@ class FrameContext {
  public:
   // Counts are stored as uint16: a frame may hold at most this many keypoints.
   static constexpr int32_t kMaxFrameKeypoints = 65535;
-  // Frames up to this size get the dominance structure of the DimPlan path (10 MB at the limit).
+  // Frames up to this size get the dominance structure of the DimPlan path (11 MB at the limit).
   static constexpr int32_t kMaxDominanceKeypoints = 8192;
 
   // regions must outlive this object. num_words in 1..256.
@@ -186,9 +198,10 @@ class FrameContext {
   // descriptors: n rows of descriptor_bytes bytes, in frame order.
   void compute_dims_all(const int32_t* dims, int32_t num_dims, const uint8_t* descriptors,
                         int32_t descriptor_bytes, uint8_t* out) const;
-  // The same with a prepared plan (faster: one merge per axis instead of 4 binary searches per
-  // used region). out has plan.size() bytes; descriptor has plan.layout().descriptor_bytes bytes.
-  // The plan must come from this context's regions and word count (asserted).
+  // The same with a prepared plan (faster: the regions' bounds are ranked 8 at a time, only the
+  // plan's words of a region are counted, and count_all comes from the dominance structure). out
+  // has plan.size() bytes; descriptor has plan.layout().descriptor_bytes bytes. The plan must come
+  // from this context's regions and word count (asserted).
   void compute_dims(int32_t k, const DimPlan& plan, const uint8_t* descriptor, uint8_t* out) const;
   // For every keypoint: out is n x plan.size(), row-major. Throws lmb::Error when the plan's
   // layout does not match this context.
@@ -199,16 +212,27 @@ class FrameContext {
     int32_t ix0, ix1, iy0, iy1;  // global rank ranges [ix0, ix1), [iy0, iy1)
     bool anchor_inside;
   };
-  // A region corner coordinate, in keypoint scales; slot = 2 * region + (0: lower, 1: upper).
-  struct Corner {
-    float c;
-    int32_t slot;
+  // Ranks along one axis: sorted coordinates (plus two +inf sentinels at n and n + 1) and a
+  // uniform grid of `cells` cells over [lo, lo + cells / inv); start[c] = the first rank whose
+  // coordinate's cell is >= c (cells + 1 entries; ranks fit uint16, see kMaxFrameKeypoints).
+  struct Axis {
+    std::vector<float> sorted;
+    float lo = 0.f, inv = 0.f;
+    int32_t cells = 1;
+    float last = 0.f;  // cells - 1
+    std::vector<uint16_t> start;
+
+    void build(int32_t n);  // from sorted[0, n)
+    int32_t cell(float v) const;
+    // Number of coordinates < v.
+    int32_t rank(float v) const;
+    // out[i] = rank(p + s * corners[i]) (region_bound) for i < m <= 64; corners has m rounded
+    // up to a multiple of 8 readable entries, out as many writable ones. AVX2 gathers where the
+    // CPU has them (the same float operations, so the same ranks).
+    void ranks(float p, float s, const float* corners, int32_t m, int32_t* out) const;
   };
-  Bounds bounds(int32_t k, int32_t r) const;
-  // Rank bounds of every region of keypoint k along one axis, by merging the sorted corners with
-  // the sorted coordinates (bounds are monotone in the corner): out[slot].
-  void merge_ranks(float p, float s, const std::vector<Corner>& corners,
-                   const std::vector<float>& sorted, int32_t* out) const;
+  // The region rectangle q of keypoint k as rank ranges.
+  Bounds bounds(int32_t k, const RegionRect& q) const;
   void counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts, int32_t* total) const;
   // Keypoints (of any word) with x rank < ix and y rank < iy.
   int32_t dominance(int32_t ix, int32_t iy) const;
@@ -217,11 +241,10 @@ class FrameContext {
 
   const ContextRegions* regions_;
   int32_t num_words_;
-  std::vector<Corner> corners_x_, corners_y_;  // sorted by coordinate
   int32_t n_ = 0;
   std::vector<float> x_, y_, scale_;
   std::vector<uint8_t> word_;
-  std::vector<float> sorted_x_, sorted_y_;
+  Axis axis_x_, axis_y_;
   std::vector<int32_t> rank_x_, rank_y_;  // each keypoint's position in x (y) order
   // local_rank_x_[ix * W + w]: points of word w among the first ix points in x order.
   std::vector<uint16_t> local_rank_x_, local_rank_y_;
@@ -230,11 +253,17 @@ class FrameContext {
   std::vector<int64_t> table_offset_;
   std::vector<uint16_t> tables_;
   // All keypoints' dominance counts for count_all in the DimPlan path (which reads only the
-  // plan's words of a region): x order cut into blocks of 64; dom_coarse_[b * (n + 1) + iy] =
-  // keypoints in blocks < b with y rank < iy, dom_mask_[b * (n + 1) + iy] = bit i set when the
-  // i-th keypoint of block b has y rank < iy. About 10 * n^2 / 64 bytes: stays in cache.
-  std::vector<uint16_t> dom_coarse_;
-  std::vector<uint64_t> dom_mask_;
+  // plan's words of a region), one 64-bit read each: x order cut into blocks of kDomBlock;
+  // dom_[b * (n + 1) + iy] = (keypoints in blocks < b with y rank < iy) << 48 | bit i set when
+  // the i-th keypoint of block b has y rank < iy. About n^2 / 6 bytes: stays in L2.
+  static constexpr int32_t kDomBlock = 48;
+  std::vector<uint64_t> dom_;
+  // When every word has at most 255 keypoints (and the frame gets dom_): the word tables as bytes,
+  // word w's at offset8_[w] with rows of stride8_[w] bytes, and the local ranks as bytes.
+  bool small_words_ = false;
+  std::vector<uint8_t> tables8_, local8_x_, local8_y_;
+  std::vector<int32_t> offset8_, stride8_;
+  std::vector<uint64_t> bin_magic_;     // context_bin_magic(t) for t in 0..n
   std::vector<int32_t> order_;          // scratch
 };
 

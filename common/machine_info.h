@@ -15,4 +15,9 @@ struct MachineInfo {
 // Reads /proc/cpuinfo (Linux); never throws.
 MachineInfo machine_info();
 
+// This process's resources (Linux), for benchmarks and run summaries; never throw.
+double cpu_seconds();     // CPU time of all its threads: fair on a shared machine
+double peak_rss_mb();     // peak resident set (getrusage)
+double current_rss_mb();  // resident set now (/proc/self/statm)
+
 }  // namespace lmb

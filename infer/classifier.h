@@ -6,9 +6,10 @@
 //   inverted file:  only the keypoint word's candidate classes (classes whose training
 //                   observations quantize to the same word) and the background; only the dims
 //                   those classes read are computed.
-// classify() works on batches of kBatch keypoints of the same word: the stump outputs of the
-// batch are tabulated once (stump-major, kBatch doubles a stump), then each class's score is
-// summed over its own stump list for the whole batch at once (kBatch independent lanes, SIMD).
+// classify() works on batches of kBatch keypoints of the same word: which stumps fire in which
+// lane is tabulated once for the batch (one 32-bit mask a stump: the table stays in L1), then
+// each class's score is summed over its own stump list for the whole batch at once (kBatch
+// independent lanes, SIMD; each lane adds the stump's above or below double as its bit selects).
 // Every score is summed in training order with the same doubles as the trainer's
 // BoostModel::scores, so a class's score is bit-identical in both modes, in dense_scores() and
 // class_score(), and to the trainer's.
@@ -101,25 +102,47 @@ class LMB_INFER_EXPORT Classifier {
     int32_t cls;
   };
   // Scores one batch of keypoints `ids` (count <= kBatch) against `classes` (ascending, num of
-  // them) and the background; values_ holds their used-dim values. Appends every keypoint's ranked
-  // matches to pending_ as (keypoint, match).
-  void score_batch(const int32_t* ids, int32_t count, const int32_t* classes, int32_t num);
+  // them), whose stump lists follow each other from `lists`, and the background; values_ holds
+  // their used-dim values. Appends every keypoint's ranked matches to pending_ as (keypoint,
+  // match).
+  void score_batch(const int32_t* ids, int32_t count, const int32_t* classes, int32_t num,
+                   const int32_t* lists);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
   void offer(int32_t j, int32_t cls, double score, double bg);
 
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;
   FrameContext context_;
-  std::vector<uint8_t> values_;       // kBatch rows of used_dims().size() values
-  std::vector<uint8_t> word_values_;  // one keypoint's values of its word's dims
-  std::vector<double> stump_out_;     // M x kBatch stump outputs of the batch
+  std::vector<uint8_t> values_;       // used_dims().size() rows of kBatch lanes (dim-major)
+  std::vector<uint8_t> word_values_;  // one keypoint's values of its word's (or all used) dims
+  std::vector<uint32_t> fire_;        // per stump: bit j = the stump fires in lane j
   std::vector<double> class_out_;     // kBatch scores of one class
   std::vector<double> background_;    // kBatch background scores
   std::vector<int32_t> all_classes_;  // 0..C-1
   std::vector<std::vector<Candidate>> lanes_;  // per lane: passing candidates (pruned to top_k)
   std::vector<Candidate> cutoff_;              // per lane: worst kept once pruned
+  std::vector<double> cutoff_score_;           // per lane: cutoff_[j].score
   std::vector<int32_t> order_, word_begin_;    // keypoints grouped by word
   std::vector<std::pair<int32_t, ClassMatch>> pending_;
 };
+
+namespace detail {
+// The batch scoring kernels (internal; declared for tests). fire_masks: fire[s] bit j = lane j's
+// value of stump s's dim is above its threshold; values holds one row of Classifier::kBatch lanes
+// per used dim. accumulate_lanes: out[j] = bias + the outputs of stumps[0, count) (stump indices,
+// in order) in lane j, each the stump's above or below double as fire bit j says, added in order
+// (the same doubles as the scalar sum); the AVX-512 kernel where the CPU has it, else
+// accumulate_lanes_generic (AVX2 or baseline clone). accumulate_two: two classes at once, each
+// with the same additions as accumulate_lanes. out arrays hold kBatch doubles.
+void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values,
+                uint32_t* fire);
+void accumulate_lanes(double bias, const int32_t* stumps, int64_t count,
+                      const Model::DenseStump* dense, const uint32_t* fire, double* out);
+void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count,
+                              const Model::DenseStump* dense, const uint32_t* fire, double* out);
+void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1,
+                    const int32_t* stumps1, int64_t count1, const Model::DenseStump* dense,
+                    const uint32_t* fire, double* out0, double* out1);
+}  // namespace detail
 
 }  // namespace lmb

@@ -326,6 +326,11 @@ Model::Model(ModelData data) : data_(std::move(data)) {
     const std::vector<int32_t>& list = data_.inverted_file[w];
     word_classes_.insert(word_classes_.end(), list.begin(), list.end());
     word_class_begin_[w + 1] = static_cast<int32_t>(word_classes_.size());
+    word_stream_begin_.push_back(static_cast<int64_t>(word_stream_.size()));
+    for (int32_t c : list) {
+      word_stream_.insert(word_stream_.end(), class_stump_index_.begin() + class_stump_begin_[c],
+                          class_stump_index_.begin() + class_stump_begin_[c + 1]);
+    }
     std::fill(mark.begin(), mark.end(), 0);
     auto mark_class = [&](int32_t c) {
       for (int64_t e = class_stump_begin_[c]; e < class_stump_begin_[c + 1]; ++e) {
@@ -345,6 +350,7 @@ Model::Model(ModelData data) : data_(std::move(data)) {
                              std::vector<int32_t>(word_used_dims_.begin() + word_used_begin_[w],
                                                   word_used_dims_.end()));
   }
+  word_stream_begin_.push_back(static_cast<int64_t>(word_stream_.size()));
   used_plan_ = DimPlan(data_.regions, layout_, used_dims_);
 }
 

@@ -150,6 +150,11 @@ class LMB_INFER_EXPORT Model {
   const std::vector<int32_t>& word_used_dims() const { return word_used_dims_; }
   // Word w's used dims prepared for FrameContext::compute_dims.
   const DimPlan& word_plan(int32_t w) const { return word_plans_[w]; }
+  // Word w's candidate classes' stump lists (class_stump_index() entries) one after the other, in
+  // the order of word_classes(), from word_stream_begin()[w]: the batched classifier reads them
+  // as one sequential stream.
+  const std::vector<int64_t>& word_stream_begin() const { return word_stream_begin_; }  // W + 1
+  const std::vector<int32_t>& word_stream() const { return word_stream_; }
 
  private:
   ModelData data_;
@@ -168,6 +173,8 @@ class LMB_INFER_EXPORT Model {
   std::vector<int32_t> word_used_dims_;
   DimPlan used_plan_;
   std::vector<DimPlan> word_plans_;
+  std::vector<int64_t> word_stream_begin_;
+  std::vector<int32_t> word_stream_;
 };
 
 namespace detail {

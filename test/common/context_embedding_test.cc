@@ -76,6 +76,28 @@ TEST(ContextBin, KnownValues) {
   EXPECT_EQ(context_bin(2, 1000), 1);
 }
 
+// The division-free bin: every count of every total up to 4096, and for larger totals (up to the
+// frame limit, where the proof's margin is smallest) the counts near 0, the half and the total,
+// and random ones.
+TEST(ContextBin, FastDivisionEqualsContextBin) {
+  for (int32_t total = 0; total <= 4096; ++total) {
+    const uint64_t magic = context_bin_magic(total);
+    for (int32_t count = 0; count <= total; ++count) {
+      ASSERT_EQ(context_bin_fast(count, total, magic), context_bin(count, total))
+          << count << " / " << total;
+    }
+  }
+  Rng rng(9);
+  for (int32_t total = 4097; total <= 65535; ++total) {
+    const uint64_t magic = context_bin_magic(total);
+    for (int32_t count : {0, 1, total / 255, total / 2 - 1, total / 2, total / 2 + 1, total - 1,
+                          total, static_cast<int32_t>(rng.below(static_cast<uint64_t>(total) + 1))}) {
+      ASSERT_EQ(context_bin_fast(count, total, magic), context_bin(count, total))
+          << count << " / " << total;
+    }
+  }
+}
+
 TEST(EmbeddingLayout, DimensionMapping) {
   const EmbeddingLayout l{1000, 16, 64};
   EXPECT_EQ(l.num_context_dims(), 16000);
@@ -192,6 +214,58 @@ TEST(FrameContext, ComputeDimsEqualsBruteForceWithAndWithoutAPlan) {
           }
         }
       }
+    }
+  }
+}
+
+// Frames whose coordinates defeat the rank grid: every keypoint on one vertical line (a zero
+// x range: a single grid cell), clusters of identical positions (cells holding many keypoints:
+// the binary-search fallback), one keypoint, and a frame with one keypoint far from the others
+// (nearly all keypoints in one cell). The plan path equals the brute force on every dim.
+TEST(FrameContext, PlanPathOnDegenerateAndCrowdedFramesEqualsBruteForce) {
+  const ContextRegions regions = test_regions(150, 8);
+  const int bytes = 4;
+  const int32_t context_dims = regions.size() * kWords;
+  std::vector<int32_t> dims;
+  for (int32_t d = 0; d < context_dims; d += 3) dims.push_back(d);
+  const DimPlan plan(regions, EmbeddingLayout{regions.size(), kWords, bytes}, dims);
+  Rng rng(12);
+  std::vector<RawFrame> frames(4);
+  for (int i = 0; i < 300; ++i) {  // one vertical line
+    frames[0].positions.emplace_back(0.25, (static_cast<double>(rng.below(64)) - 32.0) / 64.0);
+  }
+  for (int i = 0; i < 400; ++i) {  // 5 clusters of identical positions
+    const double c = static_cast<double>(rng.below(5)) / 8.0;
+    frames[1].positions.emplace_back(c, -c);
+  }
+  frames[2].positions.emplace_back(0.5, 0.5);
+  for (int i = 0; i < 300; ++i) {
+    frames[3].positions.emplace_back(rng.uniform(0.0, 1e-3), rng.uniform(0.0, 1e-3));
+  }
+  frames[3].positions.emplace_back(1e4, -1e4);
+  for (RawFrame& f : frames) {
+    for (size_t i = 0; i < f.positions.size(); ++i) {
+      f.scales.push_back(std::ldexp(1.0, -2 - static_cast<int>(rng.below(4))));
+      f.words.push_back(static_cast<uint8_t>(rng.below(kWords)));
+    }
+    const FrameKeypoints frame = align(f);
+    const int n = frame.size();
+    std::vector<uint8_t> descriptors(static_cast<size_t>(n) * bytes, 0x33);
+    FrameContext ctx(regions, kWords);
+    ctx.reset(frame);
+    std::vector<uint8_t> planned(static_cast<size_t>(n) * dims.size());
+    ctx.compute_dims_all(plan, descriptors.data(), planned.data());
+    int nonzero = 0;
+    for (int k = 0; k < n; k += n > 50 ? 7 : 1) {
+      for (size_t i = 0; i < dims.size(); ++i) {
+        const uint8_t v = planned[k * dims.size() + i];
+        ASSERT_EQ(v, reference_dim(regions, frame, k, dims[i], descriptors.data() + k * bytes))
+            << "n " << n << " k " << k << " dim " << dims[i];
+        nonzero += v > 0;
+      }
+    }
+    if (n > 1) {
+      EXPECT_GT(nonzero, 0);
     }
   }
 }

@@ -190,6 +190,66 @@ TEST(ClassifierTest, ManyClassesAndKeypointsEqualTheReference) {
   }
 }
 
+// The batch kernels against the scalar sum: fire masks against the byte comparisons, and the
+// AVX-512 (where the CPU has it), generic (AVX2 / baseline clone) and two-class kernels against
+// bias + each lane's outputs added in list order: the same doubles, bit for bit.
+TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
+  constexpr int32_t B = Classifier::kBatch;
+  Rng rng(21);
+  const int32_t num_used = 50, num_stumps = 300;
+  std::vector<Model::DenseStump> stumps(num_stumps);
+  for (Model::DenseStump& st : stumps) {
+    st.used = static_cast<int32_t>(rng.below(num_used));
+    st.theta = static_cast<uint8_t>(rng.below(255));
+    st.above = rng.uniform(-1, 1);
+    st.below = rng.uniform(-1e-3, 1e-3);  // different magnitudes: order-sensitive sums
+  }
+  std::vector<uint8_t> values(static_cast<size_t>(num_used) * B);
+  for (uint8_t& v : values) v = static_cast<uint8_t>(rng.below(256));
+  std::vector<uint32_t> fire(num_stumps);
+  detail::fire_masks(stumps.data(), stumps.size(), values.data(), fire.data());
+  int fired = 0;
+  for (int32_t s = 0; s < num_stumps; ++s) {
+    for (int32_t j = 0; j < B; ++j) {
+      const bool expected = values[stumps[s].used * B + j] > stumps[s].theta;
+      ASSERT_EQ((fire[s] >> j) & 1, expected ? 1u : 0u) << "stump " << s << " lane " << j;
+      fired += expected;
+    }
+  }
+  EXPECT_GT(fired, 0);
+  EXPECT_LT(fired, num_stumps * B);
+  for (int trial = 0; trial < 20; ++trial) {
+    // Random stump lists (repeats allowed) of different lengths, 0 included.
+    auto random_list = [&] {
+      std::vector<int32_t> list(rng.below(200));
+      for (int32_t& s : list) s = static_cast<int32_t>(rng.below(num_stumps));
+      return list;
+    };
+    const std::vector<int32_t> list0 = random_list(), list1 = random_list();
+    const int64_t n0 = static_cast<int64_t>(list0.size()), n1 = static_cast<int64_t>(list1.size());
+    const double bias0 = rng.uniform(-5, 5), bias1 = rng.uniform(-5, 5);
+    auto reference = [&](double bias, const std::vector<int32_t>& list, int32_t j) {
+      double total = bias;
+      for (int32_t s : list) {
+        total += values[stumps[s].used * B + j] > stumps[s].theta ? stumps[s].above : stumps[s].below;
+      }
+      return total;
+    };
+    std::vector<double> a(B), g(B), p0(B), p1(B);
+    detail::accumulate_lanes(bias0, list0.data(), n0, stumps.data(), fire.data(), a.data());
+    detail::accumulate_lanes_generic(bias0, list0.data(), n0, stumps.data(), fire.data(), g.data());
+    detail::accumulate_two(bias0, list0.data(), n0, bias1, list1.data(), n1, stumps.data(),
+                           fire.data(), p0.data(), p1.data());
+    for (int32_t j = 0; j < B; ++j) {
+      const double r0 = reference(bias0, list0, j);
+      ASSERT_EQ(a[j], r0) << "trial " << trial << " lane " << j;
+      ASSERT_EQ(g[j], r0) << "trial " << trial << " lane " << j;
+      ASSERT_EQ(p0[j], r0) << "trial " << trial << " lane " << j;
+      ASSERT_EQ(p1[j], reference(bias1, list1, j)) << "trial " << trial << " lane " << j;
+    }
+  }
+}
+
 TEST(ClassifierTest, InvertedFileComputesOnlyTheWordsDims) {
   const Model model(random_model_data(20, 100, 13));
   for (int32_t w = 0; w < model.num_words(); ++w) {

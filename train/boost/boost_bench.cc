@@ -1,12 +1,11 @@
 #include "train/boost/boost_bench.h"
 
-#include <sys/resource.h>
-
 #include <chrono>
 #include <ctime>
 
 #include <nlohmann/json.hpp>
 
+#include "common/machine_info.h"
 #include "train/boost/stump_learner.h"
 
 namespace lmb {
@@ -15,17 +14,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
-
-double peak_rss_mb() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux: kilobytes
-}
-double cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 std::string BoostBenchResult::to_json() const {
   nlohmann::json j;

@@ -35,8 +35,5 @@ struct BoostBenchResult {
 
 BoostBenchResult run_boost_bench(const BoostBenchOptions& options);
 
-// Peak resident memory of this process (getrusage, MB) and its CPU time so far (seconds).
-double peak_rss_mb();
-double cpu_seconds();
 
 }  // namespace lmb

@@ -7,17 +7,20 @@
 // integer sum: the result does not depend on summation order, so a distributed layer that splits
 // dims or samples across ranks and sums integers reproduces the serial model bit for bit.
 //
-// A round: draw F_m (counter-based on (seed, round)), choose this rank's dims (hook), per dim one
-// pass over the column's non-zero-bucket samples builds per-(class, threshold bucket) sums of w for
-// positives and negatives, a cheap screening search per threshold ranks (dim, theta), the best
-// `refine_top` candidates get the full sharing-set search (train/boost/sharing_set.h), the best
-// record is reduced (hook), then w <- w exp(-z h) on every entry, incremental scores of validation
-// and mining-pool samples are updated, and every mining_interval rounds hard negatives are added.
+// A round: draw F_m (counter-based on (seed, round)), choose this rank's dims (hook), screen them:
+// eight dims at a time, one class-major pass over the entries reads each sample's 4-bit buckets of
+// the eight dims and builds per-(class, bucket) sums of w for positives and negatives, from which
+// a cheap screening search ranks every (dim, theta) (dims with more than 15 thresholds get a
+// sample-major column pass each); the best `refine_top` candidates get the full sharing-set
+// search (train/boost/sharing_set.h), the best record is reduced (hook), then w <- w exp(-z h) on
+// every entry, incremental scores of validation and mining-pool samples are updated, and every
+// mining_interval rounds hard negatives are added.
 #pragma once
 
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "train/boost/boost_model.h"
@@ -108,6 +111,9 @@ class SerialStumpLearner {
   // The search of one round without changing state (tests): best record over `dims` (global dims,
   // all stored here) with the current weights.
   StumpRecord search(const std::vector<int32_t>& dims);
+  // The screening of those dims alone (tests): every (dim, theta) with a positive screening gain,
+  // by ascending dim.
+  std::vector<ScreenedCandidate> screen(std::vector<int32_t> dims);
 
  protected:
   // Hooks for a distributed layer.
@@ -123,13 +129,15 @@ class SerialStumpLearner {
   // Global reductions of per-rank scalars (default: identity).
   virtual double reduce_max(double local) { return local; }
   virtual int64_t reduce_sum(int64_t local) { return local; }
-  // Sample-partitioned (data-parallel) layers sum integer buffers across ranks (default: no-op):
-  // the per-class totals W_c, Y_c (2 x (C + 1) int64 per round) and, after each column pass, the
-  // dim's histogram (num_thresholds x (C + 1) x 2 int64, bucket-major). Integer sums make the
-  // result independent of the rank count. A feature-parallel layer (dims split, entries
-  // replicated) needs neither.
+  // The per-class totals W_c, Y_c (2 x (C + 1) int64 per round), summed across ranks by a layer
+  // that splits the entries (default: no-op). A feature-parallel layer (dims split, entries
+  // replicated) needs none: every column pass sees all of a dim's samples, which the blocked
+  // screening pass (screen_block) relies on.
   virtual void reduce_class_totals(std::vector<int64_t>* /*w*/, std::vector<int64_t>* /*y*/) {}
-  virtual void reduce_histogram(int64_t* /*data*/, size_t /*count*/) {}
+  // Replicated work that a layer may split (the per-round validation precision@1): this process's
+  // part (index, count), and the sum of an integer over all parts. Default: one part.
+  virtual std::pair<int, int> work_part() const { return {0, 1}; }
+  virtual int64_t sum_over_parts(int64_t local) { return local; }
 
   const FeatureMatrix& features_;
   const TrainingSet& set_;
@@ -153,14 +161,21 @@ class SerialStumpLearner {
   int32_t collect_dim_sums(int32_t num_thresholds);
   // From the scattered histogram: screening gains per threshold; zeroes the histogram.
   void screen_scattered(int32_t num_thresholds, std::vector<double>* gains);
+  // Screening gains of up to kBlockDims stored columns (each with at most 15 thresholds) in one
+  // class-major pass over the entries: gains[k * 16 + t]. Equal, bit for bit, to scatter_dim +
+  // screen_scattered on each column (the same sums in the same class order).
+  static constexpr int kBlockDims = 8;
+  void screen_block(const int32_t* stored, int32_t count, double* gains);
   // Fills wp_.. q_ and active_ with the touched classes that have weight above threshold t;
   // returns their number.
   int32_t prepare_threshold(int32_t num_touched, int32_t t, int32_t num_thresholds);
-  void screen_dim(int32_t dim, std::vector<ScreenedCandidate>* out);
-  StumpRecord refine(const ScreenedCandidate& cand);
   StumpRecord search_impl(const std::vector<int32_t>& dims, RoundStats* stats);
+  std::vector<ScreenedCandidate> screen_dims(const std::vector<int32_t>& sorted_dims, double* hist_seconds);
   int64_t mine_hard_negatives();
   void evaluate_validation(RoundStats* stats);
+  // Validation rows part, part + parts, ... : how many have their class ranked first with the
+  // background competing (*all) and among the landmark classes only (*landmarks).
+  void count_validation_hits(int part, int parts, int64_t* all, int64_t* landmarks) const;
   int32_t stored_index(int32_t dim) const;
 
   bool initialized_ = false;
@@ -180,6 +195,13 @@ class SerialStumpLearner {
     int32_t unused;
   };
   std::vector<HotEntry> hot_;
+  // The same entries class-major (positives, then negatives, each by ascending sample) for the
+  // blocked screening pass: class c's are [class_begin_[c], class_begin_[c + 1]), its negatives
+  // from class_neg_begin_[c]; class_index_[e] = where sample-major entry e sits here.
+  std::vector<int64_t> class_begin_, class_neg_begin_, class_index_;
+  std::vector<int32_t> class_sample_;
+  std::vector<int64_t> class_wq_;
+  std::vector<uint32_t> packed_buckets_;  // per sample: bucket of the block's k-th dim in bits 4k..4k+3
   int weight_exponent_ = 0;
   int quant_shift_ = 0;  // this round's fixed point: units = stored weight * 2^quant_shift_
   std::vector<std::vector<int64_t>> class_negatives_;  // per class: sorted negative samples

@@ -82,6 +82,7 @@ Schema schema(TrainConfig* c) {
   bs.emplace("sharing_max_iterations", int_field("sharing_max_iterations", &b.sharing_max_iterations));
   bs.emplace("refine_top", int_field("refine_top", &b.refine_top));
   bs.emplace("screening_step", bool_field("screening_step", &b.screening_step));
+  bs.emplace("blocked_screening", bool_field("blocked_screening", &b.blocked_screening));
   bs.emplace("seed", int_field("seed", &b.seed));
   auto& rs = s["regions"];
   ContextRegionOptions& r = c->regions;

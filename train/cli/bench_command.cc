@@ -30,14 +30,6 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
-// CPU seconds of the whole process (all threads): on a shared machine the wall time of a
-// multi-threaded phase depends on the other load, its CPU time much less.
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
 struct ContextBenchArgs {
   std::string map_path;
   std::string vocab_path;
@@ -160,11 +152,11 @@ void run_context_bench(const ContextBenchArgs& a) {
   FeatureBuildOptions build_options;
   build_options.num_threads = a.threads;
   t = Clock::now();
-  double cpu = process_cpu_seconds();
+  double cpu = cpu_seconds();
   const FeatureMatrix features =
       build_training_features(map, regions, vocabulary, samples, build_options);
   const double build_seconds = seconds_since(t);
-  const double build_cpu = process_cpu_seconds() - cpu;
+  const double build_cpu = cpu_seconds() - cpu;
   const double gib = static_cast<double>(features.data.size()) / (1024.0 * 1024.0 * 1024.0);
   spdlog::info("bench context: built {} samples ({} with a landmark, {} background) x {} dims "
                "on {} threads in {:.2f} s wall, {:.2f} s CPU ({:.1f} CPU-us/sample); {:.2f} GiB "
@@ -186,7 +178,7 @@ void run_context_bench(const ContextBenchArgs& a) {
   }
   std::vector<uint8_t> row(static_cast<size_t>(layout.num_context_dims()));
   FrameContext context(regions, layout.num_words);
-  cpu = process_cpu_seconds();
+  cpu = cpu_seconds();
   uint64_t checksum_naive = 0, checksum_fast = 0;
   for (size_t i = 0; i < subset.size(); ++i) {
     const frame_t f = frame_of[subset[i]];
@@ -196,15 +188,15 @@ void run_context_bench(const ContextBenchArgs& a) {
                               row.data());
     for (uint8_t v : row) checksum_naive = checksum_naive * 31 + v;
   }
-  const double naive_per_sample = (process_cpu_seconds() - cpu) / subset.size();
-  cpu = process_cpu_seconds();
+  const double naive_per_sample = (cpu_seconds() - cpu) / subset.size();
+  cpu = cpu_seconds();
   for (size_t i = 0; i < subset.size(); ++i) {
     const frame_t f = frame_of[subset[i]];
     if (i == 0 || frame_of[subset[i - 1]] != f) context.reset(map_frame_keypoints(map, f, words));
     context.embed_context(static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint), row.data());
     for (uint8_t v : row) checksum_fast = checksum_fast * 31 + v;
   }
-  const double fast_subset_per_sample = (process_cpu_seconds() - cpu) / subset.size();
+  const double fast_subset_per_sample = (cpu_seconds() - cpu) / subset.size();
   LMB_CHECK(checksum_naive == checksum_fast, "bench context: fast and naive embeddings differ");
   const double build_per_sample_thread = build_cpu / samples.size();
   spdlog::info("bench context: naive loop {:.1f} CPU-us/sample ({} samples) -> all samples on {} "
@@ -245,20 +237,20 @@ void run_context_bench(const ContextBenchArgs& a) {
     const MapFrame& mf = map.frames[f];
     if (mf.num_keypoints == 0) continue;
     max_frame_keypoints = std::max<int64_t>(max_frame_keypoints, mf.num_keypoints);
-    cpu = process_cpu_seconds();
+    cpu = cpu_seconds();
     const FrameKeypoints frame = map_frame_keypoints(map, f, words);
-    prep_seconds += (process_cpu_seconds() - cpu);
-    cpu = process_cpu_seconds();
+    prep_seconds += (cpu_seconds() - cpu);
+    cpu = cpu_seconds();
     sparse_context.reset(frame);
-    reset_seconds += (process_cpu_seconds() - cpu);
+    reset_seconds += (cpu_seconds() - cpu);
     out.resize(static_cast<size_t>(mf.num_keypoints) * dims.size());
-    cpu = process_cpu_seconds();
+    cpu = cpu_seconds();
     sparse_context.compute_dims_all(plan, map.descriptor(mf.first_keypoint), out.data());
-    query_seconds += (process_cpu_seconds() - cpu);
+    query_seconds += (cpu_seconds() - cpu);
     query_keypoints += mf.num_keypoints;
     // Naive: per keypoint, the regions x keypoints loop over the used regions only.
     const int32_t naive_k = std::min<int32_t>(mf.num_keypoints, 20);
-    cpu = process_cpu_seconds();
+    cpu = cpu_seconds();
     for (int32_t k = 0; k < naive_k; ++k) {
       for (size_t j = 0; j < dims.size(); ++j) {
         if (!layout.is_context(dims[j])) break;
@@ -268,7 +260,7 @@ void run_context_bench(const ContextBenchArgs& a) {
             region_counts_brute_force(regions, layout.num_words, frame, k, r, counts.data()));
       }
     }
-    naive_seconds += (process_cpu_seconds() - cpu);
+    naive_seconds += (cpu_seconds() - cpu);
     naive_keypoints += naive_k;
   }
   const double query_us = 1e6 * query_seconds / std::max<int64_t>(1, query_keypoints);

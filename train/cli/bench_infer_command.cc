@@ -31,6 +31,7 @@
 #include "infer/classifier.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
+#include "infer/pose_estimator.h"
 #include "train/cli/commands.h"
 #include "train/cli/timing.h"
 #include "train/export/synthetic_model.h"
@@ -209,6 +210,50 @@ void run_bench_infer(const BenchInferArgs& a) {
       ++runs;
     }
   }
+  // Thread CPU of each stage with the inverted file (the localizer's timings are wall clock, which
+  // a busy machine inflates): each stage run on its own, frame by frame. Embedding = descriptor
+  // quantization, keypoint normalization, the frame index and every keypoint's word-plan dims;
+  // scoring = classify() minus its own index and dims; pose = estimate_absolute_pose on the
+  // localizer's correspondences.
+  double stage_embedding = 0, stage_scoring = 0, stage_pose = 0;
+  {
+    FrameContext context(model->regions(), model->num_words());
+    Classifier classifier(model, inverted_options.classifier);
+    std::vector<uint8_t> values(model->used_dims().size());
+    for (int rep = 0; rep < a.repeats; ++rep) {
+      for (const BenchFrame& f : frames) {
+        const int n = static_cast<int>(f.keypoints.size());
+        const uint8_t* desc = f.descriptors.data();
+        const LocalizeResult r = inverted.localize(f.camera, f.keypoints, desc, f.gravity_in_cam);
+        const double t0 = thread_cpu_ms();
+        std::vector<uint8_t> words(static_cast<size_t>(n));
+        model->vocabulary().quantize(desc, n, words.data());
+        const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
+                                                                  f.gravity_in_cam, "bench");
+        const double t1 = thread_cpu_ms();
+        context.reset(fk);
+        for (int k = 0; k < n; ++k) {
+          context.compute_dims(k, model->word_plan(fk.word[k]), desc + static_cast<int64_t>(k) * bytes, values.data());
+        }
+        const double t2 = thread_cpu_ms();
+        checksum += static_cast<int64_t>(classifier.classify(fk, desc).matches.size());
+        const double t3 = thread_cpu_ms();
+        std::vector<Eigen::Vector2d> pixels;
+        std::vector<Eigen::Vector3d> points;
+        for (size_t i = 0; i < r.correspondence_keypoint.size(); ++i) {
+          const Keypoint& kp = f.keypoints[r.correspondence_keypoint[i]];
+          pixels.emplace_back(kp.x, kp.y);
+          points.push_back(model->class_position(r.matches.matches[r.correspondence_match[i]].cls));
+        }
+        const double t4 = thread_cpu_ms();
+        checksum += estimate_absolute_pose(f.camera, pixels, points, inverted_options.pose).num_inliers;
+        const double t5 = thread_cpu_ms();
+        stage_embedding += t2 - t0;
+        stage_scoring += (t3 - t2) - (t2 - t1);
+        stage_pose += t5 - t4;
+      }
+    }
+  }
   // The unbatched path (one keypoint at a time: Classifier::dense_scores, and class_score over the
   // word's candidates), on the first frame, for the speed-up of the batched classify().
   double unbatched_dense_ms = 0, unbatched_inverted_ms = 0;
@@ -267,6 +312,9 @@ void run_bench_infer(const BenchInferArgs& a) {
   std::printf("  thread CPU time a frame: localization dense %.2f ms, inverted file %.2f ms; BFMatcher 1-NN %.2f ms "
               "(inverted-file localization / BFMatcher 1-NN: 1/%.1f)\n",
               sd.cpu / nr, si.cpu / nr, bf_cpu_ms / nr, bf_cpu_ms / si.cpu);
+  std::printf("  thread CPU time a frame by stage, inverted file (each stage run on its own): embedding %.2f ms, "
+              "scoring %.2f ms, pose %.2f ms\n",
+              stage_embedding / nr, stage_scoring / nr, stage_pose / nr);
   std::printf("  matching (embedding + classification) / BFMatcher 1-NN: dense %.4f (1/%.1f), inverted file %.4f "
               "(1/%.1f) (checksum %lld)\n",
               match_dense / (bf_ms / nr), bf_ms / nr / match_dense, match_inverted / (bf_ms / nr),
@@ -288,7 +336,10 @@ void run_bench_infer(const BenchInferArgs& a) {
                         {"inverted_file_ms", {{"embedding", si.embedding / nr}, {"classification", si.classification / nr},
                                               {"pose", si.pose / nr}, {"total", si.total / nr}}},
                         {"cpu_ms", {{"dense_localization", sd.cpu / nr}, {"inverted_file_localization", si.cpu / nr},
-                                    {"bfmatcher", bf_cpu_ms / nr}}},
+                                    {"bfmatcher", bf_cpu_ms / nr},
+                                    {"inverted_file_stages", {{"embedding", stage_embedding / nr},
+                                                              {"scoring", stage_scoring / nr},
+                                                              {"pose", stage_pose / nr}}}}},
                         {"unbatched_scoring_ms", {{"dense", unbatched_dense_ms}, {"inverted_file", unbatched_inverted_ms}}},
                         {"bfmatcher_ms", bf_ms / nr},
                         {"bfmatcher_knn2_ms", bf_knn_ms / nr},

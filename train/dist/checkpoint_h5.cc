@@ -1,6 +1,11 @@
 #include "train/dist/checkpoint_h5.h"
 
+#include <signal.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <sstream>
@@ -122,6 +127,12 @@ void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
       put(learner, "last_validation", std::vector<double>{st.last_validation});
       write_scalar_attribute<int64_t>(file, "crc32", crc);
       write_int_attribute(file, "complete", 1);
+      // Close explicitly: HDF5's C++ destructors report a failed close (e.g. the disk filling up
+      // while the last metadata is written) only on stderr and carry on.
+      learner.close();
+      root.close();
+      file.flush(H5F_SCOPE_GLOBAL);
+      file.close();
     }
     fsync_path(tmp, false);
     std::error_code ec;
@@ -129,9 +140,11 @@ void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
     LMB_CHECK(!ec, path.string() << ": cannot rename the temporary checkpoint into place: " << ec.message());
     fsync_path(dir, true);
   } catch (const H5::Exception& e) {
+    const int err = errno;  // HDF5 does not say why a write failed; the system's last error usually does
     std::error_code ec;
     fs::remove(tmp, ec);
-    LMB_FAIL(path.string() << ": cannot write the checkpoint: " << e.getDetailMsg());
+    LMB_FAIL(path.string() << ": cannot write the checkpoint: " << e.getDetailMsg()
+                           << (err ? std::string(" (last system error: ") + std::strerror(err) + ")" : std::string()));
   } catch (...) {
     std::error_code ec;
     fs::remove(tmp, ec);
@@ -239,10 +252,30 @@ std::optional<Checkpoint> CheckpointDir::newest_valid(
   return std::nullopt;
 }
 
+void CheckpointDir::remove_stale_temporaries() const {
+  // ".ckpt-NNNNNNN.h5.tmp-PID" of a writer that no longer runs on this machine (killed while
+  // writing): up to a whole checkpoint each, never read.
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(folder_, ec)) {
+    const std::string name = entry.path().filename().string();
+    const size_t at = name.rfind(".tmp-");
+    if (name.rfind(".ckpt-", 0) != 0 || at == std::string::npos) continue;
+    char* end = nullptr;
+    const long pid = std::strtol(name.c_str() + at + 5, &end, 10);
+    if (end == name.c_str() + at + 5 || *end != '\0' || pid <= 0 || pid == ::getpid()) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code rm;
+      fs::remove(entry.path(), rm);
+    }
+  }
+}
+
 fs::path CheckpointDir::write(const Checkpoint& checkpoint, int keep) const {
   LMB_CHECK(keep >= 1, "checkpoint.keep must be at least 1, got " << keep);
   fs::create_directories(folder_);
+  remove_stale_temporaries();
   const fs::path path = path_for(checkpoint.rounds);
+  errno = 0;
   write_checkpoint(path, checkpoint);
   const auto all = list();
   for (size_t i = static_cast<size_t>(keep); i < all.size(); ++i) {

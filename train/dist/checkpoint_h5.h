@@ -71,6 +71,8 @@ class CheckpointDir {
   std::filesystem::path write(const Checkpoint& checkpoint, int keep) const;
 
  private:
+  // Deletes temporary files left by a writer that was killed (its pid no longer runs here).
+  void remove_stale_temporaries() const;
   std::filesystem::path folder_;
 };
 

@@ -1,7 +1,5 @@
 #include "train/dist/dist_bench.h"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <fstream>
 
@@ -9,6 +7,7 @@
 
 #include "common/error.h"
 #include "common/file_container.h"
+#include "common/machine_info.h"
 #include "train/boost/boost_model.h"
 #include "train/dist/feature_parallel_learner.h"
 
@@ -18,13 +17,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
-
-double current_rss_mb() {
-  std::ifstream statm("/proc/self/statm");
-  long pages = 0, resident = 0;
-  statm >> pages >> resident;
-  return static_cast<double>(resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) / 1048576.0;
-}
 
 FeatureMatrix keep_rank_columns(FeatureMatrix&& all, int rank, int size) {
   FeatureMatrix f;

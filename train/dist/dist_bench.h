@@ -15,9 +15,6 @@
 
 namespace lmb {
 
-// Resident memory of this process now (MB, Linux); its peak: peak_rss_mb() (boost_bench.h).
-double current_rss_mb();
-
 // The columns rank `rank` of `size` owns (rank_dims) of a matrix that stores every dim; frees `all`.
 FeatureMatrix keep_rank_columns(FeatureMatrix&& all, int rank, int size);
 

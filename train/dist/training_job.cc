@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/machine_info.h"
 #include "train/dist/stop_signal.h"
 
 namespace lmb {
@@ -89,7 +90,8 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
   install_stop_signal_handlers();
   const int64_t sent0 = comm.bytes_sent(), received0 = comm.bytes_received();
   const auto t0 = Clock::now();
-  double checkpoint_time = 0.0;
+  const double cpu0 = cpu_seconds();
+  double checkpoint_time = 0.0, checkpoint_cpu = 0.0;
   while (learner.rounds_done() < learner.options().num_rounds) {
     const RoundStats stats = learner.run_round();
     ++result.rounds_run;
@@ -98,9 +100,10 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
     const int32_t done = learner.rounds_done();
     const bool last = done == learner.options().num_rounds;
     if (stop || last || (options.checkpoint_interval > 0 && done % options.checkpoint_interval == 0)) {
-      const double before = result.checkpoint_seconds;
+      const double before = result.checkpoint_seconds, cpu_before = cpu_seconds();
       checkpoint();
       checkpoint_time += result.checkpoint_seconds - before;
+      checkpoint_cpu += cpu_seconds() - cpu_before;
     }
     if (stop && !last) {
       if (comm.rank() == 0) spdlog::warn("train: stop requested by a signal after round {}: checkpointed, exiting for a requeue", done);
@@ -109,6 +112,7 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
     }
   }
   result.round_seconds = since(t0) - checkpoint_time;
+  result.round_cpu_seconds = cpu_seconds() - cpu0 - checkpoint_cpu;
   result.bytes_sent = comm.bytes_sent() - sent0;
   result.bytes_received = comm.bytes_received() - received0;
   return result;

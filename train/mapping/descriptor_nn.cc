@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 #include <thread>
+#include <vector>
 
 #include "common/error.h"
 #include "common/hamming.h"
@@ -11,69 +12,28 @@ namespace lmb {
 
 namespace {
 
-// Row distance with the byte count fixed at compile time (0: runtime count).
-template <int kBytes>
-inline int row_distance(const uint8_t* a, const uint8_t* b, int bytes) {
-  if constexpr (kBytes == 0) {
-    return hamming_distance(a, b, bytes);
-  } else {
-    return hamming_distance(a, b, kBytes);
-  }
-}
-
-template <int kBytes>
-__attribute__((always_inline)) inline void nn_range_impl(const uint8_t* database, int64_t num_database,
-                                                         const uint8_t* queries, int64_t begin, int64_t end,
-                                                         int bytes, int64_t* nn_index, int32_t* nn_distance) {
+// Nearest database row of queries [begin, end): distances a block of rows at a time
+// (hamming_rows: the popcnt instruction where the CPU has it), first minimum wins.
+void nn_range(const uint8_t* database, int64_t num_database, const uint8_t* queries, int64_t begin, int64_t end,
+              int bytes, int64_t* nn_index, int32_t* nn_distance) {
+  constexpr int64_t kBlock = 4096;
+  std::vector<uint16_t> dist(static_cast<size_t>(std::min(kBlock, num_database)));
   for (int64_t q = begin; q < end; ++q) {
     const uint8_t* query = queries + q * bytes;
     int best = std::numeric_limits<int32_t>::max();
     int64_t best_index = -1;
-    for (int64_t d = 0; d < num_database; ++d) {
-      const int dist = row_distance<kBytes>(query, database + d * bytes, bytes);
-      if (dist < best) {
-        best = dist;
-        best_index = d;
+    for (int64_t d0 = 0; d0 < num_database; d0 += kBlock) {
+      const int64_t n = std::min(kBlock, num_database - d0);
+      hamming_rows(query, database + d0 * bytes, n, bytes, dist.data());
+      for (int64_t i = 0; i < n; ++i) {
+        if (dist[i] < best) {
+          best = dist[i];
+          best_index = d0 + i;
+        }
       }
     }
     nn_index[q] = best_index;
     nn_distance[q] = best;
-  }
-}
-
-template <int kBytes>
-void nn_range(const uint8_t* database, int64_t num_database, const uint8_t* queries, int64_t begin, int64_t end,
-              int bytes, int64_t* nn_index, int32_t* nn_distance) {
-  nn_range_impl<kBytes>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance);
-}
-
-#if defined(__x86_64__) || defined(__i386__)
-// The same loop compiled with the POPCNT instruction (the baseline x86-64 build calls a library
-// routine per 64-bit word, several times slower); chosen at run time when the CPU has it.
-template <int kBytes>
-__attribute__((target("popcnt"))) void nn_range_popcnt(const uint8_t* database, int64_t num_database,
-                                                       const uint8_t* queries, int64_t begin, int64_t end,
-                                                       int bytes, int64_t* nn_index, int32_t* nn_distance) {
-  nn_range_impl<kBytes>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance);
-}
-bool cpu_has_popcnt() { return __builtin_cpu_supports("popcnt"); }
-#else
-template <int kBytes>
-void nn_range_popcnt(const uint8_t* database, int64_t num_database, const uint8_t* queries, int64_t begin,
-                     int64_t end, int bytes, int64_t* nn_index, int32_t* nn_distance) {
-  nn_range_impl<kBytes>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance);
-}
-bool cpu_has_popcnt() { return false; }
-#endif
-
-template <int kBytes>
-void nn_dispatch(const uint8_t* database, int64_t num_database, const uint8_t* queries, int64_t begin, int64_t end,
-                 int bytes, int64_t* nn_index, int32_t* nn_distance) {
-  static const bool popcnt = cpu_has_popcnt();
-  if (popcnt) {
-    nn_range_popcnt<kBytes>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance);
-  } else {
-    nn_range<kBytes>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance);
   }
 }
 
@@ -85,11 +45,7 @@ void hamming_nearest_neighbors(const uint8_t* database, int64_t num_database, co
   LMB_CHECK(bytes > 0, "hamming_nearest_neighbors: descriptor bytes must be positive");
   threads = std::max(1, threads);
   auto run = [&](int64_t begin, int64_t end) {
-    switch (bytes) {
-      case 32: nn_dispatch<32>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance); break;
-      case 64: nn_dispatch<64>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance); break;
-      default: nn_dispatch<0>(database, num_database, queries, begin, end, bytes, nn_index, nn_distance); break;
-    }
+    nn_range(database, num_database, queries, begin, end, bytes, nn_index, nn_distance);
   };
   if (threads == 1 || num_queries < 64) {
     run(0, num_queries);

@@ -2,7 +2,9 @@
 # tree into a fresh prefix, then builds and runs the consumer project against it twice: through
 # find_package(LandmarkBoost CONFIG) and through pkg-config; then the optional OpenCV front-end
 # (component infer_cv) through find_package(... COMPONENTS infer_cv) and pkg-config.
-# Inputs: LMB_BUILD_DIR, CONSUMER_SOURCE_DIR, WORK_DIR, GENERATOR, CXX_COMPILER.
+# Inputs: LMB_BUILD_DIR, CONSUMER_SOURCE_DIR, WORK_DIR, GENERATOR, CXX_COMPILER; optional
+# CONSUMER_C_FLAGS, CONSUMER_CXX_FLAGS, CONSUMER_LINK_FLAGS: the build's own flags (e.g. the
+# sanitizers' -fsanitize=..., without which a consumer cannot link a sanitized library).
 cmake_minimum_required(VERSION 3.22)
 foreach(var LMB_BUILD_DIR CONSUMER_SOURCE_DIR WORK_DIR GENERATOR CXX_COMPILER)
   if(NOT DEFINED ${var})
@@ -17,6 +19,10 @@ function(run what)
     message(FATAL_ERROR "consumer test: '${what}' failed (${rc}): ${ARGN}")
   endif()
 endfunction()
+
+separate_arguments(c_flags UNIX_COMMAND "${CONSUMER_C_FLAGS}")
+separate_arguments(cxx_flags UNIX_COMMAND "${CONSUMER_CXX_FLAGS}")
+separate_arguments(link_flags UNIX_COMMAND "${CONSUMER_LINK_FLAGS}")
 
 set(prefix ${WORK_DIR}/prefix)
 file(REMOVE_RECURSE ${WORK_DIR})
@@ -52,7 +58,9 @@ endforeach()
 # 1. CMake package.
 run("configure the consumer" ${CMAKE_COMMAND} -S ${CONSUMER_SOURCE_DIR} -B ${WORK_DIR}/build
     -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=${CXX_COMPILER}
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF
+    "-DCMAKE_C_FLAGS=${CONSUMER_C_FLAGS}" "-DCMAKE_CXX_FLAGS=${CONSUMER_CXX_FLAGS}"
+    "-DCMAKE_EXE_LINKER_FLAGS=${CONSUMER_LINK_FLAGS}")
 run("build the consumer" ${CMAKE_COMMAND} --build ${WORK_DIR}/build)
 run("run the consumer" ${WORK_DIR}/build/lmb_consumer)
 if(NOT EXISTS ${WORK_DIR}/build/lmb_consumer_cv)
@@ -82,10 +90,10 @@ separate_arguments(flags UNIX_COMMAND "${flags}")
 # The C part (c_check.c) is compiled as C99 with the same flags.
 find_program(C_COMPILER NAMES cc gcc REQUIRED)
 run("compile the C part with pkg-config flags"
-    ${C_COMPILER} -std=c99 -Wall -Wextra -Werror -O2 -c ${CONSUMER_SOURCE_DIR}/c_check.c ${flags}
+    ${C_COMPILER} -std=c99 -Wall -Wextra -Werror -O2 -c ${CONSUMER_SOURCE_DIR}/c_check.c ${flags} ${c_flags}
     -o ${WORK_DIR}/c_check.o)
 run("build the consumer with pkg-config flags"
-    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/main.cc ${WORK_DIR}/c_check.o ${flags}
+    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/main.cc ${WORK_DIR}/c_check.o ${flags} ${cxx_flags} ${link_flags}
     -Wl,-rpath,${lib_dir} -o ${WORK_DIR}/lmb_consumer_pkgconfig)
 run("run the pkg-config consumer" ${WORK_DIR}/lmb_consumer_pkgconfig)
 # 3. The OpenCV front-end through pkg-config (landmarkboost-infer-cv requires opencv4).
@@ -97,7 +105,7 @@ if(NOT rc EQUAL 0)
 endif()
 separate_arguments(cv_flags UNIX_COMMAND "${cv_flags}")
 run("build the OpenCV front-end consumer with pkg-config flags"
-    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/cv_main.cc ${cv_flags}
+    ${CXX_COMPILER} -std=c++17 -O2 ${CONSUMER_SOURCE_DIR}/cv_main.cc ${cv_flags} ${cxx_flags} ${link_flags}
     -Wl,-rpath,${lib_dir} -o ${WORK_DIR}/lmb_consumer_cv_pkgconfig)
 run("run the pkg-config OpenCV front-end consumer" ${WORK_DIR}/lmb_consumer_cv_pkgconfig)
 message(STATUS "consumer test: passed")

@@ -347,6 +347,60 @@ TEST(StumpLearner, DeterministicBytes) {
   EXPECT_NE(a.model_bytes, c.model_bytes);
 }
 
+TEST(StumpLearner, BlockedScreeningEqualsColumnPasses) {
+  // The class-major blocked pass must give the column passes' screening gains bit for bit, so the
+  // same candidates are refined and the models are byte-identical: dense and sparse dims, up to
+  // 15 thresholds (and 20, where dims with more than 15 take column passes in the same round),
+  // |F_m| not a multiple of the block of 8, mining on.
+  SyntheticBoostOptions so;
+  so.noise_density = 0.4;
+  const SyntheticBoostProblem p = make_synthetic_boost_problem(so);
+  for (const int32_t thresholds : {3, 8, 15, 20}) {
+    BoostOptions o;
+    o.num_rounds = 25;
+    o.dims_per_round = 61;
+    o.mining_interval = 10;
+    o.max_thresholds_per_dim = thresholds;
+    // The screening gains of every (dim, theta), after a few rounds (unequal weights).
+    {
+      BoostOptions first = o;
+      first.num_rounds = 12;
+      SerialStumpLearner blocked_learner(p.features, p.set, first);
+      first.blocked_screening = false;
+      SerialStumpLearner column_learner(p.features, p.set, first);
+      for (int r = 0; r < 11; ++r) {
+        blocked_learner.run_round();
+        column_learner.run_round();
+      }
+      const std::vector<int32_t> dims = draw_round_dims(3, 0, p.features.num_dims, 61);
+      const std::vector<ScreenedCandidate> b = blocked_learner.screen(dims), c = column_learner.screen(dims);
+      ASSERT_EQ(b.size(), c.size()) << thresholds << " thresholds";
+      ASSERT_GT(b.size(), 61u);
+      for (size_t i = 0; i < b.size(); ++i) {
+        EXPECT_EQ(b[i].dim, c[i].dim);
+        EXPECT_EQ(b[i].theta, c[i].theta);
+        EXPECT_EQ(b[i].gain, c[i].gain) << "dim " << b[i].dim << " theta " << b[i].theta;
+      }
+    }
+    const LearnedRun blocked = train_synthetic(p, o);
+    o.blocked_screening = false;
+    const LearnedRun columns = train_synthetic(p, o);
+    EXPECT_EQ(blocked.model_bytes, columns.model_bytes) << thresholds << " thresholds";
+    ASSERT_EQ(blocked.rounds.size(), columns.rounds.size());
+    for (size_t r = 0; r < blocked.rounds.size(); ++r) {
+      EXPECT_EQ(blocked.rounds[r].gain, columns.rounds[r].gain) << "round " << r;
+      EXPECT_EQ(blocked.rounds[r].dim, columns.rounds[r].dim) << "round " << r;
+    }
+  }
+  // And the stumps differ from another draw of F_m: the comparison is not vacuous.
+  BoostOptions o;
+  o.num_rounds = 25;
+  o.dims_per_round = 61;
+  const LearnedRun a = train_synthetic(p, o);
+  o.seed = 5;
+  EXPECT_NE(a.model_bytes, train_synthetic(p, o).model_bytes);
+}
+
 TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
   SyntheticBoostProblem p = make_synthetic_boost_problem(SyntheticBoostOptions());
   // Class 1 sits 1 cm from class 0: a likely SfM duplicate, never a negative of class 0.

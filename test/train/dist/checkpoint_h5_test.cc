@@ -1,5 +1,6 @@
 #include "train/dist/checkpoint_h5.h"
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -135,6 +136,31 @@ TEST_F(CheckpointTest, KeepsTheNewestK) {
   ASSERT_EQ(files.size(), 2u);
   EXPECT_EQ(files[0], dir.path_for(8));
   EXPECT_EQ(files[1], dir.path_for(6));
+}
+
+TEST_F(CheckpointTest, RemovesTemporariesOfKilledWritersOnly) {
+  // A writer killed mid-write leaves ".ckpt-N.h5.tmp-PID"; the next write deletes it when no
+  // process PID runs here, and keeps those of running processes (our own, pid 1).
+  const CheckpointDir dir(dir_);
+  dir.write(make(2), 3);
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ASSERT_GT(child, 0);
+  ASSERT_EQ(::waitpid(child, nullptr, 0), child);  // reaped: its pid runs nothing now
+  auto touch = [&](const std::string& name) {
+    std::ofstream(dir.folder() / name) << "partial";
+    return dir.folder() / name;
+  };
+  const auto dead = touch(".ckpt-0000004.h5.tmp-" + std::to_string(child));
+  const auto own = touch(".ckpt-0000099.h5.tmp-" + std::to_string(::getpid()));  // not the name written
+  const auto init = touch(".ckpt-0000004.h5.tmp-1");
+  const auto other = touch("notes.tmp-" + std::to_string(child));
+  dir.write(make(4), 3);
+  EXPECT_FALSE(std::filesystem::exists(dead));
+  EXPECT_TRUE(std::filesystem::exists(own));
+  EXPECT_TRUE(std::filesystem::exists(init));
+  EXPECT_TRUE(std::filesystem::exists(other));
+  EXPECT_EQ(dir.list().size(), 2u);
 }
 
 TEST_F(CheckpointTest, ConfigDifferenceNamesTheSetting) {

@@ -1,0 +1,343 @@
+#!/usr/bin/env bash
+# Fault injection for distributed training (issue #9): real `mpirun -n 2 lboost train` runs on the
+# tiny rendered world, each hit by one fault, then checked and rerun:
+#   scripts/fault_inject.sh [--seeds N | --seeds S1,S2,...] [--cases C1,C2,...] [--rounds N]
+#                           [--work DIR] [--keep]
+# --seeds 3 (default) runs seeds 1, 2, 3; a list runs those seeds. Each seed drives bash's RANDOM:
+# which rank is hit, at which moment, how much space is left, so a failing case reruns exactly.
+# Cases, per seed:
+#   kill9        kill -9 of a random rank at a random moment (after a random number of rounds, plus
+#                0-99 ms; "round 0" = during start-up, after 0-2 s)
+#   kill9_ckpt   kill -9 of rank 0 (the writer) while it writes a checkpoint: the script polls for
+#                its temporary file (checkpoints/.ckpt-*.tmp-PID) and kills as soon as it appears
+#   disk_full    the checkpoint folder is a small tmpfs (`mount -t tmpfs`, works as root in this
+#                container) that the script fills after a random checkpoint, leaving either a random
+#                10-90% of one checkpoint free (the next write runs out in its datasets) or the
+#                last checkpoint's size + 0-30 KB (it runs out at its very end, HDF5's final flush)
+#   read_only    the checkpoint folder becomes read-only after a random checkpoint. chmod does not
+#                stop root, so it is a read-only bind mount of the folder over itself (EROFS for
+#                every user); unmounted for the rerun
+#   sigterm      SIGTERM to a random rank as soon as training starts (rank 0 opened metrics.jsonl),
+#                i.e. in the first round
+#   sigterm_load SIGTERM to a random rank while the ranks still load the data and build features
+#                (0.2-1.7 s after the rank started): the job must stop after its first round with
+#                a checkpoint and exit 75 like any requeue, not die of the signal
+# Each case checks: no hang (every command runs under `timeout`, LMB_FAULT_TIMEOUT s, default 300;
+# exit 124 = hang), the expected exit status and message in the log, that every ckpt-*.h5 left
+# reads back whole (`lboost inspect`, CRC-32 included), and that the rerun (same command, after the
+# disk or folder is restored) resumes from the newest checkpoint and writes a model.bin identical
+# (cmp) to the reference: an uninterrupted run of the same command. One line per case, then a
+# table; exit status 1 if any case failed.
+# The tiny world (`lboost world --preset tiny --seed 1` + `lboost map`, as the tests' tiny_world
+# fixture; the vocabulary from its own images) is made once in WORK/tiny (about 1 min).
+# Needs root (mount) and mpirun. LBOOST: the lboost binary (default ${LMB_BUILD_DIR:-build}/train/lboost,
+# build it with scripts/build.sh); MPIEXEC: the launcher (default mpirun).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+seeds_arg=3
+cases_arg=kill9,kill9_ckpt,disk_full,read_only,sigterm,sigterm_load
+rounds=100
+work=/tmp/lmb_fault_inject
+keep_work=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --seeds) seeds_arg=$2; shift 2 ;;
+    --cases) cases_arg=$2; shift 2 ;;
+    --rounds) rounds=$2; shift 2 ;;
+    --work) work=$2; shift 2 ;;
+    --keep) keep_work=1; shift ;;
+    *) sed -n '2,33p' "$0"; exit 2 ;;
+  esac
+done
+if [[ "$seeds_arg" == *,* ]]; then IFS=, read -r -a seeds <<< "$seeds_arg"; else seeds=($(seq 1 "$seeds_arg")); fi
+lboost=${LBOOST:-$root/${LMB_BUILD_DIR:-build}/train/lboost}
+mpiexec=${MPIEXEC:-mpirun}
+limit=${LMB_FAULT_TIMEOUT:-300}
+interval=10  # checkpoint interval (rounds)
+[ -x "$lboost" ] || { echo "fault_inject: no lboost at $lboost (scripts/build.sh, or set LBOOST)" >&2; exit 2; }
+command -v "$mpiexec" > /dev/null || { echo "fault_inject: no $mpiexec" >&2; exit 2; }
+[ "$(id -u)" -eq 0 ] || { echo "fault_inject: needs root (tmpfs and bind mounts)" >&2; exit 2; }
+if [ "$(id -u)" -eq 0 ]; then export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1; fi
+export OMPI_MCA_rmaps_base_oversubscribe=1 OMPI_MCA_btl_vader_single_copy_mechanism=none
+
+mkdir -p "$work"
+work=$(cd "$work" && pwd)
+mounts=()
+cleanup() {
+  local m
+  for m in "${mounts[@]}"; do umount -l "$m" 2> /dev/null; done
+  [ "$keep_work" -eq 1 ] || rm -rf "$work"/seed-* "$work/reference"
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+# The problem: the tiny world, its map and a 16-word vocabulary.
+tiny=$work/tiny
+if [ ! -f "$tiny/map.h5" ] || [ ! -f "$tiny/vocab.lbv" ]; then
+  echo "fault_inject: making the tiny world in $tiny"
+  rm -rf "$tiny" && mkdir -p "$tiny"
+  { "$lboost" world --preset tiny --seed 1 --out "$tiny/collection" &&
+    "$lboost" map --collection "$tiny/collection" --out "$tiny/map.h5" &&
+    "$lboost" vocab --images "$tiny/collection/images" --out "$tiny/vocab.lbv" --words 16 --seed 7; } \
+    > "$tiny/setup.log" 2>&1 || { tail -20 "$tiny/setup.log"; echo "fault_inject: fixture failed" >&2; exit 1; }
+fi
+train_args=(train --map "$tiny/map.h5" --vocab "$tiny/vocab.lbv" --rounds "$rounds" --threads 1
+            --checkpoint-interval "$interval" --checkpoint-keep 2)
+
+now() { date +%s%N; }
+# launch RUN LOG: starts the 2-rank job in the background; $job is the pid of its `timeout`.
+launch() {
+  launched=$(now)
+  timeout -k 10 "$limit" "$mpiexec" -n 2 "$lboost" "${train_args[@]}" --out "$1" > "$2" 2>&1 &
+  job=$!
+}
+# finish: waits for the job; $status is its exit status, $hung 1 if `timeout` had to stop it.
+finish() {
+  status=0
+  wait "$job" || status=$?
+  hung=0
+  [ $(( ($(now) - launched) / 1000000000 )) -ge "$limit" ] && hung=1
+}
+# rank_pid RUN R: the pid of rank R of the job writing RUN (empty if it is not running).
+rank_pid() {
+  local p
+  for p in $(pgrep -f -- "--out $1\$"); do
+    if tr '\0' '\n' < "/proc/$p/environ" 2> /dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2"; then echo "$p"; return; fi
+  done
+}
+running() { kill -0 "$job" 2> /dev/null; }
+rounds_done() { [ -f "$1/metrics.jsonl" ] && wc -l < "$1/metrics.jsonl" || echo 0; }
+# wait_until CMD...: polls CMD every 10 ms while the job runs; fails when the job has ended.
+wait_until() {
+  while ! "$@"; do
+    running || return 1
+    sleep 0.01
+  done
+}
+has_rank() { [ -n "$(rank_pid "$1" "$2")" ]; }
+has_rounds() { [ "$(rounds_done "$1")" -ge "$2" ]; }
+has_checkpoint() { [ -f "$1/checkpoints/ckpt-$(printf %07d "$2").h5" ]; }
+# rand_delay N: $delay = a random 0..N-1 ms, in seconds for sleep (not in a $(...) subshell:
+# bash reseeds RANDOM there, and a seed must replay its case exactly).
+rand_delay() {
+  local r=$(( RANDOM % $1 ))
+  delay=$(printf '%d.%03d' $(( r / 1000 )) $(( r % 1000 )))
+}
+
+# check_checkpoints RUN: every ckpt-*.h5 reads back whole; $newest = its highest round (0: none).
+check_checkpoints() {
+  local f n
+  newest=0
+  for f in "$1"/checkpoints/ckpt-*.h5; do
+    [ -e "$f" ] || continue
+    if ! "$lboost" inspect "$f" >> "$1.inspect.log" 2>&1; then
+      problem="$problem; unreadable $(basename "$f")"
+      continue
+    fi
+    n=$(basename "$f" .h5)
+    n=$((10#${n#ckpt-}))
+    [ "$n" -gt "$newest" ] && newest=$n
+  done
+}
+
+# rerun RUN: the same command again; it must resume from $newest and end with the reference model.
+rerun() {
+  local st=0
+  timeout -k 10 "$limit" "$mpiexec" -n 2 "$lboost" "${train_args[@]}" --out "$1" > "$1.rerun.log" 2>&1 || st=$?
+  if [ "$st" -ne 0 ]; then
+    problem="$problem; rerun exit $st$( [ "$st" -eq 124 ] && echo ' (hang)')"
+    return
+  fi
+  if [ "$newest" -gt 0 ]; then
+    grep -q "resumed from .*ckpt-$(printf %07d "$newest").h5" "$1.rerun.log" || problem="$problem; rerun did not resume from round $newest"
+    resumed="resumed@$newest"
+  else
+    grep -q "resumed from" "$1.rerun.log" && problem="$problem; rerun resumed without a checkpoint"
+    resumed="from scratch"
+  fi
+  if grep -q "skipping checkpoint" "$1.rerun.log"; then problem="$problem; rerun skipped a checkpoint"; fi
+  cmp -s "$1/model.bin" "$reference" || problem="$problem; model.bin differs from the reference"
+}
+
+# expect_exit WANT: $status must be WANT ("nonzero": anything but 0), and the job ended by itself.
+expect_exit() {
+  if [ "$hung" -eq 1 ]; then problem="$problem; hang (stopped by timeout after $limit s)"; return; fi
+  if [ "$1" = nonzero ]; then
+    [ "$status" -ne 0 ] || problem="$problem; exit 0 after the fault"
+  else
+    [ "$status" -eq "$1" ] || problem="$problem; exit $status, expected $1"
+  fi
+}
+# expect_log LOG REGEX: the job's log names the fault.
+expect_log() { grep -qE "$2" "$1" || problem="$problem; no '$2' in the log"; }
+# expect_requeue RUN: a stop by signal (exit 75, logged); $after = the round it stopped after.
+expect_requeue() {
+  expect_exit 75
+  expect_log "$1.log" "stop requested by a signal after round"
+  after=$(grep -o 'stop requested by a signal after round [0-9]*' "$1.log" | grep -o '[0-9]*$')
+}
+
+results=()
+failures=0
+# report CASE SEED WHAT: one line per case; $problem empty = pass.
+report() {
+  local verdict=PASS why=${problem#; }
+  if [ -n "$problem" ]; then verdict=FAIL; failures=$((failures + 1)); fi
+  printf '%-4s %-12s seed %-3s exit %-3s newest ckpt %-4s rerun %-14s %s\n' "$verdict" "$1" "$2" "$status" \
+    "$newest" "$resumed" "$3${why:+ -- $why}"
+  results+=("$verdict"$'\t'"$1"$'\t'"$2"$'\t'"$status"$'\t'"$newest"$'\t'"$resumed"$'\t'"$3${why:+ -- $why}")
+}
+
+# The reference: the same command, uninterrupted.
+reference_dir=$work/reference
+reference=$reference_dir/model.bin
+rm -rf "$reference_dir"
+start=$(date +%s.%N)
+timeout -k 10 "$limit" "$mpiexec" -n 2 "$lboost" "${train_args[@]}" --out "$reference_dir" \
+  > "$reference_dir.log" 2>&1 || { tail -20 "$reference_dir.log"; echo "fault_inject: the reference run failed" >&2; exit 1; }
+ref_seconds=$(awk "BEGIN { printf \"%.1f\", $(date +%s.%N) - $start }")
+ckpt_bytes=$(stat -c %s "$(ls "$reference_dir"/checkpoints/ckpt-*.h5 | tail -n 1)")
+echo "fault_inject: reference: $rounds rounds on 2 ranks in ${ref_seconds} s, checkpoint $ckpt_bytes bytes, model $(cksum < "$reference" | cut -d' ' -f1)"
+last_ckpt=$(( (rounds - 1) / interval ))  # checkpoints before the final one
+
+case_kill9() {
+  local run=$1 target=$(( RANDOM % (rounds - 2 * interval) )) victim=$(( RANDOM % 2 )) pid
+  launch "$run" "$run.log"
+  if [ "$target" -eq 0 ]; then rand_delay 2000; else rand_delay 100; fi
+  if [ "$target" -eq 0 ] || wait_until has_rounds "$run" "$target"; then
+    sleep "$delay"
+    wait_until has_rank "$run" "$victim" && pid=$(rank_pid "$run" "$victim")
+    if [ -n "${pid:-}" ]; then kill -9 "$pid"; else problem="$problem; rank $victim not found"; fi
+  else
+    problem="$problem; the job ended before round $target"
+  fi
+  finish
+  expect_exit nonzero
+  expect_log "$run.log" "signal 9|Killed"
+  [ -f "$run/model.bin" ] && problem="$problem; the killed job wrote model.bin"
+  detail="rank $victim killed after $(rounds_done "$run") rounds (target $target + ${delay}s)"
+}
+
+case_kill9_ckpt() {
+  local run=$1 pid="" tmp="" f t=$(( RANDOM % last_ckpt ))
+  launch "$run" "$run.log"
+  # Skip to a random checkpoint, then catch the next temporary file: a poll without forks (about
+  # 10 us a turn), so that the kill lands while rank 0 writes.
+  wait_until has_rank "$run" 0 && pid=$(rank_pid "$run" 0)
+  [ "$t" -eq 0 ] || wait_until has_checkpoint "$run" $(( t * interval ))
+  while [ -n "$pid" ] && [ -z "$tmp" ] && running; do
+    for f in "$run"/checkpoints/.ckpt-*.tmp-*; do [ -e "$f" ] && tmp=$f; done
+  done
+  if [ -n "$tmp" ]; then kill -9 "$pid"; fi
+  finish
+  if [ -z "$tmp" ]; then
+    problem="$problem; never saw a checkpoint being written"
+  else
+    expect_exit nonzero
+    expect_log "$run.log" "signal 9|Killed"
+  fi
+  detail="rank 0 killed writing $(basename "${tmp:-none}" | sed 's/\.tmp-.*//; s/^\.//')"
+}
+
+case_disk_full() {
+  local run=$1 t=$(( 1 + RANDOM % (last_ckpt - 1) )) free_pct=$(( 10 + RANDOM % 81 )) at_end=$(( RANDOM % 2 ))
+  local ck=$1/checkpoints free
+  mkdir -p "$ck"
+  mount -t tmpfs -o size=$(( 4 * ckpt_bytes + 1048576 )) lmb_fault_tmpfs "$ck" || { problem="mount -t tmpfs failed"; return; }
+  mounts+=("$ck")
+  launch "$run" "$run.log"
+  if wait_until has_checkpoint "$run" $(( t * interval )); then
+    free=$(( ckpt_bytes * free_pct / 100 ))
+    [ "$at_end" -eq 1 ] && free=$(( $(stat -c %s "$ck/ckpt-$(printf %07d $(( t * interval ))).h5") + RANDOM % 30000 ))
+    dd if=/dev/zero of="$ck/filler" bs=64k 2> /dev/null
+    truncate -s -"$free" "$ck/filler"
+  else
+    problem="$problem; no checkpoint $(( t * interval ))"
+  fi
+  finish
+  expect_exit 1
+  expect_log "$run.log" "cannot write the checkpoint"
+  rm -f "$ck/filler"  # the disk has room again
+  detail="full after ckpt $(( t * interval )), $free bytes free$( [ "$at_end" -eq 1 ] && echo ' (the next write ends short)'); $(grep -m1 -o 'cannot write the checkpoint.*' "$run.log")"
+}
+
+case_read_only() {
+  local run=$1 t=$(( 1 + RANDOM % (last_ckpt - 1) )) ck=$1/checkpoints
+  launch "$run" "$run.log"
+  if wait_until has_checkpoint "$run" $(( t * interval )); then
+    mount --bind "$ck" "$ck" && mounts+=("$ck") && mount -o remount,bind,ro "$ck" || problem="$problem; read-only bind mount failed"
+    touch "$ck/probe" 2> /dev/null && problem="$problem; root can still write the folder"
+  else
+    problem="$problem; no checkpoint $(( t * interval ))"
+  fi
+  finish
+  expect_exit 1
+  expect_log "$run.log" "cannot write the checkpoint"
+  umount "$ck" 2> /dev/null  # writable again
+  detail="read-only after ckpt $(( t * interval )); $(grep -m1 -o 'cannot write the checkpoint.*' "$run.log")"
+}
+
+case_sigterm() {
+  local run=$1 victim=$(( RANDOM % 2 )) pid=""
+  launch "$run" "$run.log"
+  if wait_until test -f "$run/metrics.jsonl"; then
+    pid=$(rank_pid "$run" "$victim")
+    [ -n "$pid" ] && kill -TERM "$pid"
+  fi
+  [ -n "$pid" ] || problem="$problem; rank $victim not found"
+  finish
+  expect_requeue "$run"
+  detail="SIGTERM to rank $victim; stopped after round ${after:-?}"
+}
+
+case_sigterm_load() {
+  local run=$1 victim=$(( RANDOM % 2 )) pid="" when=loading
+  rand_delay 1500
+  launch "$run" "$run.log"
+  wait_until has_rank "$run" "$victim" && pid=$(rank_pid "$run" "$victim")
+  if [ -n "$pid" ]; then
+    sleep "$(awk "BEGIN { print $delay + 0.2 }")"
+    [ -f "$run/metrics.jsonl" ] && when="training (missed the loading)"
+    kill -TERM "$pid"
+  else
+    problem="$problem; rank $victim not found"
+  fi
+  finish
+  expect_requeue "$run"
+  detail="SIGTERM to rank $victim during $when (+0.2+${delay}s); stopped after round ${after:-?}"
+}
+
+IFS=, read -r -a cases <<< "$cases_arg"
+for c in "${cases[@]}"; do declare -F "case_$c" > /dev/null || { echo "fault_inject: no case '$c'" >&2; exit 2; }; done
+for seed in "${seeds[@]}"; do
+  for c in "${cases[@]}"; do
+    RANDOM=$(( seed * 1000 + ${#c} * 17 + $(printf '%d' "'${c:0:1}") ))
+    run=$work/seed-$seed/$c
+    rm -rf "$run" "$run".*
+    mkdir -p "$(dirname "$run")"
+    problem="" detail="" status=- hung=0 newest=0 resumed=-
+    "case_$c" "$run"
+    if [ "$status" != - ]; then
+      check_checkpoints "$run"
+      rerun "$run"
+      # Not a failure, but disk space: a temporary file that a killed writer left behind.
+      left=$(compgen -G "$run/checkpoints/.ckpt-*.tmp-*" | wc -l)
+      [ "$left" -gt 0 ] && detail="$detail; $left stale .tmp file(s) left after the rerun"
+    fi
+    for m in "${mounts[@]}"; do umount -l "$m" 2> /dev/null; done
+    mounts=()
+    report "$c" "$seed" "$detail"
+  done
+done
+
+echo
+echo "| case | seed | result | job exit | newest checkpoint | rerun | details |"
+echo "|---|---|---|---|---|---|---|"
+for r in "${results[@]}"; do
+  IFS=$'\t' read -r verdict c s st n res det <<< "$r"
+  echo "| $c | $s | $verdict | $st | $n | $res | $det |"
+done
+echo
+echo "fault_inject: $(( ${#results[@]} - failures )) of ${#results[@]} cases passed (seeds ${seeds[*]}, $rounds rounds)"
+[ "$failures" -eq 0 ]
