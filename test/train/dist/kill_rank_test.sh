@@ -47,4 +47,11 @@ grep -qi "signal 9\|killed" "$work/first.log" || { cat "$work/first.log"; fail "
 "$mpiexec" -n 2 "$lboost" "${args[@]}" --out "$work/run" > "$work/second.log" 2>&1 || { cat "$work/second.log"; fail "rerun failed"; }
 grep -q "resumed from" "$work/second.log" || fail "the rerun did not resume"
 cmp "$work/run/model.bin" "$work/reference/model.bin" || fail "resumed model differs from the uninterrupted one"
+# `lboost inspect` reads a checkpoint whole (CRC included) and refuses a torn one with its name.
+newest=$(ls "$work/run/checkpoints"/ckpt-*.h5 | sort | tail -n 1)
+"$lboost" inspect "$newest" | grep -q "CRC-32 ok" || fail "lboost inspect does not accept $newest"
+cp "$newest" "$work/ckpt-torn.h5"
+truncate -s $(( $(stat -c %s "$newest") / 2 )) "$work/ckpt-torn.h5"
+if "$lboost" inspect "$work/ckpt-torn.h5" > /dev/null 2> "$work/inspect.err"; then fail "inspect accepted a torn checkpoint"; fi
+grep -q "ckpt-torn.h5" "$work/inspect.err" || { cat "$work/inspect.err"; fail "no error naming the torn checkpoint"; }
 echo "kill_rank_test: OK ($(grep -o 'resumed from [^ ]*' "$work/second.log"))"
