@@ -51,6 +51,9 @@ for name in ("columns", "blocked", "blocked2"):
     s = json.load(open(path))
     s["crc"] = zlib.crc32(open(os.path.join(out, name, "model.bin"), "rb").read())
     rows[name] = s
+first = next(iter(rows.values()), None)
+if first:
+    print(f"machine: {first.get('machine', 'unknown')}")
 print(f"| run | ranks | CPU-s / round (slowest rank) | wall s / round | features / rank | peak RSS / rank "
       f"| bytes sent / round (all ranks) | validation P@1 | model CRC-32 |")
 print("|---|---|---|---|---|---|---|---|---|")

@@ -26,6 +26,7 @@
 #include "common/error.h"
 #include "common/hamming.h"
 #include "common/io/map_h5.h"
+#include "common/machine_info.h"
 #include "common/random.h"
 #include "common/context_embedding.h"
 #include "infer/classifier.h"
@@ -296,6 +297,8 @@ void run_bench_infer(const BenchInferArgs& a) {
       a.synthetic_paper ? "synthetic" : "trained", m.num_classes(), m.data().stumps.size(),
       static_cast<long long>(m.stump_classes().size()), m.used_dims().size(),
       static_cast<long long>(m.word_classes().size()), load_ms);
+  const std::string machine = machine_info().summary();
+  std::printf("  machine: %s\n", machine.c_str());
   std::printf("  %zu %s frames x %d repeats, %.0f keypoints a frame; %d training descriptors; 1 thread; %d RANSAC iterations\n",
               frames.size(), a.map.empty() ? "synthetic" : "query", a.repeats, kp_per_frame, num_train,
               a.ransac_iterations);
@@ -321,6 +324,7 @@ void run_bench_infer(const BenchInferArgs& a) {
               bf_ms / nr / match_inverted, static_cast<long long>(checksum));
   if (!a.json.empty()) {
     nlohmann::json j = {{"model", a.synthetic_paper ? "synthetic" : a.model},
+                        {"machine", machine},
                         {"classes", m.num_classes()},
                         {"stumps", m.data().stumps.size()},
                         {"sharing_entries", m.stump_classes().size()},

@@ -243,6 +243,7 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   summary["data"] = data.source;
   summary["rounds"] = learner.rounds_done();
   summary["ranks"] = comm.size();
+  summary["machine"] = machine_info().summary();
   summary["resumed_from_round"] = r.resumed_from;
   summary["validation_p1"] = learner.validation_precision();
   summary["validation_p1_landmarks"] = learner.validation_precision(true);
