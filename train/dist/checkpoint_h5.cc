@@ -91,6 +91,7 @@ void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
   tmp_name += std::to_string(::getpid());
   const fs::path tmp = dir / tmp_name;
   H5::Exception::dontPrint();
+  errno = 0;  // so that a failure below reports its own system error, not an older one
   try {
     {
       H5::H5File file(tmp.string(), H5F_ACC_TRUNC);
@@ -275,7 +276,6 @@ fs::path CheckpointDir::write(const Checkpoint& checkpoint, int keep) const {
   fs::create_directories(folder_);
   remove_stale_temporaries();
   const fs::path path = path_for(checkpoint.rounds);
-  errno = 0;
   write_checkpoint(path, checkpoint);
   const auto all = list();
   for (size_t i = static_cast<size_t>(keep); i < all.size(); ++i) {
