@@ -8,6 +8,7 @@
 
 #include <emmintrin.h>
 #include <numeric>
+#include <tuple>
 
 #include "common/cpu_dispatch.h"
 #include "common/error.h"
@@ -110,47 +111,55 @@ int32_t SerialStumpLearner::stored_index(int32_t dim) const {
   return dim >= 0 && dim < static_cast<int32_t>(global_to_stored_.size()) ? global_to_stored_[dim] : -1;
 }
 
+SerialStumpLearner::DimLayout SerialStumpLearner::make_layout(const uint8_t* col) const {
+  const int32_t max_t = options_.max_thresholds_per_dim;
+  int64_t counts[256] = {0};
+  for (int64_t s = 0; s < features_.num_samples; ++s) ++counts[col[s]];
+  std::vector<uint8_t> distinct;
+  for (int v = 0; v < 256; ++v) {
+    if (counts[v]) distinct.push_back(static_cast<uint8_t>(v));
+  }
+  DimLayout layout;
+  if (distinct.size() >= 2) {
+    std::vector<uint8_t> cand(distinct.begin(), distinct.end() - 1);  // all but the largest
+    if (max_t == 0 || static_cast<int32_t>(cand.size()) <= max_t) {
+      layout.thresholds = cand;
+    } else {
+      // Smallest bin, then count-weighted quantiles of the others.
+      layout.thresholds.push_back(cand[0]);
+      int64_t total = 0;
+      for (size_t j = 1; j < cand.size(); ++j) total += counts[cand[j]];
+      int64_t cum = 0;
+      size_t j = 1;
+      for (int32_t q = 1; q < max_t; ++q) {
+        const int64_t target = (total * q) / max_t;
+        while (j < cand.size() && cum + counts[cand[j]] <= target) cum += counts[cand[j++]];
+        const uint8_t v = cand[std::min(j, cand.size() - 1)];
+        if (v > layout.thresholds.back()) layout.thresholds.push_back(v);
+      }
+    }
+  }
+  size_t t = 0;
+  int64_t above = 0;
+  for (int v = 0; v < 256; ++v) {
+    while (t < layout.thresholds.size() && layout.thresholds[t] < v) ++t;
+    layout.bucket[v] = static_cast<uint8_t>(t);
+    if (t > 0) above += counts[v];
+  }
+  layout.above_fraction = features_.num_samples > 0
+                              ? static_cast<float>(static_cast<double>(above) / static_cast<double>(features_.num_samples))
+                              : 0.f;
+  return layout;
+}
+
 void SerialStumpLearner::build_layouts() {
   const int32_t n = features_.num_stored_columns();
   layouts_.resize(static_cast<size_t>(n));
   usable_.assign(static_cast<size_t>(n), 0);
   int32_t num_usable = 0;
-  const int32_t max_t = options_.max_thresholds_per_dim;
   for (int32_t i = 0; i < n; ++i) {
-    const uint8_t* col = features_.column(i);
-    int64_t counts[256] = {0};
-    for (int64_t s = 0; s < features_.num_samples; ++s) ++counts[col[s]];
-    std::vector<uint8_t> distinct;
-    for (int v = 0; v < 256; ++v) {
-      if (counts[v]) distinct.push_back(static_cast<uint8_t>(v));
-    }
-    DimLayout& layout = layouts_[i];
-    layout.thresholds.clear();
-    if (distinct.size() >= 2) {
-      std::vector<uint8_t> cand(distinct.begin(), distinct.end() - 1);  // all but the largest
-      if (max_t == 0 || static_cast<int32_t>(cand.size()) <= max_t) {
-        layout.thresholds = cand;
-      } else {
-        // Smallest bin, then count-weighted quantiles of the others.
-        layout.thresholds.push_back(cand[0]);
-        int64_t total = 0;
-        for (size_t j = 1; j < cand.size(); ++j) total += counts[cand[j]];
-        int64_t cum = 0;
-        size_t j = 1;
-        for (int32_t q = 1; q < max_t; ++q) {
-          const int64_t target = (total * q) / max_t;
-          while (j < cand.size() && cum + counts[cand[j]] <= target) cum += counts[cand[j++]];
-          const uint8_t v = cand[std::min(j, cand.size() - 1)];
-          if (v > layout.thresholds.back()) layout.thresholds.push_back(v);
-        }
-      }
-    }
-    size_t t = 0;
-    for (int v = 0; v < 256; ++v) {
-      while (t < layout.thresholds.size() && layout.thresholds[t] < v) ++t;
-      layout.bucket[v] = static_cast<uint8_t>(t);
-    }
-    usable_[i] = !layout.thresholds.empty();
+    layouts_[i] = make_layout(features_.column(i));
+    usable_[i] = !layouts_[i].thresholds.empty();
     num_usable += usable_[i];
   }
   LMB_CHECK(n == 0 || num_usable > 0, "features: all " << n
@@ -177,8 +186,40 @@ void SerialStumpLearner::initialize() {
     const auto pool = hash_subset(train, options_.mining_pool_size, options_.seed, kPoolTag);
     tracked_samples_.insert(tracked_samples_.end(), pool.begin(), pool.end());
   }
-  tracked_scores_.assign(tracked_samples_.size() * static_cast<size_t>(C1_), 0.f);
+  split_rows();
+  tracked_scores_.assign(static_cast<size_t>(local_rows()) * static_cast<size_t>(C1_), 0.f);
   initialized_ = true;
+}
+
+void SerialStumpLearner::split_rows() {
+  std::tie(row_part_, row_parts_) = work_part();
+  LMB_CHECK(row_parts_ >= 1 && row_part_ >= 0 && row_part_ < row_parts_,
+            "boost: work part " << row_part_ << " of " << row_parts_);
+}
+
+int64_t SerialStumpLearner::local_rows() const {
+  const int64_t n = static_cast<int64_t>(tracked_samples_.size());
+  return n > row_part_ ? (n - row_part_ + row_parts_ - 1) / row_parts_ : 0;
+}
+
+int64_t SerialStumpLearner::local_validation_rows() const {
+  const int64_t n = num_validation_rows_;
+  return n > row_part_ ? (n - row_part_ + row_parts_ - 1) / row_parts_ : 0;
+}
+
+void SerialStumpLearner::flush_pool_rows() {
+  const int64_t v = local_validation_rows(), rows = local_rows();
+  if (!pending_pool_.empty()) {
+    for (int64_t i = v; i < rows; ++i) {
+      float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
+      for (const PendingStump& p : pending_pool_) {
+        const float* d = p.above[i - v] ? p.d_above.data() : p.d_below.data();
+        const size_t n = p.classes.size();
+        for (size_t j = 0; j < n; ++j) row[p.classes[j]] += d[j];
+      }
+    }
+  }
+  pending_pool_.clear();
 }
 
 void SerialStumpLearner::bootstrap_negatives() {
@@ -355,12 +396,18 @@ void SerialStumpLearner::quantize_weights() {
   // rounding (order-free, like the int64 sums). The smallest weight kept is ~2^-32 of the largest
   // at 600,000 entries; a lighter one rounds to 0 and moves no gain by more than that fraction.
   const int shift = 52 - bits - (std::ilogb(global_max) + 1);
+  LMB_CHECK(shift > -1000 && shift < 1000, "boost: weight scale 2^" << shift << " at round " << rounds_done());
   quant_shift_ = shift;
   class_w_.assign(static_cast<size_t>(C1_), 0);
   class_y_.assign(static_cast<size_t>(C1_), 0);
   const size_t E = entry_weight_.size();
+  // w * 2^shift is ldexp(w, shift) (a product with a normal power of two rounds like ldexp), and
+  // for 0 <= x < 2^52 truncation plus a half-up step is llround(x): no libm call per entry.
+  const double scale = std::ldexp(1.0, shift);
   for (size_t i = 0; i < E; ++i) {
-    const int64_t q = std::llround(std::ldexp(entry_weight_[i], shift));
+    const double x = entry_weight_[i] * scale;
+    int64_t q = static_cast<int64_t>(x);
+    q += x - static_cast<double>(q) >= 0.5;
     hot_[i].wq = q;
     class_wq_[class_index_[i]] = q;
     const int32_t c = entry_code_[i] >> 1;
@@ -375,11 +422,10 @@ void SerialStumpLearner::quantize_weights() {
   }
 }
 
-void SerialStumpLearner::scatter_dim(int32_t stored, const DimLayout& layout) {
+void SerialStumpLearner::scatter_dim(const uint8_t* col, const DimLayout& layout) {
   const int32_t T = static_cast<int32_t>(layout.thresholds.size());
   const size_t plane = static_cast<size_t>(C1_) * 2;  // one bucket: (P, N) per class
   if (hist_.size() < plane * T) hist_.resize(plane * T, 0);
-  const uint8_t* col = features_.column(stored);
   const uint8_t* bucket = layout.bucket;
   const int64_t S = features_.num_samples;
   // Pass 1: the samples above the smallest threshold t0, 16 bins at a time: v > t0 <=> max(v, t0 + 1) == v.
@@ -659,7 +705,7 @@ void pack_buckets(const uint8_t* const* cols, const uint8_t* const* thresholds, 
 
 }  // namespace
 
-void SerialStumpLearner::screen_block(const int32_t* stored, int32_t count, double* gains) {
+void SerialStumpLearner::screen_block(const ColumnRef* refs, int32_t count, double* gains) {
   // Why class-major: a column pass touches the entries of every sample above the smallest
   // threshold, ~45% of them on the paper world (median dim), and scatters them across a 1 MB
   // histogram. Here every entry is streamed once per block of kBlockDims dims, reads one packed
@@ -675,10 +721,10 @@ void SerialStumpLearner::screen_block(const int32_t* stored, int32_t count, doub
   const uint8_t* cols[K];
   const uint8_t* thresholds[K];
   for (int32_t k = 0; k < count; ++k) {
-    const DimLayout& layout = layouts_[stored[k]];
+    const DimLayout& layout = *refs[k].layout;
     T[k] = static_cast<int32_t>(layout.thresholds.size());
-    LMB_CHECK(T[k] >= 1 && T[k] <= 15, "boost: screen_block: stored column " << stored[k] << " has " << T[k] << " thresholds");
-    cols[k] = features_.column(stored[k]);
+    LMB_CHECK(T[k] >= 1 && T[k] <= 15, "boost: screen_block: dim " << refs[k].dim << " has " << T[k] << " thresholds");
+    cols[k] = refs[k].column;
     thresholds[k] = layout.thresholds.data();
   }
   pack_buckets(cols, thresholds, T, count, S, packed);
@@ -751,7 +797,7 @@ SharingInput make_input(int32_t m, const std::vector<int64_t>& wp, const std::ve
 
 std::vector<int32_t> SerialStumpLearner::choose_dims(int32_t /*round*/, const std::vector<int32_t>& round_dims) {
   for (int32_t d : round_dims) {
-    LMB_CHECK(stored_index(d) >= 0, "boost: dim " << d << " of F_m is not stored in this feature matrix");
+    LMB_CHECK(column_ref(d).column, "boost: dim " << d << " of F_m is not stored in this feature matrix");
   }
   return round_dims;
 }
@@ -768,6 +814,32 @@ std::vector<ScreenedCandidate> SerialStumpLearner::select_for_refinement(std::ve
   return local;
 }
 
+SerialStumpLearner::ColumnRef SerialStumpLearner::column_ref(int32_t dim) const {
+  const int32_t stored = stored_index(dim);
+  if (stored >= 0) return {dim, features_.column(stored), &layouts_[stored]};
+  for (const LentColumn& lent : lent_) {
+    if (lent.dim == dim) return {dim, lent.column.data(), &lent.layout};
+  }
+  return {};
+}
+
+void SerialStumpLearner::lend_column(int32_t dim, std::vector<uint8_t> column) {
+  LMB_CHECK(dim >= 0 && dim < features_.num_dims && static_cast<int64_t>(column.size()) == features_.num_samples,
+            "boost: a lent column of dim " << dim << " has " << column.size() << " bins for "
+                                           << features_.num_samples << " samples");
+  if (column_ref(dim).column) return;
+  DimLayout layout = make_layout(column.data());
+  lent_.push_back({dim, std::move(column), std::move(layout)});
+}
+
+int SerialStumpLearner::screening_kind(int32_t dim) const {
+  const int32_t stored = stored_index(dim);
+  LMB_CHECK(stored >= 0, "boost: screening_kind of dim " << dim << ", not stored here");
+  const size_t T = layouts_[stored].thresholds.size();
+  if (T == 0) return 0;
+  return T <= 15 && options_.blocked_screening && !options_.screening_step ? 1 : 2;
+}
+
 void SerialStumpLearner::stump_above(int32_t dim, int32_t theta, std::vector<uint8_t>* above) {
   const int32_t stored = stored_index(dim);
   LMB_CHECK(stored >= 0, "boost: stump dim " << dim << " is not stored in this feature matrix");
@@ -781,7 +853,7 @@ std::vector<ScreenedCandidate> SerialStumpLearner::screen_dims(const std::vector
   std::vector<ScreenedCandidate> screened;
   // Dims with at most 15 thresholds go through the blocked class-major pass (4-bit buckets)
   // unless screening_step needs the stored histogram; the others get a column pass each.
-  std::vector<int32_t> block;
+  std::vector<ColumnRef> block;
   auto flush_block = [&] {
     if (block.empty()) return;
     const auto th = Clock::now();
@@ -789,31 +861,31 @@ std::vector<ScreenedCandidate> SerialStumpLearner::screen_dims(const std::vector
     screen_block(block.data(), static_cast<int32_t>(block.size()), gains);
     *hist_seconds += seconds_since(th);
     for (size_t k = 0; k < block.size(); ++k) {
-      const DimLayout& layout = layouts_[block[k]];
-      const int32_t d = features_.dims.empty() ? block[k] : features_.dims[block[k]];
+      const DimLayout& layout = *block[k].layout;
       for (size_t t = 0; t < layout.thresholds.size(); ++t) {
         const double g = gains[k * 16 + t];
-        if (g > 0.0) screened.push_back({g, d, layout.thresholds[t]});
+        if (g > 0.0) screened.push_back({g, block[k].dim, layout.thresholds[t], layout.above_fraction});
       }
     }
     block.clear();
   };
   for (int32_t d : sorted_dims) {
-    const int32_t stored = stored_index(d);
-    if (!usable_[stored]) continue;
-    const DimLayout& layout = layouts_[stored];
+    const ColumnRef ref = column_ref(d);
+    LMB_CHECK(ref.column, "boost: dim " << d << " is neither stored nor lent here");
+    const DimLayout& layout = *ref.layout;
     const int32_t T = static_cast<int32_t>(layout.thresholds.size());
+    if (T == 0) continue;
     if (T <= 15 && options_.blocked_screening && !options_.screening_step) {
-      block.push_back(stored);
+      block.push_back(ref);
       if (static_cast<int32_t>(block.size()) == kBlockDims) flush_block();
       continue;
     }
     const auto th = Clock::now();
-    scatter_dim(stored, layout);
+    scatter_dim(ref.column, layout);
     *hist_seconds += seconds_since(th);
     screen_scattered(T, &screen_gains_);
     for (int32_t t = 0; t < T; ++t) {
-      if (screen_gains_[t] > 0.0) screened.push_back({screen_gains_[t], d, layout.thresholds[t]});
+      if (screen_gains_[t] > 0.0) screened.push_back({screen_gains_[t], d, layout.thresholds[t], layout.above_fraction});
     }
   }
   flush_block();
@@ -845,11 +917,12 @@ StumpRecord SerialStumpLearner::search_impl(const std::vector<int32_t>& dims, Ro
   std::sort(sorted_dims.begin(), sorted_dims.end());
   if (options_.refine_top == 0) {
     for (int32_t d : sorted_dims) {
-      const int32_t stored = stored_index(d);
-      if (!usable_[stored]) continue;
-      const DimLayout& layout = layouts_[stored];
+      const ColumnRef ref = column_ref(d);
+      LMB_CHECK(ref.column, "boost: dim " << d << " is neither stored nor lent here");
+      const DimLayout& layout = *ref.layout;
+      if (layout.thresholds.empty()) continue;
       const auto th = Clock::now();
-      scatter_dim(stored, layout);
+      scatter_dim(ref.column, layout);
       const int32_t T = static_cast<int32_t>(layout.thresholds.size());
       const int32_t m = collect_dim_sums(T);
       hist_seconds += seconds_since(th);
@@ -868,15 +941,16 @@ StumpRecord SerialStumpLearner::search_impl(const std::vector<int32_t>& dims, Ro
       return x.dim != y.dim ? x.dim < y.dim : x.theta < y.theta;
     });
     int32_t current_dim = -1, m = 0;
+    ColumnRef ref;
     for (const ScreenedCandidate& cand : chosen) {
-      const int32_t stored = stored_index(cand.dim);
-      LMB_CHECK(stored >= 0, "boost: refinement candidate dim " << cand.dim << " is not stored here");
-      const DimLayout& layout = layouts_[stored];
       if (cand.dim != current_dim) {
-        scatter_dim(stored, layout);
-        m = collect_dim_sums(static_cast<int32_t>(layout.thresholds.size()));
+        ref = column_ref(cand.dim);
+        LMB_CHECK(ref.column, "boost: refinement candidate dim " << cand.dim << " is neither stored nor lent here");
+        scatter_dim(ref.column, *ref.layout);
+        m = collect_dim_sums(static_cast<int32_t>(ref.layout->thresholds.size()));
         current_dim = cand.dim;
       }
+      const DimLayout& layout = *ref.layout;
       const auto it = std::find(layout.thresholds.begin(), layout.thresholds.end(), static_cast<uint8_t>(cand.theta));
       LMB_CHECK(it != layout.thresholds.end(), "boost: threshold " << cand.theta << " is not a candidate of dim " << cand.dim);
       const int32_t t = static_cast<int32_t>(it - layout.thresholds.begin());
@@ -925,6 +999,7 @@ RoundStats SerialStumpLearner::run_round() {
   }
   quantize_weights();
   stats.cost_before = exp_loss();
+  lent_.clear();
 
   const std::vector<int32_t> round_dims =
       draw_round_dims(options_.seed, stats.round,
@@ -998,10 +1073,20 @@ RoundStats SerialStumpLearner::run_round() {
       d_above[j] = static_cast<float>(alpha - k[best.classes[j]]);
       d_below[j] = static_cast<float>(beta - k[best.classes[j]]);
     }
-    for (size_t r = 0; r < tracked_samples_.size(); ++r) {
-      float* row = tracked_scores_.data() + r * static_cast<size_t>(C1_);
-      const float* d = above[tracked_samples_[r]] ? d_above.data() : d_below.data();
+    const int64_t v = local_validation_rows(), rows = local_rows();
+    for (int64_t i = 0; i < v; ++i) {
+      float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
+      const float* d = above[tracked_samples_[row_part_ + i * row_parts_]] ? d_above.data() : d_below.data();
       for (size_t j = 0; j < n; ++j) row[best.classes[j]] += d[j];
+    }
+    if (rows > v) {
+      PendingStump p;
+      p.classes = best.classes;
+      p.above.resize(static_cast<size_t>(rows - v));
+      for (int64_t i = v; i < rows; ++i) p.above[i - v] = above[tracked_samples_[row_part_ + i * row_parts_]];
+      p.d_above = std::move(d_above);
+      p.d_below = std::move(d_below);
+      pending_pool_.push_back(std::move(p));
     }
   }
   for (int32_t c = 0; c < C1_; ++c) {
@@ -1052,14 +1137,14 @@ std::vector<SerialStumpLearner::Entry> SerialStumpLearner::entries() const {
   return out;
 }
 
-void SerialStumpLearner::count_validation_hits(int part, int parts, int64_t* all, int64_t* landmarks) const {
+void SerialStumpLearner::count_validation_hits(int64_t* all, int64_t* landmarks) const {
   // One pass a row: the first maximum over the landmark classes, then the background class wins
   // the row only if it scores strictly higher (the first maximum over all classes, as it comes
   // last).
   const int32_t C = C1_ - 1;
   *all = *landmarks = 0;
-  for (int64_t r = part; r < num_validation_rows_; r += parts) {
-    const float* row = tracked_scores_.data() + static_cast<size_t>(r) * C1_;
+  for (int64_t r = row_part_, i = 0; r < num_validation_rows_; r += row_parts_, ++i) {
+    const float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
     int32_t best = 0;
     double best_score = class_offset_[0] + row[0];
     for (int32_t c = 1; c < C; ++c) {
@@ -1075,11 +1160,12 @@ void SerialStumpLearner::count_validation_hits(int part, int parts, int64_t* all
   }
 }
 
-double SerialStumpLearner::validation_precision(bool exclude_background) const {
+double SerialStumpLearner::validation_precision(bool exclude_background) {
   if (num_validation_rows_ == 0) return -1.0;
   int64_t all = 0, landmarks = 0;
-  count_validation_hits(0, 1, &all, &landmarks);
-  return static_cast<double>(exclude_background ? landmarks : all) / static_cast<double>(num_validation_rows_);
+  count_validation_hits(&all, &landmarks);
+  const int64_t hits = sum_over_parts(exclude_background ? landmarks : all);
+  return static_cast<double>(hits) / static_cast<double>(num_validation_rows_);
 }
 
 void SerialStumpLearner::evaluate_validation(RoundStats* stats) {
@@ -1087,9 +1173,8 @@ void SerialStumpLearner::evaluate_validation(RoundStats* stats) {
     stats->validation_p1 = stats->validation_p1_landmarks = last_validation_ = -1.0;
     return;
   }
-  const auto [part, parts] = work_part();
   int64_t all = 0, landmarks = 0;
-  count_validation_hits(part, parts, &all, &landmarks);
+  count_validation_hits(&all, &landmarks);
   all = sum_over_parts(all);
   landmarks = sum_over_parts(landmarks);
   const double n = static_cast<double>(num_validation_rows_);
@@ -1107,10 +1192,20 @@ int64_t SerialStumpLearner::mine_hard_negatives() {
   std::vector<double> new_weights;
   std::vector<std::pair<float, int32_t>> top;
   const double log_scale = static_cast<double>(weight_exponent_) * std::log(2.0);
-  for (size_t r = static_cast<size_t>(num_validation_rows_); r < tracked_samples_.size(); ++r) {
+  flush_pool_rows();
+  // 1. This part's pool rows: the classes ranked at or above the true one, best first.
+  struct Offer {
+    int64_t row;
+    int32_t cls;
+    float score;
+  };
+  std::vector<Offer> offers;
+  const int64_t V = num_validation_rows_, N = static_cast<int64_t>(tracked_samples_.size());
+  const int64_t first = V <= row_part_ ? row_part_ : row_part_ + (V - row_part_ + row_parts_ - 1) / row_parts_ * row_parts_;
+  for (int64_t r = first; r < N; r += row_parts_) {
     const int64_t s = tracked_samples_[r];
     const int32_t y = set_.sample_class[s];
-    const float* row = tracked_scores_.data() + r * static_cast<size_t>(C1_);
+    const float* row = tracked_scores_.data() + static_cast<size_t>((r - row_part_) / row_parts_) * C1_;
     const double sy = class_offset_[y] + row[y];
     top.clear();
     for (int32_t c = 0; c < C1_; ++c) {
@@ -1122,23 +1217,38 @@ int64_t SerialStumpLearner::mine_hard_negatives() {
       top.insert(pos, {sc, c});
       if (static_cast<int32_t>(top.size()) > per_sample) top.pop_back();
     }
-    for (const auto& [sc, c] : top) {
-      auto& negs = class_negatives_[c];
-      if (static_cast<int32_t>(negs.size()) >= options_.max_negatives_per_class) continue;
-      auto it = std::lower_bound(negs.begin(), negs.end(), s);
-      if (it != negs.end() && *it == s) continue;
-      if (c < C && radius > 0.0) {
-        const Eigen::Vector3f& p = set_.sample_position[s];
-        if (p.allFinite() && (p.cast<double>() - set_.class_position[c]).norm() < radius) continue;
-      }
-      negs.insert(it, s);
-      new_samples.push_back(s);
-      new_codes.push_back(c * 2 + 1);
-      // A negative's weight is its initial weight times exp(-z H) = exp(H(s, c)), stored relative
-      // to 2^weight_exponent_: the weight it would have had in L-_c from the start.
-      const double w0 = negative_unit_[c] * (set_.sample_weight.empty() ? 1.0 : static_cast<double>(set_.sample_weight[s]));
-      new_weights.push_back(w0 * std::exp(static_cast<double>(sc) - log_scale));
+    for (const auto& [sc, c] : top) offers.push_back({r, c, sc});
+  }
+  // 2. Every part's offers, by row (a part's are by row, best first within a row), then the same
+  //    sequential admission on every part: the caps make the order matter.
+  {
+    std::vector<uint8_t> bytes(offers.size() * sizeof(Offer));
+    if (!offers.empty()) std::memcpy(bytes.data(), offers.data(), bytes.size());
+    bytes = gather_parts(bytes);
+    LMB_CHECK(bytes.size() % sizeof(Offer) == 0, "boost: mining offers of " << bytes.size() << " bytes are torn");
+    offers.resize(bytes.size() / sizeof(Offer));
+    if (!offers.empty()) std::memcpy(offers.data(), bytes.data(), bytes.size());
+    std::stable_sort(offers.begin(), offers.end(), [](const Offer& a, const Offer& b) { return a.row < b.row; });
+  }
+  for (const Offer& offer : offers) {
+    const int64_t s = tracked_samples_[offer.row];
+    const int32_t c = offer.cls;
+    const float sc = offer.score;
+    auto& negs = class_negatives_[c];
+    if (static_cast<int32_t>(negs.size()) >= options_.max_negatives_per_class) continue;
+    auto it = std::lower_bound(negs.begin(), negs.end(), s);
+    if (it != negs.end() && *it == s) continue;
+    if (c < C && radius > 0.0) {
+      const Eigen::Vector3f& p = set_.sample_position[s];
+      if (p.allFinite() && (p.cast<double>() - set_.class_position[c]).norm() < radius) continue;
     }
+    negs.insert(it, s);
+    new_samples.push_back(s);
+    new_codes.push_back(c * 2 + 1);
+    // A negative's weight is its initial weight times exp(-z H) = exp(H(s, c)), stored relative
+    // to 2^weight_exponent_: the weight it would have had in L-_c from the start.
+    const double w0 = negative_unit_[c] * (set_.sample_weight.empty() ? 1.0 : static_cast<double>(set_.sample_weight[s]));
+    new_weights.push_back(w0 * std::exp(static_cast<double>(sc) - log_scale));
   }
   if (new_samples.empty()) return 0;
   std::vector<int64_t> samples;
@@ -1175,7 +1285,22 @@ SerialStumpLearner::State SerialStumpLearner::save_state() {
   st.weight_exponent = weight_exponent_;
   st.tracked_samples = tracked_samples_;
   st.num_validation_rows = num_validation_rows_;
-  st.tracked_scores = tracked_scores_;
+  // Every part's rows, gathered to part 0 and put back in global row order: part p's local row i
+  // is global row p + i * parts.
+  flush_pool_rows();
+  const size_t N = tracked_samples_.size();
+  if (row_part_ == 0) st.tracked_scores.resize(N * static_cast<size_t>(C1_));
+  const auto* mine = reinterpret_cast<const uint8_t*>(tracked_scores_.data());
+  gather_parts_to_first(mine, static_cast<int64_t>(tracked_scores_.size() * sizeof(float)),
+                        [&](int p, const uint8_t* bytes, int64_t size) {
+    const size_t row_bytes = static_cast<size_t>(C1_) * sizeof(float);
+    const size_t rows = N > static_cast<size_t>(p) ? (N - p + row_parts_ - 1) / row_parts_ : 0;
+    LMB_CHECK(static_cast<size_t>(size) == rows * row_bytes,
+              "boost: part " << p << " sent " << size << " bytes of tracked scores for " << rows << " rows x " << C1_ << " classes");
+    for (size_t i = 0; i < rows; ++i) {
+      std::memcpy(st.tracked_scores.data() + (p + i * row_parts_) * C1_, bytes + i * row_bytes, row_bytes);
+    }
+  });
   st.class_offset = class_offset_;
   st.negative_unit = negative_unit_;
   st.last_validation = last_validation_;
@@ -1229,7 +1354,13 @@ void SerialStumpLearner::restore_state(const State& st) {
   weight_exponent_ = st.weight_exponent;
   tracked_samples_ = st.tracked_samples;
   num_validation_rows_ = st.num_validation_rows;
-  tracked_scores_ = st.tracked_scores;
+  split_rows();
+  pending_pool_.clear();
+  tracked_scores_.resize(static_cast<size_t>(local_rows()) * C1_);
+  for (int64_t i = 0; i < local_rows(); ++i) {
+    const float* row = st.tracked_scores.data() + static_cast<size_t>(row_part_ + i * row_parts_) * C1_;
+    std::copy(row, row + C1_, tracked_scores_.data() + static_cast<size_t>(i) * C1_);
+  }
   class_offset_ = st.class_offset;
   negative_unit_ = st.negative_unit;
   model_ = st.model;

@@ -48,6 +48,7 @@ struct ScreenedCandidate {
   double gain = 0.0;
   int32_t dim = -1;
   int32_t theta = 0;
+  float above_fraction = 0.f;  // the dim's samples above its smallest threshold (refinement cost)
 };
 
 struct RoundStats {
@@ -106,7 +107,8 @@ class SerialStumpLearner {
   double exp_loss() const;  // sum of true weights
   // Precision@1 of the tracked validation samples under the current model.
   // exclude_background: best landmark class only (the top-1 ranking without rejection).
-  double validation_precision(bool exclude_background = false) const;
+  // Collective in a distributed layer (every part holds some rows): call it on every rank.
+  double validation_precision(bool exclude_background = false);
 
   // The search of one round without changing state (tests): best record over `dims` (global dims,
   // all stored here) with the current weights.
@@ -134,10 +136,29 @@ class SerialStumpLearner {
   // replicated) needs none: every column pass sees all of a dim's samples, which the blocked
   // screening pass (screen_block) relies on.
   virtual void reduce_class_totals(std::vector<int64_t>* /*w*/, std::vector<int64_t>* /*y*/) {}
-  // Replicated work that a layer may split (the per-round validation precision@1): this process's
-  // part (index, count), and the sum of an integer over all parts. Default: one part.
+  // The tracked rows (validation and mining pool samples) split into parts: this process holds
+  // and updates the scores of rows part, part + parts, ... only (work_part() = (part, parts), read
+  // once by initialize() / restore_state()). sum_over_parts sums an integer over the parts;
+  // gather_parts returns every part's bytes concatenated in part order on every part;
+  // gather_parts_to_first hands part 0 every part's bytes, in part order, one at a time (the
+  // other parts get no call). Default: one part.
   virtual std::pair<int, int> work_part() const { return {0, 1}; }
   virtual int64_t sum_over_parts(int64_t local) { return local; }
+  virtual std::vector<uint8_t> gather_parts(const std::vector<uint8_t>& local) { return local; }
+  virtual void gather_parts_to_first(const uint8_t* local, int64_t size,
+                                     const std::function<void(int, const uint8_t*, int64_t)>& take) {
+    take(0, local, size);
+  }
+
+  // Columns of dims stored on other ranks, lent to this one for the current round (to screen or
+  // refine them here); their layouts are computed from the column, as the owner's were. Cleared at
+  // the start of every round. Throws lmb::Error for a column of the wrong length.
+  void lend_column(int32_t dim, std::vector<uint8_t> column);
+  // The column of `dim` stored or lent here (to lend it on), nullptr when neither.
+  const uint8_t* column_here(int32_t dim) const { return column_ref(dim).column; }
+  // How a stored dim is screened: 0 never (constant column), 1 in the blocked class-major pass,
+  // 2 by a column pass of its own.
+  int screening_kind(int32_t dim) const;
 
   const FeatureMatrix& features_;
   const TrainingSet& set_;
@@ -147,15 +168,30 @@ class SerialStumpLearner {
   struct DimLayout {
     std::vector<uint8_t> thresholds;  // ascending candidate thresholds
     uint8_t bucket[256];              // bucket of a bin: number of thresholds below it
+    float above_fraction = 0.f;       // samples above the smallest threshold
   };
+  // The candidate thresholds of a column of S bins (options_.max_thresholds_per_dim).
+  DimLayout make_layout(const uint8_t* col) const;
+  // A dim's column and layout, stored here or lent this round (column nullptr: neither).
+  struct ColumnRef {
+    int32_t dim = -1;
+    const uint8_t* column = nullptr;
+    const DimLayout* layout = nullptr;
+  };
+  ColumnRef column_ref(int32_t dim) const;
+  struct LentColumn {
+    int32_t dim;
+    std::vector<uint8_t> column;
+    DimLayout layout;
+  };
+  std::vector<LentColumn> lent_;
   void build_layouts();
   void bootstrap_negatives();
   void rebuild_entry_index(std::vector<int64_t>& samples, std::vector<int32_t>& codes,
                            std::vector<double>& weights);
   void quantize_weights();
-  // Per (class, threshold) above-sums of one dim into the touched-class arrays; returns the
-  // number of touched classes.
-  void scatter_dim(int32_t stored, const DimLayout& layout);
+  // Per (class, bucket) sums of one column into hist_ (sample-major).
+  void scatter_dim(const uint8_t* col, const DimLayout& layout);
   void cumulate_hist(int32_t num_thresholds);
   // From the scattered histogram: touched_ and cum_p_/cum_n_; zeroes the histogram.
   int32_t collect_dim_sums(int32_t num_thresholds);
@@ -165,7 +201,7 @@ class SerialStumpLearner {
   // class-major pass over the entries: gains[k * 16 + t]. Equal, bit for bit, to scatter_dim +
   // screen_scattered on each column (the same sums in the same class order).
   static constexpr int kBlockDims = 8;
-  void screen_block(const int32_t* stored, int32_t count, double* gains);
+  void screen_block(const ColumnRef* refs, int32_t count, double* gains);
   // Fills wp_.. q_ and active_ with the touched classes that have weight above threshold t;
   // returns their number.
   int32_t prepare_threshold(int32_t num_touched, int32_t t, int32_t num_thresholds);
@@ -173,9 +209,17 @@ class SerialStumpLearner {
   std::vector<ScreenedCandidate> screen_dims(const std::vector<int32_t>& sorted_dims, double* hist_seconds);
   int64_t mine_hard_negatives();
   void evaluate_validation(RoundStats* stats);
-  // Validation rows part, part + parts, ... : how many have their class ranked first with the
-  // background competing (*all) and among the landmark classes only (*landmarks).
-  void count_validation_hits(int part, int parts, int64_t* all, int64_t* landmarks) const;
+  // This part's validation rows: how many have their class ranked first with the background
+  // competing (*all) and among the landmark classes only (*landmarks).
+  void count_validation_hits(int64_t* all, int64_t* landmarks) const;
+  // Rows of this part (local row i is global row row_part_ + i * row_parts_), and how many of
+  // them are validation rows (they come first).
+  int64_t local_rows() const;
+  int64_t local_validation_rows() const;
+  void split_rows();
+  // Adds the pending stumps' outputs to this part's mining-pool rows, in round order (the same
+  // float additions as one round at a time), and clears them.
+  void flush_pool_rows();
   int32_t stored_index(int32_t dim) const;
 
   bool initialized_ = false;
@@ -220,10 +264,20 @@ class SerialStumpLearner {
   std::vector<int32_t> active_;        // class of each search row
   std::vector<uint8_t> sharing_scratch_;
 
-  // Tracked sample scores: score(s, c) = class_offset_[c] + tracked_scores_[row * C1 + c].
-  std::vector<int64_t> tracked_samples_;  // validation rows first, then mining pool rows
+  // Tracked sample scores: score(s, c) = class_offset_[c] + tracked_scores_[i * C1 + c] for
+  // this part's local row i (global row r = row_part_ + i * row_parts_, sample tracked_samples_[r]).
+  std::vector<int64_t> tracked_samples_;  // every part's: validation rows first, then mining pool rows
   int64_t num_validation_rows_ = 0;
+  int row_part_ = 0, row_parts_ = 1;
   std::vector<float> tracked_scores_;
+  // Mining-pool rows are read only when mining: the stumps since the last flush wait here and are
+  // added a row at a time (the row stays in cache) instead of streaming every row every round.
+  struct PendingStump {
+    std::vector<int32_t> classes;         // sharing set
+    std::vector<float> d_above, d_below;  // per member: the output change above / below
+    std::vector<uint8_t> above;           // per local pool row
+  };
+  std::vector<PendingStump> pending_pool_;
   std::vector<double> class_offset_;
 
   BoostModel model_;
@@ -242,12 +296,14 @@ class SerialStumpLearner {
     int32_t weight_exponent = 0;
     std::vector<int64_t> tracked_samples;  // validation rows first, then the mining pool
     int64_t num_validation_rows = 0;
-    std::vector<float> tracked_scores;     // tracked_samples.size() x (C + 1), row-major
+    std::vector<float> tracked_scores;     // tracked_samples.size() x (C + 1), row-major (all parts')
     std::vector<double> class_offset;      // C + 1: sum of k_c over the rounds
     std::vector<double> negative_unit;     // C + 1: initial weight of a negative of each class
     double last_validation = -1.0;
   };
-  // Initializes the learner first if no round ran yet.
+  // Initializes the learner first if no round ran yet. Collective in a distributed layer: the
+  // tracked scores are gathered to part 0, whose State is complete; the other parts' States leave
+  // tracked_scores empty.
   State save_state();
   // Throws lmb::Error when the state does not fit this learner's set and options (sizes, classes,
   // samples, dims out of range, more rounds than options().num_rounds).

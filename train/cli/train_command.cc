@@ -233,6 +233,8 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   const int64_t total_sent = comm.allreduce_sum(r.bytes_sent);
   const int64_t max_rss_end_kb = comm.allreduce_max(static_cast<int64_t>(current_rss_mb() * 1024.0));
   const int64_t max_cpu_us = comm.allreduce_max(static_cast<int64_t>(r.round_cpu_seconds * 1e6));
+  const double validation_p1 = learner.validation_precision();  // collective
+  const double validation_p1_landmarks = learner.validation_precision(true);
   if (r.stopped) throw CommandExit{kRequeueExitCode};
   if (comm.rank() != 0) return;
   save_boost_model(run_dir / "model.bin", learner.model());
@@ -245,8 +247,8 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   summary["ranks"] = comm.size();
   summary["machine"] = machine_info().summary();
   summary["resumed_from_round"] = r.resumed_from;
-  summary["validation_p1"] = learner.validation_precision();
-  summary["validation_p1_landmarks"] = learner.validation_precision(true);
+  summary["validation_p1"] = validation_p1;
+  summary["validation_p1_landmarks"] = validation_p1_landmarks;
   summary["hamming_nn_validation_p1"] = data.hamming.all;
   summary["hamming_nn_validation_p1_landmarks"] = data.hamming.landmarks;
   const int32_t n = std::max(1, r.rounds_run);

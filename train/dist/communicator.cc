@@ -12,6 +12,9 @@ bool env_set(const char* name) {
   const char* v = std::getenv(name);
   return v != nullptr && *v != '\0';
 }
+// Large payloads go in chunks below MPI's int count.
+constexpr int64_t kChunk = int64_t{1} << 30;
+
 int env_int(const char* name, int fallback) {
   const char* v = std::getenv(name);
   return v != nullptr && *v != '\0' ? std::atoi(v) : fallback;
@@ -85,8 +88,6 @@ void Communicator::broadcast_bytes(std::vector<uint8_t>* data, int root) {
   int64_t n = static_cast<int64_t>(data->size());
   MPI_Bcast(&n, 1, MPI_INT64_T, root, comm_);
   data->resize(static_cast<size_t>(n));
-  // In chunks below MPI's int count.
-  constexpr int64_t kChunk = int64_t{1} << 30;
   for (int64_t at = 0; at < n; at += kChunk) {
     MPI_Bcast(data->data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, root, comm_);
   }
@@ -101,6 +102,49 @@ void Communicator::broadcast_string(std::string* text, int root) {
   std::vector<uint8_t> bytes(text->begin(), text->end());
   broadcast_bytes(&bytes, root);
   text->assign(bytes.begin(), bytes.end());
+}
+
+void Communicator::send_bytes(const uint8_t* data, int64_t size, int dest, int tag) {
+  LMB_CHECK(dest >= 0 && dest < size_ && dest != rank_ && tag >= 0 && size >= 0,
+            "send_bytes: rank " << rank_ << " to " << dest << " tag " << tag);
+  int64_t n = size;
+  MPI_Send(&n, 1, MPI_INT64_T, dest, tag, comm_);
+  for (int64_t at = 0; at < n; at += kChunk) {
+    MPI_Send(data + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, dest, tag, comm_);
+  }
+  bytes_sent_ += n + 8;
+}
+
+std::vector<uint8_t> Communicator::recv_bytes(int source, int tag) {
+  LMB_CHECK(source >= 0 && source < size_ && source != rank_ && tag >= 0,
+            "recv_bytes: rank " << rank_ << " from " << source << " tag " << tag);
+  int64_t n = 0;
+  MPI_Recv(&n, 1, MPI_INT64_T, source, tag, comm_, MPI_STATUS_IGNORE);
+  LMB_CHECK(n >= 0, "recv_bytes: rank " << source << " announced " << n << " bytes");
+  std::vector<uint8_t> data(static_cast<size_t>(n));
+  for (int64_t at = 0; at < n; at += kChunk) {
+    MPI_Recv(data.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, source, tag, comm_,
+             MPI_STATUS_IGNORE);
+  }
+  bytes_received_ += n + 8;
+  return data;
+}
+
+void Communicator::gather_bytes(const uint8_t* local, int64_t size, int root,
+                                const std::function<void(int, const uint8_t*, int64_t)>& take) {
+  LMB_CHECK(root >= 0 && root < size_, "gather_bytes: root " << root << " of " << size_);
+  if (rank_ != root) {
+    send_bytes(local, size, root, 0);
+    return;
+  }
+  for (int r = 0; r < size_; ++r) {
+    if (r == rank_) {
+      take(r, local, size);
+    } else {
+      const std::vector<uint8_t> bytes = recv_bytes(r, 0);
+      take(r, bytes.data(), static_cast<int64_t>(bytes.size()));
+    }
+  }
 }
 
 int64_t Communicator::allreduce(int64_t local, MPI_Op op) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,15 @@ class Communicator {
   // Root's `data` to every rank (resized on the receivers).
   void broadcast_bytes(std::vector<uint8_t>* data, int root);
   void broadcast_string(std::string* text, int root);
+  // Every rank's bytes to `root`, which hands them to `take(rank, bytes)` in rank order (one rank's
+  // bytes in memory at a time); `take` is not called on the other ranks. Any size (sent in chunks
+  // below MPI's int count).
+  void gather_bytes(const uint8_t* local, int64_t size, int root,
+                    const std::function<void(int, const uint8_t*, int64_t)>& take);
+  // Point to point: blocking, any size, matched by `tag` (>= 0). Deadlock-free when every rank
+  // walks the same list of transfers in the same order.
+  void send_bytes(const uint8_t* data, int64_t size, int dest, int tag);
+  std::vector<uint8_t> recv_bytes(int source, int tag);
   int64_t allreduce_max(int64_t local);
   int64_t allreduce_sum(int64_t local);
   void barrier();

@@ -73,6 +73,8 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
   const CheckpointDir dir(options.run_dir);
   auto checkpoint = [&] {
     const auto t0 = Clock::now();
+    // Collective: every rank's tracked rows go to rank 0, which writes.
+    SerialStumpLearner::State state = learner.save_state();
     agree(comm, [&] {
       Checkpoint ck;
       ck.rounds = learner.rounds_done();
@@ -80,7 +82,7 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
       ck.ranks = comm.size();
       ck.config = options.config_toml;
       ck.data = options.data;
-      ck.state = learner.save_state();
+      ck.state = std::move(state);
       const auto path = dir.write(ck, options.checkpoint_keep);
       spdlog::info("train: checkpoint {} written in {:.2f} s", path.string(), since(t0));
     });

@@ -474,6 +474,38 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
   EXPECT_GT(grown, 0);
 }
 
+// The tracked scores the learner keeps incrementally (validation rows every round, mining-pool
+// rows in batches between minings) equal the model's scores of those samples, and the state taken
+// right after a mining step, between two, and at the end all agree.
+TEST(StumpLearner, TrackedScoresEqualTheModelsScores) {
+  const SyntheticBoostProblem p = make_synthetic_boost_problem(SyntheticBoostOptions());
+  BoostOptions o;
+  o.num_rounds = 37;
+  o.dims_per_round = 50;
+  o.negatives_per_class = 10;
+  o.mining_interval = 10;
+  o.mining_pool_size = 150;
+  SerialStumpLearner learner(p.features, p.set, o);
+  const int32_t C1 = p.set.num_classes_with_background();
+  std::vector<uint8_t> v(static_cast<size_t>(p.features.num_dims));
+  std::vector<double> scores(static_cast<size_t>(C1));
+  for (int32_t rounds : {10, 24, 37}) {
+    while (learner.rounds_done() < rounds) learner.run_round();
+    const SerialStumpLearner::State st = learner.save_state();
+    ASSERT_GT(st.tracked_samples.size(), static_cast<size_t>(st.num_validation_rows)) << "no mining pool";
+    for (size_t r = 0; r < st.tracked_samples.size(); ++r) {
+      const int64_t s = st.tracked_samples[r];
+      for (int32_t d = 0; d < p.features.num_dims; ++d) v[d] = p.features.column(d)[s];
+      learner.model().scores(v.data(), scores.data());
+      for (int32_t c = 0; c < C1; ++c) {
+        const double tracked = st.class_offset[c] + st.tracked_scores[r * C1 + c];
+        ASSERT_NEAR(tracked, scores[c], 1e-4 * (1.0 + std::abs(scores[c])))
+            << "row " << r << " class " << c << " after " << rounds << " rounds";
+      }
+    }
+  }
+}
+
 TEST(StumpLearner, LearningRateScalesTheFirstRoundExactly) {
   // Before the first update every weight is the same whatever the learning rate, so the first
   // stump (dim, theta, sharing set) is the same and a, b and the biases scale by nu exactly.

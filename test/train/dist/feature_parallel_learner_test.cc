@@ -8,6 +8,7 @@
 
 #include <csignal>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <random>
 
@@ -102,6 +103,16 @@ TEST_P(FeatureParallel, ModelIsBitIdenticalToSerial) {
         << "entry " << i;
   }
   EXPECT_EQ(learner.validation_precision(), serial.validation_precision());
+  // The tracked rows (validation and mining pool scores) are split across ranks: each holds about
+  // its share, and gathered on rank 0 they equal the serial learner's, float for float.
+  const SerialStumpLearner::State state = learner.save_state(), reference_state = serial.save_state();
+  if (comm.rank() == 0) {
+    ASSERT_EQ(state.tracked_scores.size(), reference_state.tracked_scores.size());
+    EXPECT_TRUE(std::memcmp(state.tracked_scores.data(), reference_state.tracked_scores.data(),
+                            state.tracked_scores.size() * sizeof(float)) == 0);
+  } else {
+    EXPECT_TRUE(state.tracked_scores.empty());
+  }
   // Every rank holds only its share of the columns.
   EXPECT_LE(mine.num_stored_columns(), (p.data.features.num_dims + comm.size() - 1) / comm.size());
 }
