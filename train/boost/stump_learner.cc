@@ -111,6 +111,14 @@ int32_t SerialStumpLearner::stored_index(int32_t dim) const {
   return dim >= 0 && dim < static_cast<int32_t>(global_to_stored_.size()) ? global_to_stored_[dim] : -1;
 }
 
+void SerialStumpLearner::fill_buckets(DimLayout* layout) {
+  size_t t = 0;
+  for (int v = 0; v < 256; ++v) {
+    while (t < layout->thresholds.size() && layout->thresholds[t] < v) ++t;
+    layout->bucket[v] = static_cast<uint8_t>(t);
+  }
+}
+
 SerialStumpLearner::DimLayout SerialStumpLearner::make_layout(const uint8_t* col) const {
   const int32_t max_t = options_.max_thresholds_per_dim;
   int64_t counts[256] = {0};
@@ -139,13 +147,9 @@ SerialStumpLearner::DimLayout SerialStumpLearner::make_layout(const uint8_t* col
       }
     }
   }
-  size_t t = 0;
+  fill_buckets(&layout);
   int64_t above = 0;
-  for (int v = 0; v < 256; ++v) {
-    while (t < layout.thresholds.size() && layout.thresholds[t] < v) ++t;
-    layout.bucket[v] = static_cast<uint8_t>(t);
-    if (t > 0) above += counts[v];
-  }
+  for (int v = 0; v < 256; ++v) above += layout.bucket[v] > 0 ? counts[v] : 0;
   layout.above_fraction = features_.num_samples > 0
                               ? static_cast<float>(static_cast<double>(above) / static_cast<double>(features_.num_samples))
                               : 0.f;
@@ -823,13 +827,36 @@ SerialStumpLearner::ColumnRef SerialStumpLearner::column_ref(int32_t dim) const 
   return {};
 }
 
-void SerialStumpLearner::lend_column(int32_t dim, std::vector<uint8_t> column) {
-  LMB_CHECK(dim >= 0 && dim < features_.num_dims && static_cast<int64_t>(column.size()) == features_.num_samples,
-            "boost: a lent column of dim " << dim << " has " << column.size() << " bins for "
-                                           << features_.num_samples << " samples");
+// Packed: S bins, the above fraction (float), the thresholds, their count (one byte, last).
+std::vector<uint8_t> SerialStumpLearner::pack_column(int32_t dim) const {
+  const ColumnRef ref = column_ref(dim);
+  LMB_CHECK(ref.column, "boost: no column of dim " << dim << " here to lend");
+  const size_t S = static_cast<size_t>(features_.num_samples);
+  const std::vector<uint8_t>& t = ref.layout->thresholds;
+  std::vector<uint8_t> packed(S + sizeof(float) + t.size() + 1);
+  std::memcpy(packed.data(), ref.column, S);
+  std::memcpy(packed.data() + S, &ref.layout->above_fraction, sizeof(float));
+  std::copy(t.begin(), t.end(), packed.begin() + static_cast<int64_t>(S + sizeof(float)));
+  packed.back() = static_cast<uint8_t>(t.size());
+  return packed;
+}
+
+void SerialStumpLearner::lend_column(int32_t dim, std::vector<uint8_t> packed) {
+  const size_t S = static_cast<size_t>(features_.num_samples);
+  const size_t T = packed.empty() ? 0 : packed.back();
+  LMB_CHECK(dim >= 0 && dim < features_.num_dims && packed.size() == S + sizeof(float) + T + 1,
+            "boost: a lent column of dim " << dim << " has " << packed.size() << " bytes for " << S << " samples");
   if (column_ref(dim).column) return;
-  DimLayout layout = make_layout(column.data());
-  lent_.push_back({dim, std::move(column), std::move(layout)});
+  LentColumn lent{dim, {}, {}};
+  lent.layout.thresholds.assign(packed.begin() + static_cast<int64_t>(S + sizeof(float)), packed.end() - 1);
+  std::memcpy(&lent.layout.above_fraction, packed.data() + S, sizeof(float));
+  LMB_CHECK(std::is_sorted(lent.layout.thresholds.begin(), lent.layout.thresholds.end()) &&
+                std::adjacent_find(lent.layout.thresholds.begin(), lent.layout.thresholds.end()) == lent.layout.thresholds.end(),
+            "boost: a lent column of dim " << dim << " has unordered thresholds");
+  fill_buckets(&lent.layout);
+  packed.resize(S);
+  lent.column = std::move(packed);
+  lent_.push_back(std::move(lent));
 }
 
 int SerialStumpLearner::screening_kind(int32_t dim) const {

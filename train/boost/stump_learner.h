@@ -151,11 +151,12 @@ class SerialStumpLearner {
   }
 
   // Columns of dims stored on other ranks, lent to this one for the current round (to screen or
-  // refine them here); their layouts are computed from the column, as the owner's were. Cleared at
-  // the start of every round. Throws lmb::Error for a column of the wrong length.
-  void lend_column(int32_t dim, std::vector<uint8_t> column);
-  // The column of `dim` stored or lent here (to lend it on), nullptr when neither.
-  const uint8_t* column_here(int32_t dim) const { return column_ref(dim).column; }
+  // refine them here): pack_column(dim) on a rank that has the column (stored or lent) gives its
+  // S bins and candidate thresholds, lend_column(dim, packed) on another makes it usable there.
+  // Lent columns are dropped at the start of every round. Both throw lmb::Error (a dim not here,
+  // a packed column of the wrong size or with invalid thresholds).
+  std::vector<uint8_t> pack_column(int32_t dim) const;
+  void lend_column(int32_t dim, std::vector<uint8_t> packed);
   // How a stored dim is screened: 0 never (constant column), 1 in the blocked class-major pass,
   // 2 by a column pass of its own.
   int screening_kind(int32_t dim) const;
@@ -172,6 +173,8 @@ class SerialStumpLearner {
   };
   // The candidate thresholds of a column of S bins (options_.max_thresholds_per_dim).
   DimLayout make_layout(const uint8_t* col) const;
+  // bucket[] from the thresholds.
+  static void fill_buckets(DimLayout* layout);
   // A dim's column and layout, stored here or lent this round (column nullptr: neither).
   struct ColumnRef {
     int32_t dim = -1;

@@ -82,9 +82,8 @@ void FeatureParallelLearner::move_columns(const std::vector<Move>& moves) {
     const Move& m = moves[i];
     const int tag = static_cast<int>(i);
     if (comm_.rank() == m.from) {
-      const uint8_t* col = column_here(m.dim);
-      LMB_CHECK(col, "distributed learner: rank " << m.from << " has no column of dim " << m.dim << " to send");
-      comm_.send_bytes(col, features_.num_samples, m.to, tag);
+      const std::vector<uint8_t> packed = pack_column(m.dim);
+      comm_.send_bytes(packed.data(), static_cast<int64_t>(packed.size()), m.to, tag);
     } else if (comm_.rank() == m.to) {
       lend_column(m.dim, comm_.recv_bytes(m.from, tag));
     }
