@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include <emmintrin.h>
+#include <limits>
 #include <numeric>
 #include <tuple>
 
@@ -1101,10 +1102,26 @@ RoundStats SerialStumpLearner::run_round() {
       d_below[j] = static_cast<float>(beta - k[best.classes[j]]);
     }
     const int64_t v = local_validation_rows(), rows = local_rows();
-    for (int64_t i = 0; i < v; ++i) {
-      float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
-      const float* d = above[tracked_samples_[row_part_ + i * row_parts_]] ? d_above.data() : d_below.data();
-      for (size_t j = 0; j < n; ++j) row[best.classes[j]] += d[j];
+    if (n * 4 > static_cast<size_t>(C1_)) {
+      // A large sharing set: add dense rows of changes (0 outside S, and x + 0.0f == x for the
+      // scores, which are never -0), a vectorised stream instead of scattered adds.
+      std::vector<float> dense[2] = {std::vector<float>(static_cast<size_t>(C1_), 0.f),
+                                     std::vector<float>(static_cast<size_t>(C1_), 0.f)};
+      for (size_t j = 0; j < n; ++j) {
+        dense[0][best.classes[j]] = d_below[j];
+        dense[1][best.classes[j]] = d_above[j];
+      }
+      for (int64_t i = 0; i < v; ++i) {
+        float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
+        const float* d = dense[above[tracked_samples_[row_part_ + i * row_parts_]]].data();
+        for (int32_t c = 0; c < C1_; ++c) row[c] += d[c];
+      }
+    } else {
+      for (int64_t i = 0; i < v; ++i) {
+        float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
+        const float* d = above[tracked_samples_[row_part_ + i * row_parts_]] ? d_above.data() : d_below.data();
+        for (size_t j = 0; j < n; ++j) row[best.classes[j]] += d[j];
+      }
     }
     if (rows > v) {
       PendingStump p;
@@ -1164,23 +1181,46 @@ std::vector<SerialStumpLearner::Entry> SerialStumpLearner::entries() const {
   return out;
 }
 
+namespace {
+// The first c in [0, n) with the largest offset[c] + row[c] (finite doubles), and that score: the
+// maximum four lanes at a time, then the first class that reaches it (the same double sums, so
+// the equality is exact).
+LMB_CLONES_AVX2 int32_t first_max_score(const double* offset, const float* row, int32_t n, double* best) {
+  using V4 = double __attribute__((vector_size(32)));
+  using F4 = float __attribute__((vector_size(16)));
+  double m = -std::numeric_limits<double>::infinity();
+  int32_t c = 0;
+  if (n >= 4) {
+    V4 vm = {m, m, m, m};
+    for (; c + 4 <= n; c += 4) {
+      V4 o;
+      F4 f;
+      std::memcpy(&o, offset + c, sizeof(o));
+      std::memcpy(&f, row + c, sizeof(f));
+      const V4 s = o + __builtin_convertvector(f, V4);
+      vm = s > vm ? s : vm;
+    }
+    m = std::max(std::max(vm[0], vm[1]), std::max(vm[2], vm[3]));
+  }
+  for (; c < n; ++c) m = std::max(m, offset[c] + static_cast<double>(row[c]));
+  for (c = 0; c < n; ++c) {
+    if (offset[c] + static_cast<double>(row[c]) == m) break;
+  }
+  *best = m;
+  return c;
+}
+}  // namespace
+
 void SerialStumpLearner::count_validation_hits(int64_t* all, int64_t* landmarks) const {
-  // One pass a row: the first maximum over the landmark classes, then the background class wins
-  // the row only if it scores strictly higher (the first maximum over all classes, as it comes
-  // last).
+  // A row's best landmark class is the first maximum over the landmark classes; the background
+  // class then wins the row only if it scores strictly higher (the first maximum over all
+  // classes, as it comes last).
   const int32_t C = C1_ - 1;
   *all = *landmarks = 0;
   for (int64_t r = row_part_, i = 0; r < num_validation_rows_; r += row_parts_, ++i) {
     const float* row = tracked_scores_.data() + static_cast<size_t>(i) * C1_;
-    int32_t best = 0;
-    double best_score = class_offset_[0] + row[0];
-    for (int32_t c = 1; c < C; ++c) {
-      const double sc = class_offset_[c] + row[c];
-      if (sc > best_score) {
-        best_score = sc;
-        best = c;
-      }
-    }
+    double best_score = 0.0;
+    const int32_t best = first_max_score(class_offset_.data(), row, C, &best_score);
     const int32_t truth = set_.sample_class[tracked_samples_[r]];
     *landmarks += best == truth;
     *all += best == truth && !(class_offset_[C] + row[C] > best_score);

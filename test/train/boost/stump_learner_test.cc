@@ -475,8 +475,8 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
 }
 
 // The tracked scores the learner keeps incrementally (validation rows every round, mining-pool
-// rows in batches between minings) equal the model's scores of those samples, and the state taken
-// right after a mining step, between two, and at the end all agree.
+// rows in batches between minings) equal the model's scores of those samples, after a mining step,
+// between two and at the end; the validation P@1 equals a plain first-maximum count over them.
 TEST(StumpLearner, TrackedScoresEqualTheModelsScores) {
   const SyntheticBoostProblem p = make_synthetic_boost_problem(SyntheticBoostOptions());
   BoostOptions o;
@@ -493,6 +493,22 @@ TEST(StumpLearner, TrackedScoresEqualTheModelsScores) {
     while (learner.rounds_done() < rounds) learner.run_round();
     const SerialStumpLearner::State st = learner.save_state();
     ASSERT_GT(st.tracked_samples.size(), static_cast<size_t>(st.num_validation_rows)) << "no mining pool";
+    // Validation P@1 against a plain first-maximum over the state's scores.
+    int64_t hits = 0, hits_landmarks = 0;
+    const int32_t C = C1 - 1;
+    for (int64_t r = 0; r < st.num_validation_rows; ++r) {
+      const float* row = st.tracked_scores.data() + r * C1;
+      int32_t best = 0;
+      for (int32_t c = 1; c < C; ++c) {
+        if (st.class_offset[c] + row[c] > st.class_offset[best] + row[best]) best = c;
+      }
+      const bool right = best == p.set.sample_class[st.tracked_samples[r]];
+      hits_landmarks += right;
+      hits += right && !(st.class_offset[C] + row[C] > st.class_offset[best] + row[best]);
+    }
+    ASSERT_GT(st.num_validation_rows, 0);
+    EXPECT_EQ(learner.validation_precision(), static_cast<double>(hits) / st.num_validation_rows);
+    EXPECT_EQ(learner.validation_precision(true), static_cast<double>(hits_landmarks) / st.num_validation_rows);
     for (size_t r = 0; r < st.tracked_samples.size(); ++r) {
       const int64_t s = st.tracked_samples[r];
       for (int32_t d = 0; d < p.features.num_dims; ++d) v[d] = p.features.column(d)[s];
