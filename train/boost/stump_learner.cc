@@ -339,9 +339,14 @@ void SerialStumpLearner::rebuild_entry_index(std::vector<int64_t>& samples, std:
   const size_t E = samples.size();
   std::vector<size_t> order(E);
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+  const auto before = [&](size_t a, size_t b) {
     return samples[a] != samples[b] ? samples[a] < samples[b] : codes[a] < codes[b];
-  });
+  };
+  // Mining appends a few new entries to sorted ones: sort the unsorted tail and merge.
+  size_t sorted = E == 0 ? 0 : 1;
+  while (sorted < E && !before(sorted, sorted - 1)) ++sorted;
+  std::sort(order.begin() + static_cast<int64_t>(sorted), order.end(), before);
+  std::inplace_merge(order.begin(), order.begin() + static_cast<int64_t>(sorted), order.end(), before);
   sample_offset_.assign(static_cast<size_t>(S) + 1, 0);
   entry_code_.resize(E);
   entry_weight_.resize(E);
