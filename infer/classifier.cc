@@ -39,9 +39,7 @@ Classifier::Classifier(std::shared_ptr<const Model> model, const ClassifierOptio
   const size_t U = model_->used_dims().size();
   values_.assign(U * kBatch, 0);
   word_values_.resize(U);
-  fire_.resize(model_->dense_stumps().size());
   class_out_.resize(2 * kBatch);
-  background_.resize(kBatch);
   all_classes_.resize(static_cast<size_t>(model_->num_classes()));
   for (int32_t c = 0; c < model_->num_classes(); ++c) all_classes_[c] = c;
   lanes_.resize(kBatch);
@@ -173,11 +171,186 @@ __attribute__((target("avx512f"))) void accumulate_two_avx512(
     _mm512_storeu_pd(out1 + 8 * v, q.acc[v]);
   }
 }
+
+__attribute__((target("avx512f"), always_inline)) inline __m512d add_group_avx512(
+    __m512d acc, const detail::GroupItem& item, int64_t e, const Model::DenseStump* dense,
+    const uint32_t* fire) {
+  const int32_t s = item.stumps[e];
+  const __mmask8 bits = static_cast<__mmask8>(fire[s] >> (8 * item.group));
+  return _mm512_add_pd(acc, _mm512_mask_blend_pd(bits, _mm512_set1_pd(dense[s].below),
+                                                 _mm512_set1_pd(dense[s].above)));
+}
+
+// Up to four (class, 8-lane group) items at once, one AVX-512 register each (four independent
+// chains of additions): out[i][l] = items[i].bias + the outputs of items[i]'s stumps in lane
+// 8 group + l, in list order (the same additions as accumulate_lanes).
+__attribute__((target("avx512f"))) void accumulate_groups_avx512(const detail::GroupItem* items,
+                                                                 int32_t n,
+                                                                 const Model::DenseStump* dense,
+                                                                 const uint32_t* fire) {
+  __m512d acc[4];
+  int64_t common = std::numeric_limits<int64_t>::max();
+  for (int32_t i = 0; i < n; ++i) {
+    acc[i] = _mm512_set1_pd(items[i].bias);
+    common = std::min(common, items[i].count);
+  }
+  auto add = [&](int32_t i, int64_t e) __attribute__((target("avx512f"))) {
+    acc[i] = add_group_avx512(acc[i], items[i], e, dense, fire);
+  };
+  if (n == 4) {
+    for (int64_t e = 0; e < common; ++e) {
+      add(0, e);
+      add(1, e);
+      add(2, e);
+      add(3, e);
+    }
+  } else {
+    common = 0;
+  }
+  for (int32_t i = 0; i < n; ++i) {
+    for (int64_t e = common; e < items[i].count; ++e) add(i, e);
+    _mm512_storeu_pd(items[i].out, acc[i]);
+  }
+}
+
+// A class's screening data (Model::screen_step and the following accessors).
+struct ScreenView {
+  ScreenView(const Model& model, int32_t cls)
+      : q(model.screen_q().data()),
+        list(model.screen_list().data() + model.class_stump_begin()[cls]),
+        count(model.class_stump_begin()[cls + 1] - model.class_stump_begin()[cls]),
+        check_low(model.screen_check_low().data() + model.screen_check_begin()[cls]),
+        check_add(model.screen_check_add().data() + model.screen_check_begin()[cls]),
+        end_low(model.screen_low()[cls]),
+        offset(model.screen_offset()[cls]),
+        step(model.screen_step()) {}
+  // The residue base and the added steps at checkpoint k, or at the end of the list.
+  uint16_t low(int64_t k, bool last) const { return last ? end_low : check_low[k]; }
+  int32_t add(int64_t k, bool last) const { return last ? 0 : check_add[k]; }
+
+  const int16_t* q;
+  const uint16_t* list;
+  int64_t count;
+  const uint16_t* check_low;
+  const int32_t* check_add;
+  uint16_t end_low;
+  double offset, step;
+};
+
+// GCC 12 warns that its own extract and convert intrinsics read their undefined pass-through
+// operand (a false positive: the mask is all ones).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
+// The bound test of one checkpoint: bit j set when lane j's bound offset + step (t_j + add),
+// t_j = (sums_j - low) mod 2^16, passes the margin and min-score tests. (The compiler may fuse
+// the product and the sum into an FMA: step x is exact, so the bound is the same double.)
+__attribute__((target("avx512f,avx512bw"), always_inline)) inline uint32_t bound_bits_avx512(
+    __m512i sums, uint16_t low, int32_t add, double offset, double step, const double* background,
+    double min_margin, double min_score) {
+  const __m512i t = _mm512_sub_epi16(sums, _mm512_set1_epi16(static_cast<int16_t>(low)));
+  const __m512i x0 = _mm512_add_epi32(_mm512_cvtepu16_epi32(_mm512_extracti64x4_epi64(t, 0)),
+                                      _mm512_set1_epi32(add));
+  const __m512i x1 = _mm512_add_epi32(_mm512_cvtepu16_epi32(_mm512_extracti64x4_epi64(t, 1)),
+                                      _mm512_set1_epi32(add));
+  const __m256i x[4] = {_mm512_extracti64x4_epi64(x0, 0), _mm512_extracti64x4_epi64(x0, 1),
+                        _mm512_extracti64x4_epi64(x1, 0), _mm512_extracti64x4_epi64(x1, 1)};
+  uint32_t bits = 0;
+  for (int32_t g = 0; g < 4; ++g) {  // lanes 8 g .. 8 g + 7
+    const __m512d bound =
+        _mm512_add_pd(_mm512_set1_pd(offset), _mm512_mul_pd(_mm512_set1_pd(step), _mm512_cvtepi32_pd(x[g])));
+    const __m512d bg = _mm512_loadu_pd(background + 8 * g);
+    const __mmask8 pass =
+        _mm512_cmp_pd_mask(_mm512_sub_pd(bound, bg), _mm512_set1_pd(min_margin), _CMP_GT_OQ) &
+        _mm512_cmp_pd_mask(bound, _mm512_set1_pd(min_score), _CMP_GE_OQ);
+    bits |= static_cast<uint32_t>(pass) << (8 * g);
+  }
+  return bits;
+}
+
+// Screening of one class in `batches` (1 or 2) batches at once, 32 uint16 lanes a batch in one
+// register: one masked addition a stump and batch (the fire bits are the mask), a bound test at
+// every checkpoint (the class is dropped when no valid lane of any batch passes) and at the end.
+// Lane j of batch b is bit 32 b + j of the result.
+__attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(
+    const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
+    const double* const* background, double min_margin, double min_score, const uint32_t* valid) {
+  const ScreenView v(model, cls);
+  const uint32_t* fire0 = fire[0];
+  const uint32_t* fire1 = fire[batches > 1 ? 1 : 0];
+  __m512i acc0 = _mm512_setzero_si512(), acc1 = _mm512_setzero_si512();
+  for (int64_t e = 0, k = 0;; ++k) {
+    const int64_t stop = std::min(v.count, e + Model::kScreenCheck);
+    if (batches > 1) {
+      for (; e < stop; ++e) {
+        const uint32_t s = v.list[e];
+        const __m512i step_q = _mm512_set1_epi16(v.q[s]);
+        acc0 = _mm512_mask_add_epi16(acc0, static_cast<__mmask32>(fire0[s]), acc0, step_q);
+        acc1 = _mm512_mask_add_epi16(acc1, static_cast<__mmask32>(fire1[s]), acc1, step_q);
+      }
+    } else {
+      for (; e < stop; ++e) {
+        const uint32_t s = v.list[e];
+        acc0 = _mm512_mask_add_epi16(acc0, static_cast<__mmask32>(fire0[s]), acc0, _mm512_set1_epi16(v.q[s]));
+      }
+    }
+    const bool last = e == v.count;
+    const uint16_t low = v.low(k, last);
+    const int32_t add = v.add(k, last);
+    uint64_t bits = bound_bits_avx512(acc0, low, add, v.offset, v.step, background[0], min_margin, min_score) &
+                    valid[0];
+    if (batches > 1) {
+      bits |= static_cast<uint64_t>(bound_bits_avx512(acc1, low, add, v.offset, v.step, background[1],
+                                                      min_margin, min_score) & valid[1]) << 32;
+    }
+    if (last || bits == 0) return bits;
+  }
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 #endif
 
 #if defined(__x86_64__)
 const bool kHasAvx512 = (__builtin_cpu_init(), __builtin_cpu_supports("avx512f"));
+const bool kHasAvx512bw = (__builtin_cpu_init(), __builtin_cpu_supports("avx512bw"));
 #endif
+
+// Screening sums of stumps[0, count) added into sums (modulo 2^16) with 16-lane vectors: a lane
+// adds q where its fire bit is set (its bit of the broadcast mask ANDed with the lane's own bit).
+LMB_CLONES_AVX2 void add_screen_sums(const uint16_t* stumps, int64_t count, const int16_t* q,
+                                     const uint32_t* fire, uint16_t* sums) {
+  using Half = uint16_t __attribute__((vector_size(32), aligned(2)));
+  Half bit;
+  for (int32_t i = 0; i < 16; ++i) bit[i] = static_cast<uint16_t>(1u << i);
+  Half lo, hi;
+  std::memcpy(&lo, sums, sizeof(Half));
+  std::memcpy(&hi, sums + 16, sizeof(Half));
+  for (int64_t e = 0; e < count; ++e) {
+    const uint32_t s = stumps[e];
+    const uint32_t f = fire[s];
+    const Half v = Half{} + static_cast<uint16_t>(q[s]);
+    lo += reinterpret_cast<Half>((Half{} + static_cast<uint16_t>(f & 0xFFFF)) & bit) != 0 ? v : Half{};
+    hi += reinterpret_cast<Half>((Half{} + static_cast<uint16_t>(f >> 16)) & bit) != 0 ? v : Half{};
+  }
+  std::memcpy(sums, &lo, sizeof(Half));
+  std::memcpy(sums + 16, &hi, sizeof(Half));
+}
+
+// bound_bits_avx512 lane by lane.
+uint32_t bound_bits(const uint16_t* sums, uint16_t low, int32_t add, double offset, double step,
+                    const double* background, double min_margin, double min_score) {
+  uint32_t bits = 0;
+  for (int32_t j = 0; j < Classifier::kBatch; ++j) {
+    const int32_t x = static_cast<int32_t>(static_cast<uint16_t>(sums[j] - low)) + add;
+    const double bound = offset + step * static_cast<double>(x);
+    if (bound - background[j] > min_margin && bound >= min_score) bits |= 1u << j;
+  }
+  return bits;
+}
 
 }  // namespace
 
@@ -219,12 +392,60 @@ void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double
   accumulate_lanes_clones(bias1, stumps1, count1, dense, fire, out1);
 }
 
+void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense,
+                       const uint32_t* fire) {
+#if defined(__x86_64__)
+  if (kHasAvx512) {
+    for (int32_t i = 0; i < n; i += 4) accumulate_groups_avx512(items + i, std::min(4, n - i), dense, fire);
+    return;
+  }
+#endif
+  double lanes[Classifier::kBatch];
+  for (int32_t i = 0; i < n; ++i) {
+    accumulate_lanes_clones(items[i].bias, items[i].stumps, items[i].count, dense, fire, lanes);
+    std::memcpy(items[i].out, lanes + 8 * items[i].group, 8 * sizeof(double));
+  }
+}
+
+uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire,
+                              const double* background, double min_margin, double min_score,
+                              uint32_t valid) {
+  const ScreenView v(model, cls);
+  uint16_t sums[Classifier::kBatch] = {};
+  for (int64_t e = 0, k = 0;; ++k) {
+    const int64_t stop = std::min(v.count, e + Model::kScreenCheck);
+    add_screen_sums(v.list + e, stop - e, v.q, fire, sums);
+    e = stop;
+    const bool last = e == v.count;
+    const uint32_t bits =
+        bound_bits(sums, v.low(k, last), v.add(k, last), v.offset, v.step, background, min_margin, min_score) &
+        valid;
+    if (last || bits == 0) return bits;
+  }
+}
+
+uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
+                      const double* const* background, double min_margin, double min_score,
+                      const uint32_t* valid) {
+#if defined(__x86_64__)
+  if (kHasAvx512bw) {
+    return screen_class_avx512(model, cls, batches, fire, background, min_margin, min_score, valid);
+  }
+#endif
+  uint64_t bits = 0;
+  for (int32_t b = 0; b < batches; ++b) {
+    bits |= static_cast<uint64_t>(screen_class_generic(model, cls, fire[b], background[b], min_margin,
+                                                       min_score, valid[b])) << (32 * b);
+  }
+  return bits;
+}
+
 }  // namespace detail
 
 namespace {
 
 // Whether any of the kBatch lanes passes offer()'s tests with the cutoff one relaxed to >= (as
-// score_batch's scalar loop): most classes pass in no lane. Lanes past the batch's count may
+// finish_batch's scalar loop): most classes pass in no lane. Lanes past the batch's count may
 // pass spuriously; the scalar loop skips them.
 LMB_CLONES_AVX2 bool any_lane_passes(const double* score, const double* background,
                                      const double* cutoff, double min_margin, double min_score) {
@@ -264,52 +485,131 @@ void Classifier::offer(int32_t j, int32_t cls, double score, double bg) {
   }
 }
 
-void Classifier::score_batch(const int32_t* ids, int32_t count, const int32_t* classes, int32_t num,
-                             const int32_t* lists) {
+void Classifier::prepare_batch(int32_t b) {
   const Model& m = *model_;
   // Fire masks of every stump (stale value rows of lanes >= count, or of dims the word does not
   // need, give bits no scored class reads).
   const std::vector<Model::DenseStump>& stumps = m.dense_stumps();
-  detail::fire_masks(stumps.data(), stumps.size(), values_.data(), fire_.data());
+  const size_t M = stumps.size();
+  if (fire_.size() < (b + 1) * M) fire_.resize((b + 1) * M);
+  if (background_.size() < static_cast<size_t>(b + 1) * kBatch) background_.resize(static_cast<size_t>(b + 1) * kBatch);
+  uint32_t* fire = fire_.data() + b * M;
+  detail::fire_masks(stumps.data(), M, values_.data(), fire);
+  const int64_t* begin = m.class_stump_begin().data();
+  const int32_t C = m.num_classes();
+  detail::accumulate_lanes(m.data().bias[C], m.class_stump_index().data() + begin[C], begin[C + 1] - begin[C],
+                           stumps.data(), fire, background_.data() + static_cast<size_t>(b) * kBatch);
+}
+
+namespace {
+constexpr int32_t kScreenProbe = 64;
+}  // namespace
+
+void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints) {
+  const Model& m = *model_;
+  const size_t M = m.dense_stumps().size();
+  if (kept_.size() < static_cast<size_t>(batches)) kept_.resize(static_cast<size_t>(batches));
+  for (int32_t b = 0; b < batches; ++b) kept_[b].clear();
+  if (!options_.screening) {
+    for (int32_t b = 0; b < batches; ++b) {
+      for (int32_t i = 0; i < num; ++i) kept_[b].push_back({classes[i], ~0u});
+    }
+    classes_screened_ += static_cast<int64_t>(num) * batches;
+    classes_scored_ += static_cast<int64_t>(num) * batches;
+    return;
+  }
+  // Class by class over the word's batches, two at a time: a class's screening list is read once
+  // for two batches. The cutoff test of offer() is left out (the cutoff starts at -inf).
+  for (int32_t b = 0; b < batches; b += 2) {
+    const int32_t pair = std::min(2, batches - b);
+    const uint32_t* fire[2] = {fire_.data() + b * M, fire_.data() + (b + pair - 1) * M};
+    const double* background[2] = {background_.data() + static_cast<size_t>(b) * kBatch,
+                                   background_.data() + static_cast<size_t>(b + pair - 1) * kBatch};
+    uint32_t valid[2];
+    for (int32_t h = 0; h < pair; ++h) {
+      const int32_t count = std::min(kBatch, keypoints - (b + h) * kBatch);
+      valid[h] = count == kBatch ? ~0u : (1u << count) - 1;
+    }
+    // When the screening keeps most classes (a background that rarely wins), it only costs: after
+    // kScreenProbe classes with more than 3/4 of them kept, the rest are kept unscreened.
+    int32_t kept_count = 0;
+    for (int32_t i = 0; i < num; ++i) {
+      uint64_t bits = ~0ull;
+      if (i < kScreenProbe || 4 * kept_count <= 3 * i) {
+        bits = detail::screen_class(m, classes[i], pair, fire, background, options_.min_margin,
+                                    options_.min_score, valid);
+      }
+      kept_count += bits != 0;
+      if (bits & 0xFFFFFFFFull) kept_[b].push_back({classes[i], static_cast<uint32_t>(bits)});
+      if (pair > 1 && (bits >> 32)) kept_[b + 1].push_back({classes[i], static_cast<uint32_t>(bits >> 32)});
+    }
+  }
+  classes_screened_ += static_cast<int64_t>(num) * batches;
+  for (int32_t b = 0; b < batches; ++b) classes_scored_ += static_cast<int64_t>(kept_[b].size());
+}
+
+void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
+  const Model& m = *model_;
+  const std::vector<Model::DenseStump>& stumps = m.dense_stumps();
+  const uint32_t* fire = fire_.data() + b * stumps.size();
+  const double* background = background_.data() + static_cast<size_t>(b) * kBatch;
   const std::vector<double>& bias = m.data().bias;
   const int64_t* begin = m.class_stump_begin().data();
   const int32_t* index = m.class_stump_index().data();
-  const int32_t C = m.num_classes();
-  detail::accumulate_lanes(bias[C], index + begin[C], begin[C + 1] - begin[C], stumps.data(),
-                           fire_.data(), background_.data());
   for (int32_t j = 0; j < count; ++j) {
     lanes_[j].clear();
     cutoff_[j] = {-std::numeric_limits<double>::infinity(), std::numeric_limits<int32_t>::max()};
     cutoff_score_[j] = cutoff_[j].score;
   }
-  // Two classes at a time (two independent chains of additions), offered in class order. Their
-  // stump lists follow each other in `lists`.
-  for (int32_t i = 0; i < num; i += 2) {
-    const int32_t c0 = classes[i], c1 = i + 1 < num ? classes[i + 1] : -1;
-    const int64_t n0 = begin[c0 + 1] - begin[c0];
-    if (c1 >= 0) {
-      const int64_t n1 = begin[c1 + 1] - begin[c1];
-      detail::accumulate_two(bias[c0], lists, n0, bias[c1], lists + n0, n1, stumps.data(),
-                             fire_.data(), class_out_.data(), class_out_.data() + kBatch);
-      lists += n0 + n1;
+  // The classes kept by the screening: their exact scores in the 8-lane groups where some lane
+  // passed the screening (four groups at a time); lanes of the other groups cannot pass and get
+  // -inf. Then offered in class order.
+  const std::vector<Kept>& kept = kept_[b];
+  const int32_t num = static_cast<int32_t>(kept.size());
+  if (kept_out_.size() < static_cast<size_t>(num) * kBatch) kept_out_.resize(static_cast<size_t>(num) * kBatch);
+  // Classes kept in all four groups go two at a time through accumulate_two.
+  groups_.clear();
+  int32_t waiting = -1;  // a class kept in all four groups, waiting for a second one
+  for (int32_t i = 0; i < num; ++i) {
+    const int32_t c = kept[i].cls;
+    double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
+    bool all = true;
+    for (int32_t v = 0; v < kBatch / 8; ++v) all = all && ((kept[i].lanes >> (8 * v)) & 0xFFu) != 0;
+    if (all && waiting < 0) {
+      waiting = i;
+    } else if (all) {
+      const int32_t c0 = kept[waiting].cls;
+      detail::accumulate_two(bias[c0], index + begin[c0], begin[c0 + 1] - begin[c0], bias[c], index + begin[c],
+                             begin[c + 1] - begin[c], stumps.data(), fire,
+                             kept_out_.data() + static_cast<size_t>(waiting) * kBatch, out);
+      waiting = -1;
     } else {
-      detail::accumulate_lanes(bias[c0], lists, n0, stumps.data(), fire_.data(),
-                               class_out_.data());
-      lists += n0;
-    }
-    for (int32_t h = 0; h < (c1 >= 0 ? 2 : 1); ++h) {
-      const int32_t c = h == 0 ? c0 : c1;
-      const double* out = class_out_.data() + h * kBatch;
-      if (!any_lane_passes(out, background_.data(), cutoff_score_.data(), options_.min_margin,
-                           options_.min_score)) {
-        continue;
-      }
-      for (int32_t j = 0; j < count; ++j) {
-        // offer()'s tests, the cutoff one relaxed to >= (inline: most classes fail here).
-        const double s = out[j];
-        if (s - background_[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
-          offer(j, c, s, background_[j]);
+      for (int32_t v = 0; v < kBatch / 8; ++v) {
+        if ((kept[i].lanes >> (8 * v)) & 0xFFu) {
+          groups_.push_back({bias[c], index + begin[c], begin[c + 1] - begin[c], v, out + 8 * v});
+        } else {
+          std::fill(out + 8 * v, out + 8 * v + 8, -std::numeric_limits<double>::infinity());
         }
+      }
+    }
+  }
+  if (waiting >= 0) {
+    const int32_t c0 = kept[waiting].cls;
+    detail::accumulate_lanes(bias[c0], index + begin[c0], begin[c0 + 1] - begin[c0], stumps.data(), fire,
+                             kept_out_.data() + static_cast<size_t>(waiting) * kBatch);
+  }
+  detail::accumulate_groups(groups_.data(), static_cast<int32_t>(groups_.size()), stumps.data(), fire);
+  for (int32_t i = 0; i < num; ++i) {
+    const int32_t c = kept[i].cls;
+    const double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
+    if (!any_lane_passes(out, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {
+      continue;
+    }
+    for (int32_t j = 0; j < count; ++j) {
+      // offer()'s tests, the cutoff one relaxed to >= (inline: most classes fail here).
+      const double s = out[j];
+      if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
+        offer(j, c, s, background[j]);
       }
     }
   }
@@ -325,7 +625,7 @@ void Classifier::score_batch(const int32_t* ids, int32_t count, const int32_t* c
       match.cls = lane[i].cls;
       match.landmark = m.class_landmark(match.cls);
       match.score = lane[i].score;
-      match.background_score = background_[j];
+      match.background_score = background[j];
       pending_.emplace_back(ids[j], match);
     }
   }
@@ -360,13 +660,16 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   for (int32_t g = 0; g < groups; ++g) {
     const int32_t* classes = all_classes_.data();
     int32_t num = m.num_classes();
-    const int32_t* lists = m.class_stump_index().data();  // classes 0..C-1 are consecutive
     if (inverted) {
       classes = m.word_classes().data() + m.word_class_begin()[g];
       num = m.word_class_begin()[g + 1] - m.word_class_begin()[g];
-      lists = m.word_stream().data() + m.word_stream_begin()[g];
     }
-    for (int32_t b = word_begin_[g]; b < word_begin_[g + 1]; b += kBatch) {
+    // The group's batches: values, fire masks and background scores of each, then the screening
+    // of every candidate class over all of them, then each batch's exact scores and ranking.
+    const int32_t keypoints = word_begin_[g + 1] - word_begin_[g];
+    const int32_t batches = (keypoints + kBatch - 1) / kBatch;
+    for (int32_t batch = 0; batch < batches; ++batch) {
+      const int32_t b = word_begin_[g] + batch * kBatch;
       const int32_t count = std::min(kBatch, word_begin_[g + 1] - b);
       if (embedding_ms) t0 = Clock::now();
       for (int32_t j = 0; j < count; ++j) {
@@ -385,7 +688,12 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
         for (int32_t i = 0; i < u1 - u0; ++i) lane[used[i] * kBatch] = word_values_[i];
       }
       if (embedding_ms) embedding += Clock::now() - t0;
-      score_batch(order_.data() + b, count, classes, num, lists);
+      prepare_batch(batch);
+    }
+    screen_word(classes, num, batches, keypoints);
+    for (int32_t batch = 0; batch < batches; ++batch) {
+      const int32_t b = word_begin_[g] + batch * kBatch;
+      finish_batch(order_.data() + b, std::min(kBatch, word_begin_[g + 1] - b), batch);
     }
   }
 

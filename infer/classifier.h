@@ -7,12 +7,22 @@
 //                   observations quantize to the same word) and the background; only the dims
 //                   those classes read are computed.
 // classify() works on batches of kBatch keypoints of the same word: which stumps fire in which
-// lane is tabulated once for the batch (one 32-bit mask a stump: the table stays in L1), then
-// each class's score is summed over its own stump list for the whole batch at once (kBatch
-// independent lanes, SIMD; each lane adds the stump's above or below double as its bit selects).
-// Every score is summed in training order with the same doubles as the trainer's
+// lane is tabulated once for the batch (one 32-bit mask a stump: the table stays in L1). Each
+// candidate class is first screened (below), for two batches of the word at a time; a class kept
+// in some lane is then summed exactly over its own stump list in the 8-lane groups of the batch
+// where its screening passed (SIMD; each lane adds the stump's above or below double as its bit
+// selects). Every score is summed in training order with the same doubles as the trainer's
 // BoostModel::scores, so a class's score is bit-identical in both modes, in dense_scores() and
 // class_score(), and to the trainer's.
+//
+// Screening (on by default, ClassifierOptions::screening): each candidate class gets an upper
+// bound of its score in every lane from one 16-bit masked addition a stump (32 lanes in one
+// AVX-512 register; Model::screen_step), its stumps taken by decreasing step, with a bound on the
+// rest at every Model::kScreenCheck stumps; a class whose bound fails the ranking tests below in
+// every lane (most classes: their scores lie well below the background's) is skipped there. The
+// bound is rigorous (model.cc), so the matches are exactly those of the unscreened path. When a
+// word's first classes are nearly all kept (a background that rarely wins), the rest of the word
+// is scored without screening.
 //
 // Ranking and rejection: the landmark classes (never the background) whose score exceeds the
 // background's score by more than min_margin and is at least min_score, best first (ties: smaller
@@ -43,6 +53,11 @@ struct LMB_INFER_EXPORT ClassifierOptions {
   double min_margin = 0.0;
   // ... and is at least this (-inf = no bound).
   double min_score = -std::numeric_limits<double>::infinity();
+  // Screening: a class is scored exactly only when the upper bound of its score from 16-bit sums
+  // (Model::screen_step) could pass the tests above in some lane of the batch. The matches are
+  // the same either way (the bound is never below the exact score); false = score every class
+  // exactly (tests, benchmarks).
+  bool screening = true;
 
   // Throws lmb::Error naming the field.
   void check() const;
@@ -66,6 +81,17 @@ struct KeypointMatches {
   int32_t count(int32_t k) const { return begin[k + 1] - begin[k]; }
   const ClassMatch* of(int32_t k) const { return matches.data() + begin[k]; }
 };
+
+namespace detail {
+// One class's exact sum in one 8-lane group of a batch (accumulate_groups).
+struct GroupItem {
+  double bias;
+  const int32_t* stumps;  // the class's stump list (class_stump_index() entries)
+  int64_t count;
+  int32_t group;          // lanes 8 group .. 8 group + 7
+  double* out;            // 8 sums
+};
+}  // namespace detail
 
 class LMB_INFER_EXPORT Classifier {
  public:
@@ -94,6 +120,10 @@ class LMB_INFER_EXPORT Classifier {
 
   const Model& model() const { return *model_; }
   const ClassifierOptions& options() const { return options_; }
+  // Candidate classes offered to batches since construction (one per class and batch), and how
+  // many of them were scored exactly (the rest were skipped by the screening).
+  int64_t classes_screened() const { return classes_screened_; }
+  int64_t classes_scored() const { return classes_scored_; }
 
  private:
   // A ranked candidate while a batch is scored.
@@ -101,12 +131,15 @@ class LMB_INFER_EXPORT Classifier {
     double score;
     int32_t cls;
   };
-  // Scores one batch of keypoints `ids` (count <= kBatch) against `classes` (ascending, num of
-  // them), whose stump lists follow each other from `lists`, and the background; values_ holds
-  // their used-dim values. Appends every keypoint's ranked matches to pending_ as (keypoint,
-  // match).
-  void score_batch(const int32_t* ids, int32_t count, const int32_t* classes, int32_t num,
-                   const int32_t* lists);
+  // The steps of one group of keypoints (a word's, or all): prepare_batch(b) computes batch b's
+  // fire masks (from values_) and background scores; screen_word lists in kept_[b] the classes
+  // (of `classes`, ascending, num of them) that pass the screening in some lane of batch b
+  // (`batches` batches, `keypoints` keypoints); finish_batch scores batch b's kept classes
+  // exactly and appends its keypoints' (`ids`, count of them) ranked matches to pending_ as
+  // (keypoint, match).
+  void prepare_batch(int32_t b);
+  void screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints);
+  void finish_batch(const int32_t* ids, int32_t count, int32_t b);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
   void offer(int32_t j, int32_t cls, double score, double bg);
 
@@ -115,15 +148,23 @@ class LMB_INFER_EXPORT Classifier {
   FrameContext context_;
   std::vector<uint8_t> values_;       // used_dims().size() rows of kBatch lanes (dim-major)
   std::vector<uint8_t> word_values_;  // one keypoint's values of its word's (or all used) dims
-  std::vector<uint32_t> fire_;        // per stump: bit j = the stump fires in lane j
+  std::vector<uint32_t> fire_;        // per batch of the group, per stump: bit j = fires in lane j
   std::vector<double> class_out_;     // kBatch scores of one class
-  std::vector<double> background_;    // kBatch background scores
+  struct Kept {
+    int32_t cls;
+    uint32_t lanes;  // lanes where its screening bound passed
+  };
+  std::vector<std::vector<Kept>> kept_;  // per batch of the group: classes kept by screening
+  std::vector<double> kept_out_;         // kBatch exact scores of each kept class of a batch
+  std::vector<detail::GroupItem> groups_;
+  std::vector<double> background_;    // per batch of the group: kBatch background scores
   std::vector<int32_t> all_classes_;  // 0..C-1
   std::vector<std::vector<Candidate>> lanes_;  // per lane: passing candidates (pruned to top_k)
   std::vector<Candidate> cutoff_;              // per lane: worst kept once pruned
   std::vector<double> cutoff_score_;           // per lane: cutoff_[j].score
   std::vector<int32_t> order_, word_begin_;    // keypoints grouped by word
   std::vector<std::pair<int32_t, ClassMatch>> pending_;
+  int64_t classes_screened_ = 0, classes_scored_ = 0;
 };
 
 namespace detail {
@@ -143,6 +184,23 @@ void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count,
 void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1,
                     const int32_t* stumps1, int64_t count1, const Model::DenseStump* dense,
                     const uint32_t* fire, double* out0, double* out1);
+// Screening of class `cls` (Model::screen_step, its screening list and checkpoints) in
+// `batches` (1 or 2) batches at once: bit 32 b + j of the result is set when lane j of batch b is
+// valid (bit j of valid[b]) and the class's score bound from the fire masks fire[b] passes
+// offer()'s margin and min-score tests against background[b][j]; 0 as soon as a checkpoint's bound
+// fails in every valid lane. AVX-512BW where the CPU has it, else screen_class_generic (AVX2 or
+// baseline clone) batch by batch; both give the same bits.
+// The exact sums of n items: out[l] = bias + the outputs of the item's stumps in lane
+// 8 group + l, added in list order (the same doubles as accumulate_lanes); AVX-512 four items
+// at a time where the CPU has it, else accumulate_lanes_generic's clone.
+void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense,
+                       const uint32_t* fire);
+uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
+                      const double* const* background, double min_margin, double min_score,
+                      const uint32_t* valid);
+uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire,
+                              const double* background, double min_margin, double min_score,
+                              uint32_t valid);
 }  // namespace detail
 
 }  // namespace lmb

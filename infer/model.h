@@ -150,11 +150,38 @@ class LMB_INFER_EXPORT Model {
   const std::vector<int32_t>& word_used_dims() const { return word_used_dims_; }
   // Word w's used dims prepared for FrameContext::compute_dims.
   const DimPlan& word_plan(int32_t w) const { return word_plans_[w]; }
-  // Word w's candidate classes' stump lists (class_stump_index() entries) one after the other, in
-  // the order of word_classes(), from word_stream_begin()[w]: the batched classifier reads them
-  // as one sequential stream.
-  const std::vector<int64_t>& word_stream_begin() const { return word_stream_begin_; }  // W + 1
-  const std::vector<int32_t>& word_stream() const { return word_stream_; }
+
+  // Screening (an upper bound of a landmark class's score from 16-bit integer sums, so that the
+  // classifier skips, without computing its exact score, a class that cannot be a match):
+  //   stump m's step a_m = above - below is rounded to q_m = round(a_m / step), step a power of
+  //   two chosen so that |q_m| <= 32767 and each class's sum of |q_m| <= 65535;
+  //   Q = sum over the class's stumps of (fires ? q_m : 0), summed modulo 2^16 (uint16 lanes),
+  //   is recovered from its residue t = (Q - low_c) mod 2^16 because Q lies in
+  //   [low_c, low_c + 65535] (low_c = sum of the negative q_m);
+  //   bound = offset_c + step * t >= the class's exact score (the double the trainer sums) for
+  //   every input, where offset_c = bias_c + sum of below_m + sum of max(0, a_m - step * q_m)
+  //   + step * low_c + a margin covering every rounding error (model.cc proves it).
+  // The integer sum does not depend on the order, so each class's screening list holds its stumps
+  // by decreasing |q_m| (ties: training order), as uint16 stump indices (screening needs
+  // M <= 65536 stumps; with more, every bound is +inf and every class is scored exactly).
+  // Checkpoints, after every kScreenCheck entries of that list (k = 1, 2, ... while entries
+  // remain): the sum Q_k of the first k kScreenCheck entries is recovered likewise from its
+  // residue t_k = (Q_k - low_ck) mod 2^16 (low_ck = the sum of their negative q_m), and
+  //   bound_k = offset_c + step * (t_k + add_ck) >= the class's exact score, where
+  //   add_ck = low_ck - low_c + the sum of the positive q_m of the remaining entries;
+  // a class whose bound_k already fails in every lane is dropped there.
+  static constexpr int32_t kScreenCheck = 32;
+  double screen_step() const { return screen_step_; }
+  const std::vector<int16_t>& screen_q() const { return screen_q_; }            // M
+  const std::vector<double>& screen_offset() const { return screen_offset_; }   // C
+  const std::vector<uint16_t>& screen_low() const { return screen_low_; }       // C: low_c mod 2^16
+  // Class c's screening list: entries [class_stump_begin()[c], class_stump_begin()[c + 1]).
+  const std::vector<uint16_t>& screen_list() const { return screen_list_; }
+  // Class c's checkpoints are entries [screen_check_begin()[c], screen_check_begin()[c + 1]) of
+  // screen_check_low() (low_ck mod 2^16) and screen_check_add() (add_ck).
+  const std::vector<int64_t>& screen_check_begin() const { return screen_check_begin_; }  // C + 1
+  const std::vector<uint16_t>& screen_check_low() const { return screen_check_low_; }
+  const std::vector<int32_t>& screen_check_add() const { return screen_check_add_; }
 
  private:
   ModelData data_;
@@ -173,8 +200,16 @@ class LMB_INFER_EXPORT Model {
   std::vector<int32_t> word_used_dims_;
   DimPlan used_plan_;
   std::vector<DimPlan> word_plans_;
-  std::vector<int64_t> word_stream_begin_;
-  std::vector<int32_t> word_stream_;
+  double screen_step_ = 1.0;
+  std::vector<int16_t> screen_q_;
+  std::vector<double> screen_offset_;
+  std::vector<uint16_t> screen_low_;
+  std::vector<uint16_t> screen_list_;
+  std::vector<int64_t> screen_check_begin_;
+  std::vector<uint16_t> screen_check_low_;
+  std::vector<int32_t> screen_check_add_;
+
+  void build_screen();
 };
 
 namespace detail {

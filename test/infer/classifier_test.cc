@@ -3,6 +3,7 @@
 #include "infer/classifier.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -240,6 +241,18 @@ TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
     detail::accumulate_lanes_generic(bias0, list0.data(), n0, stumps.data(), fire.data(), g.data());
     detail::accumulate_two(bias0, list0.data(), n0, bias1, list1.data(), n1, stumps.data(),
                            fire.data(), p0.data(), p1.data());
+    // accumulate_groups: five items (a group of list0, all four of list1), each 8 lanes.
+    std::vector<double> grouped(5 * 8);
+    const int32_t group0 = trial % 4;
+    std::vector<detail::GroupItem> items = {{bias0, list0.data(), n0, group0, grouped.data()}};
+    for (int32_t v = 0; v < 4; ++v) items.push_back({bias1, list1.data(), n1, v, grouped.data() + 8 * (v + 1)});
+    detail::accumulate_groups(items.data(), static_cast<int32_t>(items.size()), stumps.data(), fire.data());
+    for (int32_t l = 0; l < 8; ++l) {
+      ASSERT_EQ(grouped[l], reference(bias0, list0, 8 * group0 + l)) << "trial " << trial << " lane " << l;
+      for (int32_t v = 0; v < 4; ++v) {
+        ASSERT_EQ(grouped[8 * (v + 1) + l], reference(bias1, list1, 8 * v + l)) << "trial " << trial;
+      }
+    }
     for (int32_t j = 0; j < B; ++j) {
       const double r0 = reference(bias0, list0, j);
       ASSERT_EQ(a[j], r0) << "trial " << trial << " lane " << j;
@@ -247,6 +260,133 @@ TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
       ASSERT_EQ(p0[j], r0) << "trial " << trial << " lane " << j;
       ASSERT_EQ(p1[j], reference(bias1, list1, j)) << "trial " << trial << " lane " << j;
     }
+  }
+}
+
+// Screening bounds (Model::build_screen, detail::screen_class) on models of ordinary and of
+// adversarial scales (outputs from 1e-9 to 1e6 mixed, large biases; lists longer than several
+// checkpoints): with each lane's background just below the class's exact score (so the exact
+// score passes the margin test by the smallest step), the screening must keep every valid lane,
+// through every checkpoint; with the background well above, it must drop the class (the bound is
+// tight enough to matter); the AVX-512 and generic kernels return the same bits.
+TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
+  constexpr int32_t B = Classifier::kBatch;
+  for (int scale = 0; scale < 3; ++scale) {
+    ModelData data = random_model_data(40, 700, 30 + scale);
+    Rng rng(40 + scale);
+    if (scale == 1) {
+      for (ModelStump& s : data.stumps) {
+        const double magnitude = std::pow(10.0, rng.uniform(-9, 6));
+        s.a *= magnitude;
+        s.b *= magnitude;
+      }
+      for (double& b : data.bias) b *= 1e6;
+    } else if (scale == 2) {
+      for (ModelStump& s : data.stumps) s.a = 1e-3 * std::nearbyint(1000 * s.a);  // ties of q rounding
+      // A huge background-only stump: not screened, so it must not coarsen the step.
+      ModelStump huge = data.stumps.front();
+      huge.a = 1e300;
+      huge.classes = {data.num_classes};
+      data.stumps.push_back(huge);
+    }
+    const Model model(std::move(data));
+    if (scale == 2) {
+      EXPECT_LT(model.screen_step(), 1e-2);
+    }
+    ASSERT_GT(model.screen_check_low().size(), 0u) << "scale " << scale << ": no checkpoints";
+    const size_t M = model.dense_stumps().size();
+    std::vector<uint32_t> fire0(M), fire1(M);
+    const double inf = std::numeric_limits<double>::infinity();
+    int dropped = 0, trials = 0;
+    for (int trial = 0; trial < 20; ++trial) {
+      for (uint32_t& f : fire0) f = static_cast<uint32_t>(rng.next());
+      for (uint32_t& f : fire1) f = static_cast<uint32_t>(rng.next());
+      const uint32_t valid[2] = {~0u, trial % 4 == 0 ? (1u << (1 + trial % 31)) - 1 : ~0u};
+      const uint64_t valid2 = valid[0] | static_cast<uint64_t>(valid[1]) << 32;
+      const uint32_t* fire[2] = {fire0.data(), fire1.data()};
+      for (int32_t c = 0; c < model.num_classes(); ++c) {
+        const int32_t* list = model.class_stump_index().data() + model.class_stump_begin()[c];
+        const int64_t n = model.class_stump_begin()[c + 1] - model.class_stump_begin()[c];
+        std::vector<double> below(2 * B), above(2 * B), exact(2 * B);
+        for (int32_t b = 0; b < 2; ++b) {
+          detail::accumulate_lanes_generic(model.data().bias[c], list, n, model.dense_stumps().data(),
+                                           fire[b], exact.data() + b * B);
+        }
+        for (int32_t j = 0; j < 2 * B; ++j) {
+          below[j] = std::nextafter(exact[j], -inf);
+          above[j] = exact[j] + 1.0 + 1e-3 * std::fabs(exact[j]);
+        }
+        const double* low_bg[2] = {below.data(), below.data() + B};
+        const double* high_bg[2] = {above.data(), above.data() + B};
+        // Kept in every valid lane of both batches, and of each batch alone.
+        const uint64_t kept = detail::screen_class(model, c, 2, fire, low_bg, 0.0, -inf, valid);
+        ASSERT_EQ(kept, valid2) << "scale " << scale << " class " << c << " trial " << trial;
+        for (int32_t b = 0; b < 2; ++b) {
+          ASSERT_EQ(detail::screen_class(model, c, 1, fire + b, low_bg + b, 0.0, -inf, valid + b), valid[b]);
+          ASSERT_EQ(detail::screen_class_generic(model, c, fire[b], low_bg[b], 0.0, -inf, valid[b]), valid[b]);
+        }
+        // min_score: the exact score itself passes score >= min_score.
+        const uint32_t one = 1;
+        ASSERT_EQ(detail::screen_class(model, c, 1, fire, low_bg, -inf, exact[0], &one), 1u);
+        const uint64_t high = detail::screen_class(model, c, 2, fire, high_bg, 0.0, -inf, valid);
+        const uint64_t generic =
+            detail::screen_class_generic(model, c, fire[0], high_bg[0], 0.0, -inf, valid[0]) |
+            static_cast<uint64_t>(detail::screen_class_generic(model, c, fire[1], high_bg[1], 0.0, -inf, valid[1])) << 32;
+        // (A batch's bound only falls from checkpoint to checkpoint: the pair gives each batch's
+        // own bits.)
+        ASSERT_EQ(high, generic);
+        dropped += high == 0;
+        ++trials;
+      }
+    }
+    if (scale != 1) {
+      EXPECT_GT(dropped, trials * 9 / 10) << "scale " << scale;
+    }
+  }
+}
+
+// classify() with screening equals classify() without, match for match, on a model where the
+// background outscores most classes (so that the screening skips most of them) and on one where
+// it rarely wins (the screening stops after its probe and keeps nearly everything).
+TEST(Screening, ClassifyEqualsTheUnscreenedPath) {
+  for (double shift : {16.0, -16.0}) {
+    ModelData data = random_model_data(300, 400, 31);
+    data.bias[300] += shift;
+    const auto model = std::make_shared<const Model>(std::move(data));
+    const test::TestWorld world = test::make_test_world(300, 150, 150, 7);
+    std::vector<uint8_t> words;
+    const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
+    for (int top_k : {1, 5}) {
+      for (double margin : {0.0, -6.0, -std::numeric_limits<double>::infinity()}) {
+        for (bool inverted : {false, true}) {
+          ClassifierOptions o;
+          o.top_k = top_k;
+          o.min_margin = margin;
+          o.use_inverted_file = inverted;
+          Classifier screened(model, o);
+          o.screening = false;
+          Classifier plain(model, o);
+          const KeypointMatches a = screened.classify(frame, world.frame.descriptors.data());
+          const KeypointMatches b = plain.classify(frame, world.frame.descriptors.data());
+          ASSERT_EQ(a.begin, b.begin);
+          for (size_t i = 0; i < a.matches.size(); ++i) {
+            EXPECT_EQ(a.matches[i].cls, b.matches[i].cls);
+            EXPECT_EQ(a.matches[i].score, b.matches[i].score);
+            EXPECT_EQ(a.matches[i].background_score, b.matches[i].background_score);
+          }
+          EXPECT_GT(a.matches.size(), 0u) << "top_k " << top_k << " margin " << margin;
+          EXPECT_EQ(plain.classes_scored(), plain.classes_screened());
+          EXPECT_GT(screened.classes_scored(), 0);
+          if (margin == 0.0 && shift > 0) {
+            EXPECT_LT(screened.classes_scored(), screened.classes_screened() / 2) << "top_k " << top_k;
+          }
+          if (shift < 0) {
+            EXPECT_GT(4 * screened.classes_scored(), 3 * screened.classes_screened());
+          }
+        }
+      }
+    }
+    EXPECT_GT(expect_classify_matches_reference(model, world.frame, ClassifierOptions{}), 0);
   }
 }
 

@@ -216,10 +216,15 @@ void run_bench_infer(const BenchInferArgs& a) {
   // quantization, keypoint normalization, the frame index and every keypoint's word-plan dims;
   // scoring = classify() minus its own index and dims; pose = estimate_absolute_pose on the
   // localizer's correspondences.
-  double stage_embedding = 0, stage_scoring = 0, stage_pose = 0;
+  // Also the scoring without screening (ClassifierOptions::screening = false), for the ratio.
+  double stage_embedding = 0, stage_scoring = 0, stage_pose = 0, stage_unscreened = 0;
+  double scored_share = 0;
   {
     FrameContext context(model->regions(), model->num_words());
     Classifier classifier(model, inverted_options.classifier);
+    ClassifierOptions unscreened_options = inverted_options.classifier;
+    unscreened_options.screening = false;
+    Classifier unscreened(model, unscreened_options);
     std::vector<uint8_t> values(model->used_dims().size());
     for (int rep = 0; rep < a.repeats; ++rep) {
       for (const BenchFrame& f : frames) {
@@ -239,6 +244,8 @@ void run_bench_infer(const BenchInferArgs& a) {
         const double t2 = thread_cpu_ms();
         checksum += static_cast<int64_t>(classifier.classify(fk, desc).matches.size());
         const double t3 = thread_cpu_ms();
+        checksum += static_cast<int64_t>(unscreened.classify(fk, desc).matches.size());
+        stage_unscreened += thread_cpu_ms() - t3 - (t2 - t1);
         std::vector<Eigen::Vector2d> pixels;
         std::vector<Eigen::Vector3d> points;
         for (size_t i = 0; i < r.correspondence_keypoint.size(); ++i) {
@@ -254,6 +261,8 @@ void run_bench_infer(const BenchInferArgs& a) {
         stage_pose += t5 - t4;
       }
     }
+    scored_share = static_cast<double>(classifier.classes_scored()) /
+                   static_cast<double>(std::max<int64_t>(1, classifier.classes_screened()));
   }
   // The unbatched path (one keypoint at a time: Classifier::dense_scores, and class_score over the
   // word's candidates), on the first frame, for the speed-up of the batched classify().
@@ -318,6 +327,9 @@ void run_bench_infer(const BenchInferArgs& a) {
   std::printf("  thread CPU time a frame by stage, inverted file (each stage run on its own): embedding %.2f ms, "
               "scoring %.2f ms, pose %.2f ms\n",
               stage_embedding / nr, stage_scoring / nr, stage_pose / nr);
+  std::printf("  screening: %.2f%% of the candidate classes scored exactly; scoring without screening %.2f ms "
+              "(%.1fx)\n",
+              100.0 * scored_share, stage_unscreened / nr, stage_unscreened / stage_scoring);
   std::printf("  matching (embedding + classification) / BFMatcher 1-NN: dense %.4f (1/%.1f), inverted file %.4f "
               "(1/%.1f) (checksum %lld)\n",
               match_dense / (bf_ms / nr), bf_ms / nr / match_dense, match_inverted / (bf_ms / nr),
@@ -343,7 +355,9 @@ void run_bench_infer(const BenchInferArgs& a) {
                                     {"bfmatcher", bf_cpu_ms / nr},
                                     {"inverted_file_stages", {{"embedding", stage_embedding / nr},
                                                               {"scoring", stage_scoring / nr},
-                                                              {"pose", stage_pose / nr}}}}},
+                                                              {"pose", stage_pose / nr},
+                                                              {"scoring_unscreened", stage_unscreened / nr}}}}},
+                        {"screening_scored_share", scored_share},
                         {"unbatched_scoring_ms", {{"dense", unbatched_dense_ms}, {"inverted_file", unbatched_inverted_ms}}},
                         {"bfmatcher_ms", bf_ms / nr},
                         {"bfmatcher_knn2_ms", bf_knn_ms / nr},
