@@ -160,12 +160,10 @@ SerialStumpLearner::DimLayout SerialStumpLearner::make_layout(const uint8_t* col
 void SerialStumpLearner::build_layouts() {
   const int32_t n = features_.num_stored_columns();
   layouts_.resize(static_cast<size_t>(n));
-  usable_.assign(static_cast<size_t>(n), 0);
   int32_t num_usable = 0;
   for (int32_t i = 0; i < n; ++i) {
     layouts_[i] = make_layout(features_.column(i));
-    usable_[i] = !layouts_[i].thresholds.empty();
-    num_usable += usable_[i];
+    num_usable += !layouts_[i].thresholds.empty();
   }
   LMB_CHECK(n == 0 || num_usable > 0, "features: all " << n
                                           << " stored columns are constant; no stump can split them");
@@ -868,7 +866,11 @@ void SerialStumpLearner::lend_column(int32_t dim, std::vector<uint8_t> packed) {
 int SerialStumpLearner::screening_kind(int32_t dim) const {
   const int32_t stored = stored_index(dim);
   LMB_CHECK(stored >= 0, "boost: screening_kind of dim " << dim << ", not stored here");
-  const size_t T = layouts_[stored].thresholds.size();
+  return layout_kind(layouts_[stored]);
+}
+
+int SerialStumpLearner::layout_kind(const DimLayout& layout) const {
+  const size_t T = layout.thresholds.size();
   if (T == 0) return 0;
   return T <= 15 && options_.blocked_screening && !options_.screening_step ? 1 : 2;
 }
@@ -907,8 +909,9 @@ std::vector<ScreenedCandidate> SerialStumpLearner::screen_dims(const std::vector
     LMB_CHECK(ref.column, "boost: dim " << d << " is neither stored nor lent here");
     const DimLayout& layout = *ref.layout;
     const int32_t T = static_cast<int32_t>(layout.thresholds.size());
-    if (T == 0) continue;
-    if (T <= 15 && options_.blocked_screening && !options_.screening_step) {
+    const int kind = layout_kind(layout);
+    if (kind == 0) continue;
+    if (kind == 1) {
       block.push_back(ref);
       if (static_cast<int32_t>(block.size()) == kBlockDims) flush_block();
       continue;

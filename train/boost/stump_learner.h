@@ -175,6 +175,8 @@ class SerialStumpLearner {
   DimLayout make_layout(const uint8_t* col) const;
   // bucket[] from the thresholds.
   static void fill_buckets(DimLayout* layout);
+  // screening_kind of a column with this layout.
+  int layout_kind(const DimLayout& layout) const;
   // A dim's column and layout, stored here or lent this round (column nullptr: neither).
   struct ColumnRef {
     int32_t dim = -1;
@@ -229,7 +231,6 @@ class SerialStumpLearner {
   int32_t C1_ = 0;  // classes including background
   std::vector<int32_t> global_to_stored_;
   std::vector<DimLayout> layouts_;  // per stored column
-  std::vector<uint8_t> usable_;     // per stored column: has a threshold
 
   // Entries, sample-major.
   std::vector<int64_t> sample_offset_;  // size num_samples + 1
