@@ -135,8 +135,8 @@ FrameContext::FrameContext(const ContextRegions& regions, int32_t num_words)
 }
 
 void FrameContext::Axis::build(int32_t n) {
-  // 2 cells a keypoint: most cells hold at most two keypoints.
-  cells = std::max(1, 2 * n);
+  // kCellsPerKeypoint cells a keypoint: most cells hold at most one keypoint.
+  cells = std::max(1, kCellsPerKeypoint * n);
   lo = n > 0 ? sorted[0] : 0.f;
   const float range = n > 0 ? sorted[n - 1] - lo : 0.f;
   last = static_cast<float>(cells - 1);
@@ -177,25 +177,35 @@ inline int32_t FrameContext::Axis::rank(float v) const {
 namespace {
 
 constexpr int32_t kMaxRankBatch = 64;
+#if defined(__x86_64__)
+const bool kHasAvx2 = (__builtin_cpu_init(), __builtin_cpu_supports("avx2"));
+#endif
 
 #if defined(__x86_64__)
 // FrameContext::Axis::ranks for 8 corners at a time: the bounds, cells and the first two
 // coordinates of each cell as in Axis::cell and Axis::rank (the same IEEE float operations:
 // separate multiply and add, max / min with the same operand order, truncation), with gathers;
 // lanes whose cell holds more than two coordinates finish with a binary search, as in rank().
+// kPerKeypoint: the bounds p[i] + s[i] * corners[0] of m keypoints and one corner (p and s have m
+// rounded up to a multiple of 8 readable entries); else p[0] + s[0] * corners[i] of one keypoint
+// and m corners.
+template <bool kPerKeypoint>
 __attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const uint16_t* start,
-                                                     float lo, float inv, float last, float p,
-                                                     float s, const float* corners, int32_t m,
+                                                     float lo, float inv, float last, const float* p,
+                                                     const float* s, const float* corners, int32_t m,
                                                      int32_t* out) {
   // Three passes over the corners (m <= kMaxRankBatch), so that the gathers of one pass do not
   // wait on each other: bounds and cells; the cells' first ranks; the first two coordinates.
   assert(m <= kMaxRankBatch);
   alignas(32) float bounds[kMaxRankBatch];
   alignas(32) int32_t cells[kMaxRankBatch], firsts[kMaxRankBatch], ends[kMaxRankBatch];
-  const __m256 vp = _mm256_set1_ps(p), vs = _mm256_set1_ps(s), vlo = _mm256_set1_ps(lo);
+  const __m256 vlo = _mm256_set1_ps(lo);
   const __m256 vinv = _mm256_set1_ps(inv), vlast = _mm256_set1_ps(last);
   for (int32_t i = 0; i < m; i += 8) {
-    const __m256 offset = _mm256_mul_ps(vs, _mm256_loadu_ps(corners + i));
+    const __m256 vp = kPerKeypoint ? _mm256_loadu_ps(p + i) : _mm256_set1_ps(p[0]);
+    const __m256 vs = kPerKeypoint ? _mm256_loadu_ps(s + i) : _mm256_set1_ps(s[0]);
+    const __m256 vc = kPerKeypoint ? _mm256_set1_ps(corners[0]) : _mm256_loadu_ps(corners + i);
+    const __m256 offset = _mm256_mul_ps(vs, vc);
     const __m256 bound = _mm256_add_ps(vp, offset);
     __m256 t = _mm256_mul_ps(_mm256_sub_ps(bound, vlo), vinv);
     t = _mm256_max_ps(t, _mm256_setzero_ps());  // t > 0 ? t : 0
@@ -211,22 +221,17 @@ __attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const 
     _mm256_store_si256(reinterpret_cast<__m256i*>(firsts + i), _mm256_and_si256(se, low16));
     _mm256_store_si256(reinterpret_cast<__m256i*>(ends + i), _mm256_srli_epi32(se, 16));
   }
-  const __m256i one = _mm256_set1_epi32(1), two = _mm256_set1_epi32(2);
+  const __m256i one = _mm256_set1_epi32(1);
   for (int32_t i = 0; i < m; i += 8) {
     const __m256 bound = _mm256_load_ps(bounds + i);
     const __m256i first = _mm256_load_si256(reinterpret_cast<const __m256i*>(firsts + i));
     const __m256i end = _mm256_load_si256(reinterpret_cast<const __m256i*>(ends + i));
-    const __m256i second = _mm256_add_epi32(first, one);
     const __m256 v0 = _mm256_i32gather_ps(sorted, first, 4);  // sentinels past n
-    const __m256 v1 = _mm256_i32gather_ps(sorted, second, 4);
     const __m256i below0 = _mm256_and_si256(_mm256_cmpgt_epi32(end, first),
                                             _mm256_castps_si256(_mm256_cmp_ps(v0, bound, _CMP_LT_OQ)));
-    const __m256i below1 = _mm256_and_si256(_mm256_cmpgt_epi32(end, second),
-                                            _mm256_castps_si256(_mm256_cmp_ps(v1, bound, _CMP_LT_OQ)));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + i),
-                        _mm256_sub_epi32(_mm256_sub_epi32(first, below0), below1));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + i), _mm256_sub_epi32(first, below0));
     const int crowded = _mm256_movemask_ps(
-        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_sub_epi32(end, first), two)));
+        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_sub_epi32(end, first), one)));
     for (int32_t l = 0; crowded != 0 && l < 8; ++l) {  // rare: a binary search, as in rank()
       if (crowded & (1 << l)) {
         out[i + l] = static_cast<int32_t>(
@@ -242,13 +247,23 @@ __attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const 
 void FrameContext::Axis::ranks(float p, float s, const float* corners, int32_t m,
                                int32_t* out) const {
 #if defined(__x86_64__)
-  static const bool has_avx2 = __builtin_cpu_supports("avx2");
-  if (has_avx2) {
-    axis_ranks_avx2(sorted.data(), start.data(), lo, inv, last, p, s, corners, m, out);
+  if (kHasAvx2) {
+    axis_ranks_avx2<false>(sorted.data(), start.data(), lo, inv, last, &p, &s, corners, m, out);
     return;
   }
 #endif
   for (int32_t i = 0; i < m; ++i) out[i] = rank(detail::region_bound(p, s, corners[i]));
+}
+
+void FrameContext::Axis::keypoint_ranks(const float* p, const float* s, float corner, int32_t m,
+                                        int32_t* out) const {
+#if defined(__x86_64__)
+  if (kHasAvx2) {
+    axis_ranks_avx2<true>(sorted.data(), start.data(), lo, inv, last, p, s, &corner, m, out);
+    return;
+  }
+#endif
+  for (int32_t i = 0; i < m; ++i) out[i] = rank(detail::region_bound(p[i], s[i], corner));
 }
 
 namespace {
@@ -375,7 +390,12 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
         }
       }
     }
-    local8_x_.assign(local_rank_x_.begin(), local_rank_x_.end());
+    // Row offsets by x rank: word w's table row for local x rank local_rank_x_[ix * W + w].
+    row8_x_.resize(local_rank_x_.size());
+    for (size_t i = 0; i < local_rank_x_.size(); ++i) {
+      const int32_t w = static_cast<int32_t>(i % static_cast<size_t>(W));
+      row8_x_[i] = offset8_[w] + local_rank_x_[i] * stride8_[w];
+    }
     local8_y_.assign(local_rank_y_.begin(), local_rank_y_.end());
   }
 
@@ -386,6 +406,13 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
   const int32_t blocks = n / kDomBlock + 1;
   const size_t stride = static_cast<size_t>(n) + 1;
   dom_.assign(static_cast<size_t>(blocks) * stride, 0);
+  // Per x rank: the start of its block's row and the mask of the block's keypoints before it.
+  dom_row_.resize(stride);
+  dom_below_.resize(stride);
+  for (int32_t ix = 0; ix <= n; ++ix) {
+    dom_row_[ix] = static_cast<int32_t>(static_cast<size_t>(ix / kDomBlock) * stride);
+    dom_below_[ix] = (uint64_t{1} << (ix % kDomBlock)) - 1;
+  }
   std::vector<int32_t> by_y(static_cast<size_t>(n));  // keypoint of each y rank
   for (int32_t i = 0; i < n; ++i) by_y[rank_y_[i]] = i;
   for (int32_t iy = 1; iy <= n; ++iy) {
@@ -410,16 +437,14 @@ inline int32_t bit_count(uint64_t x) {
 }  // namespace
 
 inline int32_t FrameContext::dominance(int32_t ix, int32_t iy) const {
-  const uint64_t e = dom_[static_cast<size_t>(ix / kDomBlock) * (static_cast<size_t>(n_) + 1) + iy];
-  const uint64_t below = (uint64_t{1} << (ix % kDomBlock)) - 1;
-  return static_cast<int32_t>(e >> 48) + bit_count(e & below);
+  const uint64_t e = dom_[static_cast<size_t>(dom_row_[ix]) + iy];
+  return static_cast<int32_t>(e >> 48) + bit_count(e & dom_below_[ix]);
 }
 
 inline int32_t FrameContext::word_dominance(int32_t w, int32_t ix, int32_t iy) const {
   const int32_t W = num_words_;
   if (small_words_) {
-    return tables8_[offset8_[w] + local8_x_[static_cast<size_t>(ix) * W + w] * stride8_[w] +
-                    local8_y_[static_cast<size_t>(iy) * W + w]];
+    return tables8_[row8_x_[static_cast<size_t>(ix) * W + w] + local8_y_[static_cast<size_t>(iy) * W + w]];
   }
   const int64_t side = word_side_[w];
   return tables_[table_offset_[w] + local_rank_x_[static_cast<size_t>(ix) * W + w] * side +
@@ -639,6 +664,122 @@ void FrameContext::compute_dims_all(const DimPlan& plan, const uint8_t* descript
   for (int32_t k = 0; k < n_; ++k) {
     compute_dims(k, plan, descriptors ? descriptors + static_cast<size_t>(k) * bytes : nullptr,
                  out + static_cast<size_t>(k) * plan.size());
+  }
+}
+
+LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, const int32_t* ids,
+                                                        int32_t count, const uint8_t* descriptors,
+                                                        uint8_t* out, size_t stride) const {
+  LMB_CHECK(plan.layout().num_words == num_words_ && plan.layout().num_regions == regions_->size(),
+            "dim plan: made for " << plan.layout().num_regions << " regions x "
+                                  << plan.layout().num_words << " words, the frame context has "
+                                  << regions_->size() << " x " << num_words_);
+  LMB_CHECK(count >= 0 && count <= n_ && stride >= static_cast<size_t>(count),
+            "compute_dims_columns: " << count << " keypoints of " << n_ << ", stride " << stride);
+  LMB_CHECK(descriptors != nullptr || plan.size() == 0 || count == 0 ||
+                plan.dims().back() < plan.layout().num_context_dims(),
+            "dim plan: descriptor dims requested without descriptors");
+  if (count == 0) return;
+  // The keypoints in x order (ties: by position), with their output position.
+  std::vector<std::pair<int32_t, int32_t>> visit(static_cast<size_t>(count));
+  for (int32_t i = 0; i < count; ++i) {
+    assert(ids[i] >= 0 && ids[i] < n_);
+    visit[i] = {rank_x_[ids[i]], i};
+  }
+  std::sort(visit.begin(), visit.end());
+  const size_t padded = (static_cast<size_t>(count) + 7) / 8 * 8;
+  std::vector<float> px(padded, 0.f), py(padded, 0.f), ps(padded, 1.f);
+  std::vector<int32_t> key(static_cast<size_t>(count)), pos(static_cast<size_t>(count));
+  for (int32_t i = 0; i < count; ++i) {
+    const int32_t k = ids[visit[i].second];
+    key[i] = k;
+    pos[i] = visit[i].second;
+    px[i] = x_[k];
+    py[i] = y_[k];
+    ps[i] = scale_[k];
+  }
+  const int32_t U = plan.num_used_regions();
+  const int32_t* dim_begin = plan.dim_begin_.data();
+  const uint8_t* dim_word = plan.dim_word_.data();
+  const bool small_frame = !dom_.empty();
+  constexpr int32_t kChunk = kMaxRankBatch;
+  alignas(32) int32_t ranks[4][kChunk];
+  // The tables through local pointers: the byte stores to out may alias any member, which would
+  // make the compiler reload them after each store. (dominance() and word_dominance(), inline.)
+  const int32_t* rank_x = rank_x_.data();
+  const int32_t* rank_y = rank_y_.data();
+  const uint8_t* word = word_.data();
+  const uint64_t* bin_magic = bin_magic_.data();
+  const uint64_t* dom_table = dom_.data();
+  const int32_t* dom_row = dom_row_.data();
+  const uint64_t* dom_below = dom_below_.data();
+  const auto dom = [dom_table, dom_row, dom_below](int32_t ix, int32_t iy) {
+    const uint64_t e = dom_table[dom_row[ix] + iy];
+    return static_cast<int32_t>(e >> 48) + bit_count(e & dom_below[ix]);
+  };
+  const bool bytes8 = small_words_;
+  const uint8_t* tables8 = tables8_.data();
+  const int32_t* row8_x = row8_x_.data();
+  const uint8_t* local8_y = local8_y_.data();
+  const int32_t W = num_words_;
+  const auto word_dom = [&](int32_t w, int32_t ix, int32_t iy) {
+    if (bytes8) return static_cast<int32_t>(tables8[row8_x[ix * W + w] + local8_y[iy * W + w]]);
+    return word_dominance(w, ix, iy);
+  };
+  for (int32_t u = 0; u < U; ++u) {
+    const float x0 = plan.corners_[0][u], x1 = plan.corners_[1][u];
+    const float y0 = plan.corners_[2][u], y1 = plan.corners_[3][u];
+    const int32_t begin = dim_begin[u], end = dim_begin[u + 1];
+    for (int32_t i0 = 0; i0 < count; i0 += kChunk) {
+      const int32_t m = std::min(kChunk, count - i0);
+      axis_x_.keypoint_ranks(px.data() + i0, ps.data() + i0, x0, m, ranks[0]);
+      axis_x_.keypoint_ranks(px.data() + i0, ps.data() + i0, x1, m, ranks[1]);
+      axis_y_.keypoint_ranks(py.data() + i0, ps.data() + i0, y0, m, ranks[2]);
+      axis_y_.keypoint_ranks(py.data() + i0, ps.data() + i0, y1, m, ranks[3]);
+      for (int32_t i = 0; i < m; ++i) {
+        const int32_t k = key[i0 + i];
+        uint8_t* o = out + pos[i0 + i];
+        Bounds b;
+        b.ix0 = ranks[0][i];
+        b.ix1 = ranks[1][i];
+        b.iy0 = ranks[2][i];
+        b.iy1 = ranks[3][i];
+        if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {  // empty (the anchor cannot be inside)
+          for (int32_t j = begin; j < end; ++j) o[j * stride] = 0;
+          continue;
+        }
+        const int32_t rx = rank_x[k], ry = rank_y[k];
+        b.anchor_inside = (b.ix0 <= rx) & (rx < b.ix1) & (b.iy0 <= ry) & (ry < b.iy1);
+        if (!small_frame) {  // a large frame: all words' counts
+          int32_t counts[256];
+          int32_t total = 0;
+          counts_from_bounds(k, b, counts, &total);
+          for (int32_t j = begin; j < end; ++j) o[j * stride] = context_bin(counts[dim_word[j]], total);
+          continue;
+        }
+        const int32_t total = dom(b.ix1, b.iy1) - dom(b.ix0, b.iy1) - dom(b.ix1, b.iy0) +
+                              dom(b.ix0, b.iy0) - b.anchor_inside;
+        const uint64_t magic = bin_magic[total];
+        const int32_t word_k = word[k];
+        for (int32_t j = begin; j < end; ++j) {
+          const int32_t w = dim_word[j];
+          const int32_t c = word_dom(w, b.ix1, b.iy1) - word_dom(w, b.ix0, b.iy1) -
+                            word_dom(w, b.ix1, b.iy0) + word_dom(w, b.ix0, b.iy0) -
+                            (b.anchor_inside & (word_k == w));
+          o[j * stride] = context_bin_fast(c, total, magic);
+        }
+      }
+    }
+  }
+  const int32_t* dims = plan.dims_.data();
+  const int32_t context_dims = plan.layout_.num_context_dims();
+  const int32_t bytes = plan.layout_.descriptor_bytes;
+  for (int32_t j = plan.num_context_; j < plan.size(); ++j) {
+    const int32_t bit = dims[j] - context_dims;
+    uint8_t* o = out + static_cast<size_t>(j) * stride;
+    for (int32_t i = 0; i < count; ++i) {
+      o[i] = static_cast<uint8_t>(descriptor_bit(descriptors + static_cast<size_t>(ids[i]) * bytes, bit));
+    }
   }
 }
 

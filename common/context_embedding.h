@@ -206,6 +206,13 @@ class FrameContext {
   // For every keypoint: out is n x plan.size(), row-major. Throws lmb::Error when the plan's
   // layout does not match this context.
   void compute_dims_all(const DimPlan& plan, const uint8_t* descriptors, uint8_t* out) const;
+  // The same values for the keypoints ids[0, count) (distinct frame indices), column-major:
+  // out[u * stride + i] is plan dim u of keypoint ids[i] (stride >= count). descriptors: the
+  // frame's n rows, in frame order. Region by region over the keypoints in x order (not
+  // keypoint by keypoint), so that the table rows a region's corners read stay in L1 from one
+  // keypoint to the next: faster when most of a frame's keypoints need the same dims.
+  void compute_dims_columns(const DimPlan& plan, const int32_t* ids, int32_t count,
+                            const uint8_t* descriptors, uint8_t* out, size_t stride) const;
 
  private:
   struct Bounds {
@@ -216,6 +223,7 @@ class FrameContext {
   // uniform grid of `cells` cells over [lo, lo + cells / inv); start[c] = the first rank whose
   // coordinate's cell is >= c (cells + 1 entries; ranks fit uint16, see kMaxFrameKeypoints).
   struct Axis {
+    static constexpr int32_t kCellsPerKeypoint = 4;
     std::vector<float> sorted;
     float lo = 0.f, inv = 0.f;
     int32_t cells = 1;
@@ -230,6 +238,9 @@ class FrameContext {
     // up to a multiple of 8 readable entries, out as many writable ones. AVX2 gathers where the
     // CPU has them (the same float operations, so the same ranks).
     void ranks(float p, float s, const float* corners, int32_t m, int32_t* out) const;
+    // out[i] = rank(p[i] + s[i] * corner) for m <= 64 keypoints (p and s: m rounded up to a
+    // multiple of 8 readable entries).
+    void keypoint_ranks(const float* p, const float* s, float corner, int32_t m, int32_t* out) const;
   };
   // The region rectangle q of keypoint k as rank ranges.
   Bounds bounds(int32_t k, const RegionRect& q) const;
@@ -258,10 +269,14 @@ class FrameContext {
   // the i-th keypoint of block b has y rank < iy. About n^2 / 6 bytes: stays in L2.
   static constexpr int32_t kDomBlock = 48;
   std::vector<uint64_t> dom_;
+  std::vector<int32_t> dom_row_;     // per x rank ix: (ix / kDomBlock) * (n + 1)
+  std::vector<uint64_t> dom_below_;  // per x rank ix: the low ix % kDomBlock bits set
   // When every word has at most 255 keypoints (and the frame gets dom_): the word tables as bytes,
-  // word w's at offset8_[w] with rows of stride8_[w] bytes, and the local ranks as bytes.
+  // word w's at offset8_[w] with rows of stride8_[w] bytes; the local y ranks as bytes.
   bool small_words_ = false;
-  std::vector<uint8_t> tables8_, local8_x_, local8_y_;
+  // row8_x_[ix * W + w]: offset in tables8_ of word w's row for x rank ix.
+  std::vector<uint8_t> tables8_, local8_y_;
+  std::vector<int32_t> row8_x_;
   std::vector<int32_t> offset8_, stride8_;
   std::vector<uint64_t> bin_magic_;     // context_bin_magic(t) for t in 0..n
   std::vector<int32_t> order_;          // scratch

@@ -92,12 +92,12 @@ static_assert(Classifier::kBatch == 32, "a batch's fire bits of one stump are a 
 // fire[s] bit j = lane j's value of stump s's dim is above the stump's threshold. values: one row
 // of kBatch lanes per used dim (dim-major). Cloned for AVX2 (common/cpu_dispatch.h).
 LMB_CLONES_AVX2 void fire_masks_impl(const Model::DenseStump* stumps, size_t num_stumps,
-                                     const uint8_t* values, uint32_t* fire) {
+                                     const uint8_t* values, size_t stride, uint32_t* fire) {
   using Bytes = uint8_t __attribute__((vector_size(32), aligned(1)));
   using Words = uint64_t __attribute__((vector_size(32), aligned(8)));
   for (size_t s = 0; s < num_stumps; ++s) {
     Bytes v;
-    std::memcpy(&v, values + static_cast<size_t>(stumps[s].used) * Classifier::kBatch, sizeof(v));
+    std::memcpy(&v, values + static_cast<size_t>(stumps[s].used) * stride, sizeof(v));
     const Bytes theta = Bytes{} + stumps[s].theta;
     const Words gt = reinterpret_cast<Words>(v > theta);  // 0xFF or 0x00 a lane
     // Byte i of each word keeps only bit i; the product sums them into the top byte (no carries).
@@ -222,8 +222,7 @@ struct ScreenView {
         check_low(model.screen_check_low().data() + model.screen_check_begin()[cls]),
         check_add(model.screen_check_add().data() + model.screen_check_begin()[cls]),
         end_low(model.screen_low()[cls]),
-        offset(model.screen_offset()[cls]),
-        step(model.screen_step()) {}
+        units(model.screen_units()[cls]) {}
   // The residue base and the added steps at checkpoint k, or at the end of the list.
   uint16_t low(int64_t k, bool last) const { return last ? end_low : check_low[k]; }
   int32_t add(int64_t k, bool last) const { return last ? 0 : check_add[k]; }
@@ -234,53 +233,46 @@ struct ScreenView {
   const uint16_t* check_low;
   const int32_t* check_add;
   uint16_t end_low;
-  double offset, step;
+  int32_t units;
+  // The integer test's constant at checkpoint k: lane j passes when t_j >= goal_j - shift.
+  int32_t shift(int64_t k, bool last) const { return add(k, last) + units + 2; }
 };
 
-// GCC 12 warns that its own extract and convert intrinsics read their undefined pass-through
-// operand (a false positive: the mask is all ones).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-
-// The bound test of one checkpoint: bit j set when lane j's bound offset + step (t_j + add),
-// t_j = (sums_j - low) mod 2^16, passes the margin and min-score tests. (The compiler may fuse
-// the product and the sum into an FMA: step x is exact, so the bound is the same double.)
-__attribute__((target("avx512f,avx512bw"), always_inline)) inline uint32_t bound_bits_avx512(
-    __m512i sums, uint16_t low, int32_t add, double offset, double step, const double* background,
-    double min_margin, double min_score) {
+// The integer test of one checkpoint (Model::kScreenCheck): bit j set when lane j's residue
+// t_j = (sums_j - low) mod 2^16 is at least goal_j - shift, that threshold saturated to
+// [0, 65535] (above 65535 only t_j = 65535 passes: a looser test, never a stricter one). The goals
+// come in the order that packus (which interleaves its operands by 128-bit lane) undoes:
+// goal_lo[4 i + r] = goal[8 i + r], goal_hi[4 i + r] = goal[8 i + 4 + r] (permuted_goals).
+__attribute__((target("avx512f,avx512bw"), always_inline)) inline uint32_t goal_bits_avx512(
+    __m512i sums, uint16_t low, int32_t shift, __m512i goal_lo, __m512i goal_hi) {
   const __m512i t = _mm512_sub_epi16(sums, _mm512_set1_epi16(static_cast<int16_t>(low)));
-  const __m512i x0 = _mm512_add_epi32(_mm512_cvtepu16_epi32(_mm512_extracti64x4_epi64(t, 0)),
-                                      _mm512_set1_epi32(add));
-  const __m512i x1 = _mm512_add_epi32(_mm512_cvtepu16_epi32(_mm512_extracti64x4_epi64(t, 1)),
-                                      _mm512_set1_epi32(add));
-  const __m256i x[4] = {_mm512_extracti64x4_epi64(x0, 0), _mm512_extracti64x4_epi64(x0, 1),
-                        _mm512_extracti64x4_epi64(x1, 0), _mm512_extracti64x4_epi64(x1, 1)};
-  uint32_t bits = 0;
-  for (int32_t g = 0; g < 4; ++g) {  // lanes 8 g .. 8 g + 7
-    const __m512d bound =
-        _mm512_add_pd(_mm512_set1_pd(offset), _mm512_mul_pd(_mm512_set1_pd(step), _mm512_cvtepi32_pd(x[g])));
-    const __m512d bg = _mm512_loadu_pd(background + 8 * g);
-    const __mmask8 pass =
-        _mm512_cmp_pd_mask(_mm512_sub_pd(bound, bg), _mm512_set1_pd(min_margin), _CMP_GT_OQ) &
-        _mm512_cmp_pd_mask(bound, _mm512_set1_pd(min_score), _CMP_GE_OQ);
-    bits |= static_cast<uint32_t>(pass) << (8 * g);
-  }
-  return bits;
+  const __m512i s = _mm512_set1_epi32(shift);
+  const __m512i threshold = _mm512_packus_epi32(_mm512_sub_epi32(goal_lo, s), _mm512_sub_epi32(goal_hi, s));
+  return static_cast<uint32_t>(_mm512_cmpge_epu16_mask(t, threshold));
+}
+
+__attribute__((target("avx512f"), always_inline)) inline void permuted_goals(const int32_t* goal, __m512i* lo,
+                                                                            __m512i* hi) {
+  const __m512i first = _mm512_setr_epi32(0, 1, 2, 3, 8, 9, 10, 11, 16, 17, 18, 19, 24, 25, 26, 27);
+  const __m512i second = _mm512_add_epi32(first, _mm512_set1_epi32(4));
+  const __m512i g0 = _mm512_loadu_si512(goal), g1 = _mm512_loadu_si512(goal + 16);
+  *lo = _mm512_permutex2var_epi32(g0, first, g1);
+  *hi = _mm512_permutex2var_epi32(g0, second, g1);
 }
 
 // Screening of one class in `batches` (1 or 2) batches at once, 32 uint16 lanes a batch in one
-// register: one masked addition a stump and batch (the fire bits are the mask), a bound test at
-// every checkpoint (the class is dropped when no valid lane of any batch passes) and at the end.
-// Lane j of batch b is bit 32 b + j of the result.
+// register: one masked addition a stump and batch (the fire bits are the mask), the integer
+// test at every checkpoint (the class is dropped when no valid lane of any batch passes) and at
+// the end. Lane j of batch b is bit 32 b + j of the result.
 __attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(
     const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
-    const double* const* background, double min_margin, double min_score, const uint32_t* valid) {
+    const int32_t* const* goal, const uint32_t* valid) {
   const ScreenView v(model, cls);
   const uint32_t* fire0 = fire[0];
   const uint32_t* fire1 = fire[batches > 1 ? 1 : 0];
+  __m512i goal_lo[2], goal_hi[2];
+  permuted_goals(goal[0], &goal_lo[0], &goal_hi[0]);
+  permuted_goals(goal[batches > 1 ? 1 : 0], &goal_lo[1], &goal_hi[1]);
   __m512i acc0 = _mm512_setzero_si512(), acc1 = _mm512_setzero_si512();
   for (int64_t e = 0, k = 0;; ++k) {
     const int64_t stop = std::min(v.count, e + Model::kScreenCheck);
@@ -299,19 +291,14 @@ __attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(
     }
     const bool last = e == v.count;
     const uint16_t low = v.low(k, last);
-    const int32_t add = v.add(k, last);
-    uint64_t bits = bound_bits_avx512(acc0, low, add, v.offset, v.step, background[0], min_margin, min_score) &
-                    valid[0];
+    const int32_t shift = v.shift(k, last);
+    uint64_t bits = goal_bits_avx512(acc0, low, shift, goal_lo[0], goal_hi[0]) & valid[0];
     if (batches > 1) {
-      bits |= static_cast<uint64_t>(bound_bits_avx512(acc1, low, add, v.offset, v.step, background[1],
-                                                      min_margin, min_score) & valid[1]) << 32;
+      bits |= static_cast<uint64_t>(goal_bits_avx512(acc1, low, shift, goal_lo[1], goal_hi[1]) & valid[1]) << 32;
     }
     if (last || bits == 0) return bits;
   }
 }
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
 #endif
 
 #if defined(__x86_64__)
@@ -340,14 +327,13 @@ LMB_CLONES_AVX2 void add_screen_sums(const uint16_t* stumps, int64_t count, cons
   std::memcpy(sums + 16, &hi, sizeof(Half));
 }
 
-// bound_bits_avx512 lane by lane.
-uint32_t bound_bits(const uint16_t* sums, uint16_t low, int32_t add, double offset, double step,
-                    const double* background, double min_margin, double min_score) {
+// goal_bits_avx512 lane by lane.
+uint32_t goal_bits(const uint16_t* sums, uint16_t low, int32_t shift, const int32_t* goal) {
   uint32_t bits = 0;
   for (int32_t j = 0; j < Classifier::kBatch; ++j) {
-    const int32_t x = static_cast<int32_t>(static_cast<uint16_t>(sums[j] - low)) + add;
-    const double bound = offset + step * static_cast<double>(x);
-    if (bound - background[j] > min_margin && bound >= min_score) bits |= 1u << j;
+    const int32_t t = static_cast<uint16_t>(sums[j] - low);
+    const int32_t threshold = std::clamp(goal[j] - shift, 0, 65535);
+    if (t >= threshold) bits |= 1u << j;
   }
   return bits;
 }
@@ -359,8 +345,8 @@ uint32_t bound_bits(const uint16_t* sums, uint16_t low, int32_t add, double offs
 namespace detail {
 
 void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values,
-                uint32_t* fire) {
-  fire_masks_impl(stumps, num_stumps, values, fire);
+                size_t stride, uint32_t* fire) {
+  fire_masks_impl(stumps, num_stumps, values, stride, fire);
 }
 
 void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count,
@@ -407,8 +393,7 @@ void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStum
   }
 }
 
-uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire,
-                              const double* background, double min_margin, double min_score,
+uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire, const int32_t* goal,
                               uint32_t valid) {
   const ScreenView v(model, cls);
   uint16_t sums[Classifier::kBatch] = {};
@@ -417,28 +402,37 @@ uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* f
     add_screen_sums(v.list + e, stop - e, v.q, fire, sums);
     e = stop;
     const bool last = e == v.count;
-    const uint32_t bits =
-        bound_bits(sums, v.low(k, last), v.add(k, last), v.offset, v.step, background, min_margin, min_score) &
-        valid;
+    const uint32_t bits = goal_bits(sums, v.low(k, last), v.shift(k, last), goal) & valid;
     if (last || bits == 0) return bits;
   }
 }
 
 uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
-                      const double* const* background, double min_margin, double min_score,
-                      const uint32_t* valid) {
+                      const int32_t* const* goal, const uint32_t* valid) {
 #if defined(__x86_64__)
-  if (kHasAvx512bw) {
-    return screen_class_avx512(model, cls, batches, fire, background, min_margin, min_score, valid);
-  }
+  if (kHasAvx512bw) return screen_class_avx512(model, cls, batches, fire, goal, valid);
 #endif
   uint64_t bits = 0;
   for (int32_t b = 0; b < batches; ++b) {
-    bits |= static_cast<uint64_t>(screen_class_generic(model, cls, fire[b], background[b], min_margin,
-                                                       min_score, valid[b])) << (32 * b);
+    bits |= static_cast<uint64_t>(screen_class_generic(model, cls, fire[b], goal[b], valid[b])) << (32 * b);
   }
   return bits;
 }
+
+void screen_goals(const Model& model, const double* background, double min_margin, double min_score,
+                  int32_t* goal) {
+  const double step = model.screen_step();
+  const double safe = step * double{Model::kScreenUnitsLimit / 4};  // 2^27 steps
+  const double inf = std::numeric_limits<double>::infinity();
+  const bool margin_safe = min_margin == -inf || std::fabs(min_margin) <= safe;
+  const bool score_safe = min_score == -inf || std::fabs(min_score) <= safe;
+  for (int32_t j = 0; j < Classifier::kBatch; ++j) {
+    const double target = std::max(min_margin == -inf ? -inf : background[j] + min_margin, min_score);
+    const bool usable = margin_safe && score_safe && std::fabs(background[j]) <= safe && target != -inf;
+    goal[j] = usable ? static_cast<int32_t>(std::floor(target / step)) : Model::kScreenPassAll;
+  }
+}
+
 
 }  // namespace detail
 
@@ -494,11 +488,14 @@ void Classifier::prepare_batch(int32_t b) {
   if (fire_.size() < (b + 1) * M) fire_.resize((b + 1) * M);
   if (background_.size() < static_cast<size_t>(b + 1) * kBatch) background_.resize(static_cast<size_t>(b + 1) * kBatch);
   uint32_t* fire = fire_.data() + b * M;
-  detail::fire_masks(stumps.data(), M, values_.data(), fire);
+  detail::fire_masks(stumps.data(), M, batch_values_, batch_stride_, fire);
   const int64_t* begin = m.class_stump_begin().data();
   const int32_t C = m.num_classes();
   detail::accumulate_lanes(m.data().bias[C], m.class_stump_index().data() + begin[C], begin[C + 1] - begin[C],
                            stumps.data(), fire, background_.data() + static_cast<size_t>(b) * kBatch);
+  if (goal_.size() < background_.size()) goal_.resize(background_.size());
+  detail::screen_goals(m, background_.data() + static_cast<size_t>(b) * kBatch, options_.min_margin,
+                       options_.min_score, goal_.data() + static_cast<size_t>(b) * kBatch);
 }
 
 namespace {
@@ -523,8 +520,8 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
   for (int32_t b = 0; b < batches; b += 2) {
     const int32_t pair = std::min(2, batches - b);
     const uint32_t* fire[2] = {fire_.data() + b * M, fire_.data() + (b + pair - 1) * M};
-    const double* background[2] = {background_.data() + static_cast<size_t>(b) * kBatch,
-                                   background_.data() + static_cast<size_t>(b + pair - 1) * kBatch};
+    const int32_t* goal[2] = {goal_.data() + static_cast<size_t>(b) * kBatch,
+                              goal_.data() + static_cast<size_t>(b + pair - 1) * kBatch};
     uint32_t valid[2];
     for (int32_t h = 0; h < pair; ++h) {
       const int32_t count = std::min(kBatch, keypoints - (b + h) * kBatch);
@@ -536,8 +533,7 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
     for (int32_t i = 0; i < num; ++i) {
       uint64_t bits = ~0ull;
       if (i < kScreenProbe || 4 * kept_count <= 3 * i) {
-        bits = detail::screen_class(m, classes[i], pair, fire, background, options_.min_margin,
-                                    options_.min_score, valid);
+        bits = detail::screen_class(m, classes[i], pair, fire, goal, valid);
       }
       kept_count += bits != 0;
       if (bits & 0xFFFFFFFFull) kept_[b].push_back({classes[i], static_cast<uint32_t>(bits)});
@@ -657,6 +653,23 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   const size_t U = m.used_dims().size();
   const int32_t bytes = m.descriptor_bytes();
   pending_.clear();
+  // When the keypoints' plans (their word's, or all used dims) cover most of the used dims, every
+  // keypoint's values of all used dims at once, region by region (compute_dims_columns), in the
+  // order of order_: column u holds used dim u of every keypoint, so that batch b's lanes are
+  // contiguous (frame_stride keeps kBatch readable bytes past the last keypoint).
+  int64_t planned = 0;
+  for (int32_t g = 0; g < groups; ++g) {
+    const int64_t dims = inverted ? m.word_plan(g).size() : static_cast<int64_t>(U);
+    planned += dims * (word_begin_[g + 1] - word_begin_[g]);
+  }
+  const bool columns = 4 * planned >= 3 * static_cast<int64_t>(U) * n;
+  const size_t frame_stride = static_cast<size_t>(n) + kBatch;
+  if (columns) {
+    if (embedding_ms) t0 = Clock::now();
+    if (frame_values_.size() < U * frame_stride) frame_values_.resize(U * frame_stride);
+    context_.compute_dims_columns(m.used_plan(), order_.data(), n, descriptors, frame_values_.data(), frame_stride);
+    if (embedding_ms) embedding += Clock::now() - t0;
+  }
   for (int32_t g = 0; g < groups; ++g) {
     const int32_t* classes = all_classes_.data();
     int32_t num = m.num_classes();
@@ -671,6 +684,14 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
     for (int32_t batch = 0; batch < batches; ++batch) {
       const int32_t b = word_begin_[g] + batch * kBatch;
       const int32_t count = std::min(kBatch, word_begin_[g + 1] - b);
+      if (columns) {  // the frame's values, computed above
+        batch_values_ = frame_values_.data() + b;
+        batch_stride_ = frame_stride;
+        prepare_batch(batch);
+        continue;
+      }
+      batch_values_ = values_.data();
+      batch_stride_ = kBatch;
       if (embedding_ms) t0 = Clock::now();
       for (int32_t j = 0; j < count; ++j) {
         const int32_t k = order_[b + j];

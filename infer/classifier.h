@@ -148,6 +148,9 @@ class LMB_INFER_EXPORT Classifier {
   FrameContext context_;
   std::vector<uint8_t> values_;       // used_dims().size() rows of kBatch lanes (dim-major)
   std::vector<uint8_t> word_values_;  // one keypoint's values of its word's (or all used) dims
+  std::vector<uint8_t> frame_values_; // or all used dims of the frame's keypoints (dim-major)
+  const uint8_t* batch_values_ = nullptr;  // the batch's lane 0 of used dim 0, in one of them
+  size_t batch_stride_ = kBatch;           // from one used dim to the next
   std::vector<uint32_t> fire_;        // per batch of the group, per stump: bit j = fires in lane j
   std::vector<double> class_out_;     // kBatch scores of one class
   struct Kept {
@@ -158,6 +161,7 @@ class LMB_INFER_EXPORT Classifier {
   std::vector<double> kept_out_;         // kBatch exact scores of each kept class of a batch
   std::vector<detail::GroupItem> groups_;
   std::vector<double> background_;    // per batch of the group: kBatch background scores
+  std::vector<int32_t> goal_;         // per batch of the group: kBatch screening goals
   std::vector<int32_t> all_classes_;  // 0..C-1
   std::vector<std::vector<Candidate>> lanes_;  // per lane: passing candidates (pruned to top_k)
   std::vector<Candidate> cutoff_;              // per lane: worst kept once pruned
@@ -169,14 +173,14 @@ class LMB_INFER_EXPORT Classifier {
 
 namespace detail {
 // The batch scoring kernels (internal; declared for tests). fire_masks: fire[s] bit j = lane j's
-// value of stump s's dim is above its threshold; values holds one row of Classifier::kBatch lanes
-// per used dim. accumulate_lanes: out[j] = bias + the outputs of stumps[0, count) (stump indices,
+// value of stump s's dim is above its threshold; values holds kBatch lanes of each used dim u
+// at values[u * stride]. accumulate_lanes: out[j] = bias + the outputs of stumps[0, count) (stump indices,
 // in order) in lane j, each the stump's above or below double as fire bit j says, added in order
 // (the same doubles as the scalar sum); the AVX-512 kernel where the CPU has it, else
 // accumulate_lanes_generic (AVX2 or baseline clone). accumulate_two: two classes at once, each
 // with the same additions as accumulate_lanes. out arrays hold kBatch doubles.
 void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values,
-                uint32_t* fire);
+                size_t stride, uint32_t* fire);
 void accumulate_lanes(double bias, const int32_t* stumps, int64_t count,
                       const Model::DenseStump* dense, const uint32_t* fire, double* out);
 void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count,
@@ -186,21 +190,23 @@ void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double
                     const uint32_t* fire, double* out0, double* out1);
 // Screening of class `cls` (Model::screen_step, its screening list and checkpoints) in
 // `batches` (1 or 2) batches at once: bit 32 b + j of the result is set when lane j of batch b is
-// valid (bit j of valid[b]) and the class's score bound from the fire masks fire[b] passes
-// offer()'s margin and min-score tests against background[b][j]; 0 as soon as a checkpoint's bound
-// fails in every valid lane. AVX-512BW where the CPU has it, else screen_class_generic (AVX2 or
-// baseline clone) batch by batch; both give the same bits.
+// valid (bit j of valid[b]) and the class's integer score bound from the fire masks fire[b] passes
+// the lane's goal goal[b][j] (screen_goals; a lane whose offer() tests could pass always does);
+// 0 as soon as a checkpoint's bound fails in every valid lane. AVX-512BW where the CPU has it,
+// else screen_class_generic (AVX2 or baseline clone) batch by batch; both give the same bits.
+// screen_goals: the goals of kBatch lanes from their background scores and offer()'s min_margin
+// and min_score (see Model::kScreenCheck).
 // The exact sums of n items: out[l] = bias + the outputs of the item's stumps in lane
 // 8 group + l, added in list order (the same doubles as accumulate_lanes); AVX-512 four items
 // at a time where the CPU has it, else accumulate_lanes_generic's clone.
 void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense,
                        const uint32_t* fire);
 uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
-                      const double* const* background, double min_margin, double min_score,
-                      const uint32_t* valid);
-uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire,
-                              const double* background, double min_margin, double min_score,
+                      const int32_t* const* goal, const uint32_t* valid);
+uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire, const int32_t* goal,
                               uint32_t valid);
+void screen_goals(const Model& model, const double* background, double min_margin, double min_score,
+                  int32_t* goal);
 }  // namespace detail
 
 }  // namespace lmb

@@ -407,6 +407,7 @@ void Model::build_screen() {
   screen_step_ = usable ? std::ldexp(1.0, exponent) : 1.0;
   screen_q_.assign(q.begin(), q.end());
   screen_offset_.resize(static_cast<size_t>(C));
+  screen_units_.resize(static_cast<size_t>(C));
   screen_low_.resize(static_cast<size_t>(C));
   // The screening lists: every class's stumps by decreasing |q| (ties: training order), filled
   // from one global order of the stumps.
@@ -462,6 +463,10 @@ void Model::build_screen() {
     const double bound = constant + slack;
     screen_offset_[c] = usable && std::isfinite(bound) ? bound : std::numeric_limits<double>::infinity();
     screen_low_[c] = static_cast<uint16_t>(low & 0xFFFF);
+    // offset_c in steps, rounded up and clamped (see screen_units() in model.h; +inf and every
+    // offset above the clamp give the largest value, whose test always passes).
+    const double units = std::ceil(screen_offset_[c] / screen_step_);
+    screen_units_[c] = static_cast<int32_t>(std::clamp(units, -double{kScreenUnitsLimit}, double{kScreenUnitsLimit}));
   }
 }
 

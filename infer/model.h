@@ -170,10 +170,22 @@ class LMB_INFER_EXPORT Model {
   //   bound_k = offset_c + step * (t_k + add_ck) >= the class's exact score, where
   //   add_ck = low_ck - low_c + the sum of the positive q_m of the remaining entries;
   // a class whose bound_k already fails in every lane is dropped there.
+  // The tests run in integers (screen_goals below): a lane whose double test
+  //   bound - background > min_margin and bound >= min_score
+  // passes also passes x + units_c + 2 >= goal_j (detail::screen_goals in classifier.h), x = t + add (the multiple of step in bound),
+  // units_c = ceil(offset_c / step) clamped to +-kScreenUnitsLimit, and goal_j =
+  // floor(max(background_j + min_margin, min_score) / step). Why: while |background_j|,
+  // |min_margin| and |min_score| are at most 2^27 steps (else goal_j = kScreenPassAll, the lane
+  // is never dropped) and |offset_c| at most 2^29 steps, each double rounding moves the test by
+  // less than 2^-20 steps, and ceil / floor only loosen it; an offset_c beyond -2^29 steps fails
+  // the double test anyway, and one beyond +2^29 steps (or +inf) passes the integer one always.
   static constexpr int32_t kScreenCheck = 32;
+  static constexpr int32_t kScreenUnitsLimit = 1 << 29;
+  static constexpr int32_t kScreenPassAll = -(1 << 29) - 2;  // a goal every lane passes
   double screen_step() const { return screen_step_; }
   const std::vector<int16_t>& screen_q() const { return screen_q_; }            // M
   const std::vector<double>& screen_offset() const { return screen_offset_; }   // C
+  const std::vector<int32_t>& screen_units() const { return screen_units_; }    // C
   const std::vector<uint16_t>& screen_low() const { return screen_low_; }       // C: low_c mod 2^16
   // Class c's screening list: entries [class_stump_begin()[c], class_stump_begin()[c + 1]).
   const std::vector<uint16_t>& screen_list() const { return screen_list_; }
@@ -203,6 +215,7 @@ class LMB_INFER_EXPORT Model {
   double screen_step_ = 1.0;
   std::vector<int16_t> screen_q_;
   std::vector<double> screen_offset_;
+  std::vector<int32_t> screen_units_;
   std::vector<uint16_t> screen_low_;
   std::vector<uint16_t> screen_list_;
   std::vector<int64_t> screen_check_begin_;

@@ -179,6 +179,31 @@ uint8_t reference_dim(const ContextRegions& regions, const FrameKeypoints& frame
   return context_bin(counts[d % kWords], total);
 }
 
+// compute_dims_columns equals the plan's rows (rows: n x plan.size(), from compute_dims_all) for
+// every keypoint in a shuffled order and for a subset in reverse order, with a stride above the
+// count (the padding bytes stay untouched).
+void expect_columns_equal_rows(const FrameContext& ctx, const DimPlan& plan, const uint8_t* descriptors,
+                               const std::vector<uint8_t>& rows, int n, Rng& rng) {
+  std::vector<int32_t> shuffled(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) shuffled[i] = i;
+  rng.shuffle(shuffled);
+  std::vector<int32_t> subset;
+  for (int i = n - 1; i >= 0; i -= 3) subset.push_back(i);
+  for (const std::vector<int32_t>& ids : {shuffled, subset}) {
+    const int count = static_cast<int>(ids.size());
+    const size_t stride = static_cast<size_t>(count) + 5;
+    std::vector<uint8_t> columns(static_cast<size_t>(plan.size()) * stride, 0xEE);
+    ctx.compute_dims_columns(plan, ids.data(), count, descriptors, columns.data(), stride);
+    for (int32_t u = 0; u < plan.size(); ++u) {
+      for (int i = 0; i < count; ++i) {
+        ASSERT_EQ(columns[u * stride + i], rows[static_cast<size_t>(ids[i]) * plan.size() + u])
+            << "n " << n << " keypoint " << ids[i] << " plan dim " << plan.dims()[u];
+      }
+      for (size_t i = count; i < stride; ++i) ASSERT_EQ(columns[u * stride + i], 0xEE);
+    }
+  }
+}
+
 TEST(FrameContext, ComputeDimsEqualsBruteForceWithAndWithoutAPlan) {
   const ContextRegions regions = test_regions(300, 5);
   const int bytes = 32;
@@ -205,6 +230,7 @@ TEST(FrameContext, ComputeDimsEqualsBruteForceWithAndWithoutAPlan) {
         std::vector<uint8_t> planned(all.size(), 0xEE);
         ctx.compute_dims_all(plan, descriptors.data(), planned.data());
         ASSERT_EQ(planned, all) << "n " << n << " density " << density;
+        expect_columns_equal_rows(ctx, plan, descriptors.data(), planned, n, rng);
         const int step = n > 100 ? 37 : 1;  // brute force on a subset of large frames
         for (int k = 0; k < n; k += step) {
           for (size_t i = 0; i < dims.size(); ++i) {
@@ -255,6 +281,7 @@ TEST(FrameContext, PlanPathOnDegenerateAndCrowdedFramesEqualsBruteForce) {
     ctx.reset(frame);
     std::vector<uint8_t> planned(static_cast<size_t>(n) * dims.size());
     ctx.compute_dims_all(plan, descriptors.data(), planned.data());
+    expect_columns_equal_rows(ctx, plan, descriptors.data(), planned, n, rng);
     int nonzero = 0;
     for (int k = 0; k < n; k += n > 50 ? 7 : 1) {
       for (size_t i = 0; i < dims.size(); ++i) {
@@ -288,6 +315,8 @@ TEST(FrameContext, PlanOnFramesBeyondTheDominanceLimitEqualsRawDims) {
   std::vector<uint8_t> planned(all.size(), 0xEE);
   ctx.compute_dims_all(plan, descriptors.data(), planned.data());
   ASSERT_EQ(planned, all);
+  Rng rng(78);
+  expect_columns_equal_rows(ctx, plan, descriptors.data(), planned, n, rng);
   int nonzero = 0;
   for (uint8_t v : all) nonzero += v > 0;
   EXPECT_GT(nonzero, 1000);

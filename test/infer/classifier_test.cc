@@ -208,7 +208,7 @@ TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
   std::vector<uint8_t> values(static_cast<size_t>(num_used) * B);
   for (uint8_t& v : values) v = static_cast<uint8_t>(rng.below(256));
   std::vector<uint32_t> fire(num_stumps);
-  detail::fire_masks(stumps.data(), stumps.size(), values.data(), fire.data());
+  detail::fire_masks(stumps.data(), stumps.size(), values.data(), Classifier::kBatch, fire.data());
   int fired = 0;
   for (int32_t s = 0; s < num_stumps; ++s) {
     for (int32_t j = 0; j < B; ++j) {
@@ -271,7 +271,7 @@ TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
 // tight enough to matter); the AVX-512 and generic kernels return the same bits.
 TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
   constexpr int32_t B = Classifier::kBatch;
-  for (int scale = 0; scale < 3; ++scale) {
+  for (int scale = 0; scale < 4; ++scale) {
     ModelData data = random_model_data(40, 700, 30 + scale);
     Rng rng(40 + scale);
     if (scale == 1) {
@@ -288,10 +288,22 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
       huge.a = 1e300;
       huge.classes = {data.num_classes};
       data.stumps.push_back(huge);
+    } else if (scale == 3) {
+      // Outputs and biases on a grid of 1/64, coarser than the screening step: every q_m is
+      // exact, so the bound exceeds the exact score by its rounding slack only, and the integer
+      // test must keep a lane whose score passes by one ulp.
+      for (ModelStump& s : data.stumps) {
+        s.a = std::nearbyint(64 * s.a) / 64;
+        s.b = std::nearbyint(64 * s.b) / 64;
+      }
+      for (double& b : data.bias) b = std::nearbyint(64 * b) / 64;
     }
     const Model model(std::move(data));
     if (scale == 2) {
       EXPECT_LT(model.screen_step(), 1e-2);
+    }
+    if (scale == 3) {
+      ASSERT_LE(model.screen_step(), 1.0 / 64);
     }
     ASSERT_GT(model.screen_check_low().size(), 0u) << "scale " << scale << ": no checkpoints";
     const size_t M = model.dense_stumps().size();
@@ -316,22 +328,29 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
           below[j] = std::nextafter(exact[j], -inf);
           above[j] = exact[j] + 1.0 + 1e-3 * std::fabs(exact[j]);
         }
-        const double* low_bg[2] = {below.data(), below.data() + B};
-        const double* high_bg[2] = {above.data(), above.data() + B};
+        std::vector<int32_t> low_goals(2 * B), high_goals(2 * B), score_goals(B);
+        for (int32_t b = 0; b < 2; ++b) {
+          detail::screen_goals(model, below.data() + b * B, 0.0, -inf, low_goals.data() + b * B);
+          detail::screen_goals(model, above.data() + b * B, 0.0, -inf, high_goals.data() + b * B);
+        }
+        const int32_t* low_bg[2] = {low_goals.data(), low_goals.data() + B};
+        const int32_t* high_bg[2] = {high_goals.data(), high_goals.data() + B};
         // Kept in every valid lane of both batches, and of each batch alone.
-        const uint64_t kept = detail::screen_class(model, c, 2, fire, low_bg, 0.0, -inf, valid);
+        const uint64_t kept = detail::screen_class(model, c, 2, fire, low_bg, valid);
         ASSERT_EQ(kept, valid2) << "scale " << scale << " class " << c << " trial " << trial;
         for (int32_t b = 0; b < 2; ++b) {
-          ASSERT_EQ(detail::screen_class(model, c, 1, fire + b, low_bg + b, 0.0, -inf, valid + b), valid[b]);
-          ASSERT_EQ(detail::screen_class_generic(model, c, fire[b], low_bg[b], 0.0, -inf, valid[b]), valid[b]);
+          ASSERT_EQ(detail::screen_class(model, c, 1, fire + b, low_bg + b, valid + b), valid[b]);
+          ASSERT_EQ(detail::screen_class_generic(model, c, fire[b], low_bg[b], valid[b]), valid[b]);
         }
-        // min_score: the exact score itself passes score >= min_score.
+        // min_score: the exact score itself passes score >= min_score (no margin test).
         const uint32_t one = 1;
-        ASSERT_EQ(detail::screen_class(model, c, 1, fire, low_bg, -inf, exact[0], &one), 1u);
-        const uint64_t high = detail::screen_class(model, c, 2, fire, high_bg, 0.0, -inf, valid);
+        detail::screen_goals(model, below.data(), -inf, exact[0], score_goals.data());
+        const int32_t* score_goal = score_goals.data();
+        ASSERT_EQ(detail::screen_class(model, c, 1, fire, &score_goal, &one), 1u);
+        const uint64_t high = detail::screen_class(model, c, 2, fire, high_bg, valid);
         const uint64_t generic =
-            detail::screen_class_generic(model, c, fire[0], high_bg[0], 0.0, -inf, valid[0]) |
-            static_cast<uint64_t>(detail::screen_class_generic(model, c, fire[1], high_bg[1], 0.0, -inf, valid[1])) << 32;
+            detail::screen_class_generic(model, c, fire[0], high_bg[0], valid[0]) |
+            static_cast<uint64_t>(detail::screen_class_generic(model, c, fire[1], high_bg[1], valid[1])) << 32;
         // (A batch's bound only falls from checkpoint to checkpoint: the pair gives each batch's
         // own bits.)
         ASSERT_EQ(high, generic);
