@@ -153,9 +153,9 @@ class DimPlan {
 // prefix-count table over its own points ((n_w + 1)^2 uint16 entries, about n^2 / W in all). A
 // region bound p + s * c is ranked (keypoints below it along the axis) through a uniform grid over
 // the axis's sorted coordinates: the grid cell of a coordinate is a monotone function of it, so
-// the cell's first rank and the next cell's bracket the answer exactly, and the few keypoints of
-// the cell are compared with the bound directly (a binary search when there are more than
-// two). Then 4 table reads per word; count_all is the sum over the words. The anchor is
+// the cell's first rank and the next cell's bracket the answer exactly, and the keypoints of the
+// cell are compared with the bound directly (16 cells a keypoint: most hold none or one; a binary
+// search when there are more than two, or with AVX2 more than one). Then 4 table reads per word; count_all is the sum over the words. The anchor is
 // removed by comparing its own ranks with the region's rank ranges. (A table over all keypoints
 // for count_all was measured slower: at (n+1)^2 entries it does not stay in cache.) The DimPlan
 // overloads read only the plan's words of a region and take count_all from a blocked dominance
@@ -223,7 +223,7 @@ class FrameContext {
   // uniform grid of `cells` cells over [lo, lo + cells / inv); start[c] = the first rank whose
   // coordinate's cell is >= c (cells + 1 entries; ranks fit uint16, see kMaxFrameKeypoints).
   struct Axis {
-    static constexpr int32_t kCellsPerKeypoint = 4;
+    static constexpr int32_t kCellsPerKeypoint = 16;
     std::vector<float> sorted;
     float lo = 0.f, inv = 0.f;
     int32_t cells = 1;
