@@ -270,13 +270,19 @@ __attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(
   const ScreenView v(model, cls);
   const uint32_t* fire0 = fire[0];
   const uint32_t* fire1 = fire[batches > 1 ? 1 : 0];
+  uint32_t valid0 = valid[0], valid1 = batches > 1 ? valid[1] : 0;
   __m512i goal_lo[2], goal_hi[2];
   permuted_goals(goal[0], &goal_lo[0], &goal_hi[0]);
   permuted_goals(goal[batches > 1 ? 1 : 0], &goal_lo[1], &goal_hi[1]);
   __m512i acc0 = _mm512_setzero_si512(), acc1 = _mm512_setzero_si512();
+  // Two batches share a pass until one of them fails a checkpoint in every lane (its bound only
+  // falls from then on, and its bits are 0, as screening it alone gives); the other goes on
+  // alone as batch 0 of the loop, its bits shifted back to their place at the end.
+  bool pair = batches > 1;
+  int32_t out_shift = 0;
   for (int64_t e = 0, k = 0;; ++k) {
     const int64_t stop = std::min(v.count, e + Model::kScreenCheck);
-    if (batches > 1) {
+    if (pair) {
       for (; e < stop; ++e) {
         const uint32_t s = v.list[e];
         const __m512i step_q = _mm512_set1_epi16(v.q[s]);
@@ -292,11 +298,24 @@ __attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(
     const bool last = e == v.count;
     const uint16_t low = v.low(k, last);
     const int32_t shift = v.shift(k, last);
-    uint64_t bits = goal_bits_avx512(acc0, low, shift, goal_lo[0], goal_hi[0]) & valid[0];
-    if (batches > 1) {
-      bits |= static_cast<uint64_t>(goal_bits_avx512(acc1, low, shift, goal_lo[1], goal_hi[1]) & valid[1]) << 32;
+    const uint32_t bits0 = goal_bits_avx512(acc0, low, shift, goal_lo[0], goal_hi[0]) & valid0;
+    if (!pair) {
+      if (last || bits0 == 0) return static_cast<uint64_t>(bits0) << out_shift;
+      continue;
     }
-    if (last || bits == 0) return bits;
+    const uint32_t bits1 = goal_bits_avx512(acc1, low, shift, goal_lo[1], goal_hi[1]) & valid1;
+    if (last || (bits0 | bits1) == 0) return bits0 | static_cast<uint64_t>(bits1) << 32;
+    if (bits0 == 0) {  // batch 1 goes on alone
+      acc0 = acc1;
+      fire0 = fire1;
+      goal_lo[0] = goal_lo[1];
+      goal_hi[0] = goal_hi[1];
+      valid0 = valid1;
+      out_shift = 32;
+      pair = false;
+    } else if (bits1 == 0) {
+      pair = false;
+    }
   }
 }
 #endif
