@@ -652,15 +652,19 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
   }
 }
 
-void FrameContext::compute_dims_all(const DimPlan& plan, const uint8_t* descriptors,
-                                    uint8_t* out) const {
+void FrameContext::check_plan(const DimPlan& plan, const uint8_t* descriptors, int32_t count) const {
   LMB_CHECK(plan.layout().num_words == num_words_ && plan.layout().num_regions == regions_->size(),
             "dim plan: made for " << plan.layout().num_regions << " regions x "
                                   << plan.layout().num_words << " words, the frame context has "
                                   << regions_->size() << " x " << num_words_);
-  LMB_CHECK(descriptors != nullptr || plan.size() == 0 || n_ == 0 ||
+  LMB_CHECK(descriptors != nullptr || plan.size() == 0 || count == 0 ||
                 plan.dims().back() < plan.layout().num_context_dims(),
             "dim plan: descriptor dims requested without descriptors");
+}
+
+void FrameContext::compute_dims_all(const DimPlan& plan, const uint8_t* descriptors,
+                                    uint8_t* out) const {
+  check_plan(plan, descriptors, n_);
   const int32_t bytes = plan.layout().descriptor_bytes;
   for (int32_t k = 0; k < n_; ++k) {
     compute_dims(k, plan, descriptors ? descriptors + static_cast<size_t>(k) * bytes : nullptr,
@@ -688,6 +692,14 @@ struct ColumnTables {
 };
 
 #define LMB_COLUMNS_TARGET __attribute__((target("avx512f,avx512bw,avx512dq,avx512vl,avx512vpopcntdq")))
+
+// GCC 12 warns that its own extract, convert, shift and gather intrinsics read their undefined
+// pass-through operand (a false positive: the mask is all ones).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 
 // Dominance counts (FrameContext::dominance) of 8 (x rank, y rank) pairs: ix / kDomBlock as
 // (ix * 43691) >> 21 (exact for ix < 2^16: the error ix / 3 / 2^21 stays below 1 / 48).
@@ -766,6 +778,9 @@ LMB_COLUMNS_TARGET void column_bins_avx512(const ColumnTables& t, const int32_t*
     _mm_storeu_si128(reinterpret_cast<__m128i*>(out + 16 * j), _mm_unpacklo_epi64(lo, hi));
   }
 }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 #undef LMB_COLUMNS_TARGET
 #endif
 
@@ -774,15 +789,9 @@ LMB_COLUMNS_TARGET void column_bins_avx512(const ColumnTables& t, const int32_t*
 LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, const int32_t* ids,
                                                         int32_t count, const uint8_t* descriptors,
                                                         uint8_t* out, size_t stride) const {
-  LMB_CHECK(plan.layout().num_words == num_words_ && plan.layout().num_regions == regions_->size(),
-            "dim plan: made for " << plan.layout().num_regions << " regions x "
-                                  << plan.layout().num_words << " words, the frame context has "
-                                  << regions_->size() << " x " << num_words_);
+  check_plan(plan, descriptors, count);
   LMB_CHECK(count >= 0 && count <= n_ && stride >= static_cast<size_t>(count),
             "compute_dims_columns: " << count << " keypoints of " << n_ << ", stride " << stride);
-  LMB_CHECK(descriptors != nullptr || plan.size() == 0 || count == 0 ||
-                plan.dims().back() < plan.layout().num_context_dims(),
-            "dim plan: descriptor dims requested without descriptors");
   if (count == 0) return;
   // The keypoints in x order (ties: by position), with their output position.
   std::vector<std::pair<int32_t, int32_t>> visit(static_cast<size_t>(count));
@@ -837,6 +846,7 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, con
 #if defined(__x86_64__)
   // 16 keypoints at a time with AVX-512 gathers where the CPU has them, for frames with the
   // dominance structure and byte tables (the rest, and other CPUs, one keypoint at a time).
+  static_assert(kDomBlock == 48, "dominance8 divides by 48");
   const bool vector_columns = kHasAvx512Columns && small_frame && bytes8;
   const ColumnTables tables{dom_table, n_ + 1, bin_magic, row8_x, local8_y, tables8, W};
 #endif

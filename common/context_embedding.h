@@ -242,6 +242,9 @@ class FrameContext {
     // multiple of 8 readable entries).
     void keypoint_ranks(const float* p, const float* s, float corner, int32_t m, int32_t* out) const;
   };
+  // Throws lmb::Error when the plan's layout does not match this context, or when it has
+  // descriptor dims and descriptors is null (with count > 0 keypoints to compute).
+  void check_plan(const DimPlan& plan, const uint8_t* descriptors, int32_t count) const;
   // The region rectangle q of keypoint k as rank ranges.
   Bounds bounds(int32_t k, const RegionRect& q) const;
   void counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts, int32_t* total) const;

@@ -89,8 +89,8 @@ constexpr int32_t kLanes = 4;
 constexpr int32_t kVectors = Classifier::kBatch / kLanes;
 static_assert(Classifier::kBatch == 32, "a batch's fire bits of one stump are a uint32");
 
-// fire[s] bit j = lane j's value of stump s's dim is above the stump's threshold. values: one row
-// of kBatch lanes per used dim (dim-major). Cloned for AVX2 (common/cpu_dispatch.h).
+// fire[s] bit j = lane j's value of stump s's dim is above the stump's threshold. values: kBatch
+// lanes of used dim u at values[u * stride]. Cloned for AVX2 (common/cpu_dispatch.h).
 LMB_CLONES_AVX2 void fire_masks_impl(const Model::DenseStump* stumps, size_t num_stumps,
                                      const uint8_t* values, size_t stride, uint32_t* fire) {
   using Bytes = uint8_t __attribute__((vector_size(32), aligned(1)));
@@ -451,7 +451,6 @@ void screen_goals(const Model& model, const double* background, double min_margi
     goal[j] = usable ? static_cast<int32_t>(std::floor(target / step)) : Model::kScreenPassAll;
   }
 }
-
 
 }  // namespace detail
 
