@@ -1,11 +1,16 @@
 // Landmark classification of a frame's keypoints with an inference Model.
 //
-// Per keypoint: the feature values of the model's used dims (common/context_embedding.h,
-// FrameContext::compute_dims), then the class scores
+// Per keypoint: the feature values of the model's used dims (common/context_embedding.h), then
+// the class scores
 //   dense:          all C + 1 classes;
 //   inverted file:  only the keypoint word's candidate classes (classes whose training
 //                   observations quantize to the same word) and the background; only the dims
-//                   those classes read are computed.
+//                   those classes read are needed.
+// The values: when the keypoints' needs cover at least 3/4 of what all used dims of all
+// keypoints would be (always in dense mode; in the trained `paper` model every word needs every
+// used dim), every used dim of every keypoint at once, region by region
+// (FrameContext::compute_dims_columns: about twice as fast on the paper model); else keypoint by keypoint,
+// only its word's dims (FrameContext::compute_dims with Model::word_plan).
 // classify() works on batches of kBatch keypoints of the same word: which stumps fire in which
 // lane is tabulated once for the batch (one 32-bit mask a stump: the table stays in L1). Each
 // candidate class is first screened (below), for two batches of the word at a time; a class kept

@@ -191,6 +191,41 @@ TEST(ClassifierTest, ManyClassesAndKeypointsEqualTheReference) {
   }
 }
 
+// A model whose words need few of the used dims (each class owns its stumps and sits in one
+// word's list; the background has a few stumps): classify() computes each keypoint's word's dims
+// only, keypoint by keypoint (not the frame's columns of every used dim), and still gives the
+// reference's matches.
+TEST(ClassifierTest, SmallWordPlansTakeThePerKeypointPathAndEqualTheReference) {
+  ModelData data = random_model_data(64, 240, 17);
+  const int32_t C = data.num_classes;
+  for (size_t m = 0; m < data.stumps.size(); ++m) {
+    data.stumps[m].classes = {m % 40 == 0 ? C : static_cast<int32_t>(m % static_cast<size_t>(C))};
+  }
+  const int32_t W = data.vocabulary.num_words();
+  for (int32_t w = 0; w < W; ++w) {
+    data.inverted_file[w].clear();
+    for (int32_t c = w; c < C; c += W) data.inverted_file[w].push_back(c);
+  }
+  const auto model = std::make_shared<const Model>(std::move(data));
+  const test::TestWorld world = test::make_test_world(64, 120, 120, 8);
+  std::vector<uint8_t> words;
+  const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
+  // classify()'s rule: the frame's columns only when the words' dims are >= 3/4 of all used dims.
+  int64_t planned = 0;
+  for (uint8_t w : words) planned += model->word_plan(w).size();
+  const int64_t all = static_cast<int64_t>(model->used_dims().size()) * frame.size();
+  ASSERT_LT(4 * planned, 3 * all) << "the words' plans should be small";
+  for (int top_k : {1, 4}) {
+    for (double margin : {-std::numeric_limits<double>::infinity(), 0.0}) {
+      ClassifierOptions o;
+      o.top_k = top_k;
+      o.min_margin = margin;
+      o.use_inverted_file = true;
+      EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0);
+    }
+  }
+}
+
 // The batch kernels against the scalar sum: fire masks against the byte comparisons, and the
 // AVX-512 (where the CPU has it), generic (AVX2 / baseline clone) and two-class kernels against
 // bias + each lane's outputs added in list order: the same doubles, bit for bit.
