@@ -24,13 +24,22 @@ namespace {
 std::atomic<size_t> largest_allocation{0};
 }  // namespace
 
-void* operator new(size_t size) {
+namespace {
+void* counted_malloc(size_t size) {
   size_t seen = largest_allocation.load(std::memory_order_relaxed);
   while (size > seen && !largest_allocation.compare_exchange_weak(seen, size)) {
   }
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  return std::malloc(size == 0 ? 1 : size);
+}
+}  // namespace
+
+void* operator new(size_t size) {
+  if (void* p = counted_malloc(size)) return p;
   throw std::bad_alloc();
 }
+// The nothrow form too (std::stable_sort's temporary buffer): under AddressSanitizer an
+// unreplaced one would come from its allocator and reach free() below.
+void* operator new(size_t size, const std::nothrow_t&) noexcept { return counted_malloc(size); }
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete(void* p, size_t) noexcept { std::free(p); }
 
