@@ -437,9 +437,9 @@ inline int32_t bit_count(uint64_t x) {
 }
 }  // namespace
 
-inline int32_t FrameContext::dominance(int32_t ix, int32_t iy) const {
-  const uint64_t e = dom_[static_cast<size_t>(dom_row_[ix]) + iy];
-  return static_cast<int32_t>(e >> 48) + bit_count(e & dom_below_[ix]);
+inline int32_t FrameContext::BinTables::dominance(int32_t ix, int32_t iy) const {
+  const uint64_t e = dom[dom_row[ix] + iy];
+  return static_cast<int32_t>(e >> 48) + bit_count(e & dom_below[ix]);
 }
 
 inline int32_t FrameContext::word_dominance(int32_t w, int32_t ix, int32_t iy) const {
@@ -590,6 +590,64 @@ DimPlan::DimPlan(const ContextRegions& regions, const EmbeddingLayout& layout,
   for (std::vector<float>& c : corners_) c.resize((c.size() + 7) / 8 * 8, 0.f);
 }
 
+FrameContext::BinTables FrameContext::bin_tables() const {
+  BinTables t;
+  t.rank_x = rank_x_.data();
+  t.rank_y = rank_y_.data();
+  t.word = word_.data();
+  t.bin_magic = bin_magic_.data();
+  if (!dom_.empty()) {
+    t.dom = dom_.data();
+    t.dom_row = dom_row_.data();
+    t.dom_below = dom_below_.data();
+  }
+  if (small_words_) {
+    t.tables8 = tables8_.data();
+    t.row8_x = row8_x_.data();
+    t.local8_y = local8_y_.data();
+  }
+  t.num_words = num_words_;
+  return t;
+}
+
+// The bins of one region (rank ranges ix0..iy1) of keypoint k for the plan's dims [begin, end)
+// (their words in dim_word), written to out[j * stride]. The tables come through t's local
+// pointers: the byte stores may alias any member, which would make the compiler reload them.
+inline void FrameContext::region_bins(const BinTables& t, int32_t k, int32_t ix0, int32_t ix1, int32_t iy0,
+                                      int32_t iy1, const uint8_t* dim_word, int32_t begin, int32_t end,
+                                      uint8_t* out, size_t stride) const {
+  if (ix0 == ix1 || iy0 == iy1) {  // empty (the anchor cannot be inside)
+    for (int32_t j = begin; j < end; ++j) out[j * stride] = 0;
+    return;
+  }
+  const int32_t rx = t.rank_x[k], ry = t.rank_y[k];
+  const int32_t inside = (ix0 <= rx) & (rx < ix1) & (iy0 <= ry) & (ry < iy1);
+  if (t.dom == nullptr) {  // a large frame: all words' counts
+    Bounds b{ix0, ix1, iy0, iy1, inside != 0};
+    int32_t counts[256];
+    int32_t total = 0;
+    counts_from_bounds(k, b, counts, &total);
+    for (int32_t j = begin; j < end; ++j) out[j * stride] = context_bin(counts[dim_word[j]], total);
+    return;
+  }
+  // Only the plan's words of the region; count_all from the dominance structure.
+  const int32_t W = t.num_words;
+  const auto word_dom = [&](int32_t w, int32_t ix, int32_t iy) {
+    if (t.tables8 != nullptr) return static_cast<int32_t>(t.tables8[t.row8_x[ix * W + w] + t.local8_y[iy * W + w]]);
+    return word_dominance(w, ix, iy);
+  };
+  const int32_t total =
+      t.dominance(ix1, iy1) - t.dominance(ix0, iy1) - t.dominance(ix1, iy0) + t.dominance(ix0, iy0) - inside;
+  const uint64_t magic = t.bin_magic[total];
+  const int32_t word_k = t.word[k];
+  for (int32_t j = begin; j < end; ++j) {
+    const int32_t w = dim_word[j];
+    const int32_t count = word_dom(w, ix1, iy1) - word_dom(w, ix0, iy1) - word_dom(w, ix1, iy0) +
+                          word_dom(w, ix0, iy0) - (inside & (word_k == w));
+    out[j * stride] = context_bin_fast(count, total, magic);
+  }
+}
+
 // Cloned for AVX2: the popcounts of dominance() become single instructions.
 LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
                                                 const uint8_t* descriptor, uint8_t* out) const {
@@ -598,15 +656,13 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
   const int32_t U = plan.num_used_regions();
   const int32_t* dim_begin = plan.dim_begin_.data();
   const uint8_t* dim_word = plan.dim_word_.data();
-  const int32_t word_k = word_[k];
-  const bool small_frame = !dom_.empty();
+  const BinTables tables = bin_tables();
   // Regions in chunks: first every region's rank bounds (independent chains of reads, 8 regions
   // a step with AVX2 gathers), then the counts, where the test for an empty region no longer
   // waits on them.
   constexpr int32_t kChunk = kMaxRankBatch;
   alignas(32) int32_t ranks[4][kChunk];  // ix0, ix1, iy0, iy1 of the chunk's regions
   const float px = x_[k], py = y_[k], s = scale_[k];
-  const int32_t rx = rank_x_[k], ry = rank_y_[k];
   for (int32_t u0 = 0; u0 < U; u0 += kChunk) {
     const int32_t m = std::min(kChunk, U - u0);
     axis_x_.ranks(px, s, plan.corners_[0].data() + u0, m, ranks[0]);
@@ -614,35 +670,8 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
     axis_y_.ranks(py, s, plan.corners_[2].data() + u0, m, ranks[2]);
     axis_y_.ranks(py, s, plan.corners_[3].data() + u0, m, ranks[3]);
     for (int32_t i = 0; i < m; ++i) {
-      Bounds b;
-      b.ix0 = ranks[0][i];
-      b.ix1 = ranks[1][i];
-      b.iy0 = ranks[2][i];
-      b.iy1 = ranks[3][i];
       const int32_t begin = dim_begin[u0 + i], end = dim_begin[u0 + i + 1];
-      if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {  // empty (the anchor cannot be inside)
-        for (int32_t j = begin; j < end; ++j) out[j] = 0;
-        continue;
-      }
-      b.anchor_inside = (b.ix0 <= rx) & (rx < b.ix1) & (b.iy0 <= ry) & (ry < b.iy1);
-      if (!small_frame) {  // a large frame: all words' counts
-        int32_t counts[256];
-        int32_t total = 0;
-        counts_from_bounds(k, b, counts, &total);
-        for (int32_t j = begin; j < end; ++j) out[j] = context_bin(counts[dim_word[j]], total);
-        continue;
-      }
-      // Only the plan's words of the region; count_all from the dominance structure.
-      const int32_t total = dominance(b.ix1, b.iy1) - dominance(b.ix0, b.iy1) -
-                            dominance(b.ix1, b.iy0) + dominance(b.ix0, b.iy0) - b.anchor_inside;
-      const uint64_t magic = bin_magic_[total];
-      for (int32_t j = begin; j < end; ++j) {
-        const int32_t w = dim_word[j];
-        const int32_t count = word_dominance(w, b.ix1, b.iy1) - word_dominance(w, b.ix0, b.iy1) -
-                              word_dominance(w, b.ix1, b.iy0) + word_dominance(w, b.ix0, b.iy0) -
-                              (b.anchor_inside & (word_k == w));
-        out[j] = context_bin_fast(count, total, magic);
-      }
+      region_bins(tables, k, ranks[0][i], ranks[1][i], ranks[2][i], ranks[3][i], dim_word, begin, end, out, 1);
     }
   }
   const int32_t* dims = plan.dims_.data();
@@ -818,37 +847,16 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, con
   const int32_t U = plan.num_used_regions();
   const int32_t* dim_begin = plan.dim_begin_.data();
   const uint8_t* dim_word = plan.dim_word_.data();
-  const bool small_frame = !dom_.empty();
   constexpr int32_t kChunk = kMaxRankBatch;
   alignas(32) int32_t ranks[4][kChunk];
-  // The tables through local pointers: the byte stores to out may alias any member, which would
-  // make the compiler reload them after each store. (dominance() and word_dominance(), inline.)
-  const int32_t* rank_x = rank_x_.data();
-  const int32_t* rank_y = rank_y_.data();
-  const uint8_t* word = word_.data();
-  const uint64_t* bin_magic = bin_magic_.data();
-  const uint64_t* dom_table = dom_.data();
-  const int32_t* dom_row = dom_row_.data();
-  const uint64_t* dom_below = dom_below_.data();
-  const auto dom = [dom_table, dom_row, dom_below](int32_t ix, int32_t iy) {
-    const uint64_t e = dom_table[dom_row[ix] + iy];
-    return static_cast<int32_t>(e >> 48) + bit_count(e & dom_below[ix]);
-  };
-  const bool bytes8 = small_words_;
-  const uint8_t* tables8 = tables8_.data();
-  const int32_t* row8_x = row8_x_.data();
-  const uint8_t* local8_y = local8_y_.data();
-  const int32_t W = num_words_;
-  const auto word_dom = [&](int32_t w, int32_t ix, int32_t iy) {
-    if (bytes8) return static_cast<int32_t>(tables8[row8_x[ix * W + w] + local8_y[iy * W + w]]);
-    return word_dominance(w, ix, iy);
-  };
+  const BinTables tables = bin_tables();
 #if defined(__x86_64__)
   // 16 keypoints at a time with AVX-512 gathers where the CPU has them, for frames with the
   // dominance structure and byte tables (the rest, and other CPUs, one keypoint at a time).
   static_assert(kDomBlock == 48, "dominance8 divides by 48");
-  const bool vector_columns = kHasAvx512Columns && small_frame && bytes8;
-  const ColumnTables tables{dom_table, n_ + 1, bin_magic, row8_x, local8_y, tables8, W};
+  const bool vector_columns = kHasAvx512Columns && tables.dom != nullptr && tables.tables8 != nullptr;
+  const ColumnTables columns{tables.dom, n_ + 1, tables.bin_magic, tables.row8_x, tables.local8_y, tables.tables8,
+                             num_words_};
 #endif
   for (int32_t u = 0; u < U; ++u) {
     const float x0 = plan.corners_[0][u], x1 = plan.corners_[1][u];
@@ -866,7 +874,7 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, con
         alignas(64) uint8_t bins[16 * 256];
         for (; i + 16 <= m; i += 16) {
           const int32_t v = i0 + i;
-          column_bins_avx512(tables, ranks[0] + i, ranks[1] + i, ranks[2] + i, ranks[3] + i, own_rx.data() + v,
+          column_bins_avx512(columns, ranks[0] + i, ranks[1] + i, ranks[2] + i, ranks[3] + i, own_rx.data() + v,
                              own_ry.data() + v, own_word.data() + v, dim_word + begin, end - begin, bins);
           for (int32_t j = begin; j < end; ++j) {
             uint8_t* o = out + static_cast<size_t>(j) * stride;
@@ -877,37 +885,8 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, con
       }
 #endif
       for (; i < m; ++i) {
-        const int32_t k = key[i0 + i];
-        uint8_t* o = out + pos[i0 + i];
-        Bounds b;
-        b.ix0 = ranks[0][i];
-        b.ix1 = ranks[1][i];
-        b.iy0 = ranks[2][i];
-        b.iy1 = ranks[3][i];
-        if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {  // empty (the anchor cannot be inside)
-          for (int32_t j = begin; j < end; ++j) o[j * stride] = 0;
-          continue;
-        }
-        const int32_t rx = rank_x[k], ry = rank_y[k];
-        b.anchor_inside = (b.ix0 <= rx) & (rx < b.ix1) & (b.iy0 <= ry) & (ry < b.iy1);
-        if (!small_frame) {  // a large frame: all words' counts
-          int32_t counts[256];
-          int32_t total = 0;
-          counts_from_bounds(k, b, counts, &total);
-          for (int32_t j = begin; j < end; ++j) o[j * stride] = context_bin(counts[dim_word[j]], total);
-          continue;
-        }
-        const int32_t total = dom(b.ix1, b.iy1) - dom(b.ix0, b.iy1) - dom(b.ix1, b.iy0) +
-                              dom(b.ix0, b.iy0) - b.anchor_inside;
-        const uint64_t magic = bin_magic[total];
-        const int32_t word_k = word[k];
-        for (int32_t j = begin; j < end; ++j) {
-          const int32_t w = dim_word[j];
-          const int32_t c = word_dom(w, b.ix1, b.iy1) - word_dom(w, b.ix0, b.iy1) -
-                            word_dom(w, b.ix1, b.iy0) + word_dom(w, b.ix0, b.iy0) -
-                            (b.anchor_inside & (word_k == w));
-          o[j * stride] = context_bin_fast(c, total, magic);
-        }
+        region_bins(tables, key[i0 + i], ranks[0][i], ranks[1][i], ranks[2][i], ranks[3][i], dim_word, begin, end,
+                    out + pos[i0 + i], stride);
       }
     }
   }

@@ -242,14 +242,32 @@ class FrameContext {
     // multiple of 8 readable entries).
     void keypoint_ranks(const float* p, const float* s, float corner, int32_t m, int32_t* out) const;
   };
+  // The frame's tables as plain pointers, for region_bins (dom null without the dominance
+  // structure, tables8 null without the byte word tables).
+  struct BinTables {
+    const int32_t* rank_x = nullptr;
+    const int32_t* rank_y = nullptr;
+    const uint8_t* word = nullptr;
+    const uint64_t* bin_magic = nullptr;
+    const uint64_t* dom = nullptr;
+    const int32_t* dom_row = nullptr;
+    const uint64_t* dom_below = nullptr;
+    const uint8_t* tables8 = nullptr;
+    const int32_t* row8_x = nullptr;
+    const uint8_t* local8_y = nullptr;
+    int32_t num_words = 0;
+    // Keypoints (of any word) with x rank < ix and y rank < iy (needs dom).
+    int32_t dominance(int32_t ix, int32_t iy) const;
+  };
+  BinTables bin_tables() const;
+  void region_bins(const BinTables& t, int32_t k, int32_t ix0, int32_t ix1, int32_t iy0, int32_t iy1,
+                   const uint8_t* dim_word, int32_t begin, int32_t end, uint8_t* out, size_t stride) const;
   // Throws lmb::Error when the plan's layout does not match this context, or when it has
   // descriptor dims and descriptors is null (with count > 0 keypoints to compute).
   void check_plan(const DimPlan& plan, const uint8_t* descriptors, int32_t count) const;
   // The region rectangle q of keypoint k as rank ranges.
   Bounds bounds(int32_t k, const RegionRect& q) const;
   void counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts, int32_t* total) const;
-  // Keypoints (of any word) with x rank < ix and y rank < iy.
-  int32_t dominance(int32_t ix, int32_t iy) const;
   // Keypoints of word w with x rank < ix and y rank < iy.
   int32_t word_dominance(int32_t w, int32_t ix, int32_t iy) const;
 
