@@ -170,9 +170,9 @@ class LMB_INFER_EXPORT Model {
   //   bound_k = offset_c + step * (t_k + add_ck) >= the class's exact score, where
   //   add_ck = low_ck - low_c + the sum of the positive q_m of the remaining entries;
   // a class whose bound_k already fails in every lane is dropped there.
-  // The tests run in integers (screen_goals below): a lane whose double test
+  // The tests run in integers (detail::screen_goals in classifier.h): a lane whose double test
   //   bound - background > min_margin and bound >= min_score
-  // passes also passes x + units_c + 2 >= goal_j (detail::screen_goals in classifier.h), x = t + add (the multiple of step in bound),
+  // passes also passes x + units_c + 2 >= goal_j, x = t + add (the multiple of step in bound),
   // units_c = ceil(offset_c / step) clamped to +-kScreenUnitsLimit, and goal_j =
   // floor(max(background_j + min_margin, min_score) / step). Why: while |background_j|,
   // |min_margin| and |min_score| are at most 2^27 steps (else goal_j = kScreenPassAll, the lane
