@@ -1,6 +1,7 @@
 #include "infer/classifier.h"
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -497,7 +498,7 @@ void Classifier::offer(int32_t j, int32_t cls, double score, double bg) {
   }
 }
 
-void Classifier::prepare_batch(int32_t b) {
+void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) {
   const Model& m = *model_;
   // Fire masks of every stump (stale value rows of lanes >= count, or of dims the word does not
   // need, give bits no scored class reads).
@@ -506,7 +507,7 @@ void Classifier::prepare_batch(int32_t b) {
   if (fire_.size() < (b + 1) * M) fire_.resize((b + 1) * M);
   if (background_.size() < static_cast<size_t>(b + 1) * kBatch) background_.resize(static_cast<size_t>(b + 1) * kBatch);
   uint32_t* fire = fire_.data() + b * M;
-  detail::fire_masks(stumps.data(), M, batch_values_, batch_stride_, fire);
+  detail::fire_masks(stumps.data(), M, values, stride, fire);
   const int64_t* begin = m.class_stump_begin().data();
   const int32_t C = m.num_classes();
   detail::accumulate_lanes(m.data().bias[C], m.class_stump_index().data() + begin[C], begin[C + 1] - begin[C],
@@ -703,31 +704,24 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
       const int32_t b = word_begin_[g] + batch * kBatch;
       const int32_t count = std::min(kBatch, word_begin_[g + 1] - b);
       if (columns) {  // the frame's values, computed above
-        batch_values_ = frame_values_.data() + b;
-        batch_stride_ = frame_stride;
-        prepare_batch(batch);
+        prepare_batch(batch, frame_values_.data() + b, frame_stride);
         continue;
       }
-      batch_values_ = values_.data();
-      batch_stride_ = kBatch;
+      // Only with the inverted file (dense mode always takes the columns): each keypoint's
+      // values of only the dims this word's candidates and the background read.
+      assert(inverted);
       if (embedding_ms) t0 = Clock::now();
       for (int32_t j = 0; j < count; ++j) {
         const int32_t k = order_[b + j];
         const uint8_t* desc = descriptors + static_cast<int64_t>(k) * bytes;
         uint8_t* lane = values_.data() + j;  // dim-major: value of used dim u at lane[u * kBatch]
-        if (!inverted) {
-          compute_used_values(k, desc, word_values_.data());
-          for (size_t u = 0; u < U; ++u) lane[u * kBatch] = word_values_[u];
-          continue;
-        }
-        // Only the dims this word's candidates and the background read.
         context_.compute_dims(k, m.word_plan(g), desc, word_values_.data());
         const int32_t u0 = m.word_used_begin()[g], u1 = m.word_used_begin()[g + 1];
         const int32_t* used = m.word_used().data() + u0;
         for (int32_t i = 0; i < u1 - u0; ++i) lane[used[i] * kBatch] = word_values_[i];
       }
       if (embedding_ms) embedding += Clock::now() - t0;
-      prepare_batch(batch);
+      prepare_batch(batch, values_.data(), kBatch);
     }
     screen_word(classes, num, batches, keypoints);
     for (int32_t batch = 0; batch < batches; ++batch) {

@@ -136,13 +136,14 @@ class LMB_INFER_EXPORT Classifier {
     double score;
     int32_t cls;
   };
-  // The steps of one group of keypoints (a word's, or all): prepare_batch(b) computes batch b's
-  // fire masks (from values_) and background scores; screen_word lists in kept_[b] the classes
+  // The steps of one group of keypoints (a word's, or all): prepare_batch(b, values, stride)
+  // computes batch b's fire masks (its kBatch lanes of used dim u at values[u * stride], in
+  // values_ or frame_values_), background scores and screening goals; screen_word lists in kept_[b] the classes
   // (of `classes`, ascending, num of them) that pass the screening in some lane of batch b
   // (`batches` batches, `keypoints` keypoints); finish_batch scores batch b's kept classes
   // exactly and appends its keypoints' (`ids`, count of them) ranked matches to pending_ as
   // (keypoint, match).
-  void prepare_batch(int32_t b);
+  void prepare_batch(int32_t b, const uint8_t* values, size_t stride);
   void screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints);
   void finish_batch(const int32_t* ids, int32_t count, int32_t b);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
@@ -154,8 +155,6 @@ class LMB_INFER_EXPORT Classifier {
   std::vector<uint8_t> values_;       // used_dims().size() rows of kBatch lanes (dim-major)
   std::vector<uint8_t> word_values_;  // one keypoint's values of its word's (or all used) dims
   std::vector<uint8_t> frame_values_; // or all used dims of the frame's keypoints (dim-major)
-  const uint8_t* batch_values_ = nullptr;  // the batch's lane 0 of used dim 0, in one of them
-  size_t batch_stride_ = kBatch;           // from one used dim to the next
   std::vector<uint32_t> fire_;        // per batch of the group, per stump: bit j = fires in lane j
   std::vector<double> class_out_;     // kBatch scores of one class
   struct Kept {
