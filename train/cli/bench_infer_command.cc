@@ -34,7 +34,7 @@
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
 #include "train/cli/commands.h"
-#include "train/cli/timing.h"
+#include "train/eval/timing.h"
 #include "train/export/synthetic_model.h"
 
 namespace lmb::cli {
@@ -92,95 +92,130 @@ std::vector<BenchFrame> synthetic_frames(int num_frames, int keypoints, int byte
   return frames;
 }
 
-void run_bench_infer(const BenchInferArgs& a) {
-  LMB_CHECK(a.keypoints >= 1 && a.repeats >= 1, "bench infer: --keypoints and --repeats must be >= 1");
-  LMB_CHECK(a.synthetic_paper != !a.model.empty(),
-            "bench infer: give exactly one of --model and --synthetic-paper");
+// The model under test: --model, or the synthetic paper-shape model.
+std::shared_ptr<const Model> load_bench_model(const BenchInferArgs& a, double* load_ms) {
+  const Clock::time_point t_load = Clock::now();
   std::shared_ptr<const Model> model;
-  SyntheticModelStats synthetic_stats;
-  Clock::time_point t_load = Clock::now();
   if (a.synthetic_paper) {
-    model = std::make_shared<const Model>(make_synthetic_model(a.synthetic, &synthetic_stats));
+    SyntheticModelStats stats;
+    model = std::make_shared<const Model>(make_synthetic_model(a.synthetic, &stats));
   } else {
     model = Model::load(a.model);
   }
-  const double load_ms = ms_since(t_load);
-  const int bytes = model->descriptor_bytes();
+  *load_ms = ms_since(t_load);
+  return model;
+}
 
+// The frames and the baselines' training descriptors.
+struct BenchData {
   std::vector<BenchFrame> frames;
-  std::vector<uint8_t> train;  // training descriptors for the baselines
+  std::vector<uint8_t> train;  // training descriptors, flat rows
+  int num_train = 0;
+};
+
+// A map's query frames (the first --keypoints of each) and every map-frame landmark observation.
+BenchData map_bench_data(const BenchInferArgs& a, int bytes) {
+  BenchData d;
+  const LandmarkMap map = read_map_h5(a.map);
+  LMB_CHECK(map.descriptor_bytes == bytes, a.map << ": descriptor length differs from the model's");
+  for (const MapFrame& f : map.frames) {
+    if (f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      if (map.keypoint_landmark[k] >= 0) d.train.insert(d.train.end(), map.descriptor(k), map.descriptor(k) + bytes);
+    }
+  }
+  for (const MapFrame& mf : map.frames) {
+    if (!mf.is_query) continue;
+    if (a.max_frames > 0 && static_cast<int>(d.frames.size()) >= a.max_frames) break;
+    const int n = std::min(a.keypoints, mf.num_keypoints);
+    BenchFrame f;
+    f.camera = map.cameras[mf.camera];
+    f.gravity_in_cam = mf.gravity_in_cam;
+    f.keypoints.assign(map.keypoints.begin() + mf.first_keypoint, map.keypoints.begin() + mf.first_keypoint + n);
+    f.descriptors.assign(map.descriptor(mf.first_keypoint),
+                         map.descriptor(mf.first_keypoint) + static_cast<int64_t>(n) * bytes);
+    d.frames.push_back(std::move(f));
+  }
+  LMB_CHECK(!d.frames.empty(), a.map << ": no query frames");
+  return d;
+}
+
+BenchData load_bench_data(const BenchInferArgs& a, int bytes) {
+  BenchData d;
   if (!a.map.empty()) {
-    const LandmarkMap map = read_map_h5(a.map);
-    LMB_CHECK(map.descriptor_bytes == bytes, a.map << ": descriptor length differs from the model's");
-    // Every map-frame observation of a landmark.
-    for (const MapFrame& f : map.frames) {
-      if (f.is_query) continue;
-      for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
-        if (map.keypoint_landmark[k] >= 0) train.insert(train.end(), map.descriptor(k), map.descriptor(k) + bytes);
-      }
-    }
-    for (const MapFrame& mf : map.frames) {
-      if (!mf.is_query) continue;
-      if (a.max_frames > 0 && static_cast<int>(frames.size()) >= a.max_frames) break;
-      const int n = std::min(a.keypoints, mf.num_keypoints);
-      BenchFrame f;
-      f.camera = map.cameras[mf.camera];
-      f.gravity_in_cam = mf.gravity_in_cam;
-      f.keypoints.assign(map.keypoints.begin() + mf.first_keypoint, map.keypoints.begin() + mf.first_keypoint + n);
-      f.descriptors.assign(map.descriptor(mf.first_keypoint), map.descriptor(mf.first_keypoint) + static_cast<int64_t>(n) * bytes);
-      frames.push_back(std::move(f));
-    }
-    LMB_CHECK(!frames.empty(), a.map << ": no query frames");
+    d = map_bench_data(a, bytes);
   } else {
     LMB_CHECK(a.frames >= 1 && a.train_descriptors >= 1,
               "bench infer: --frames and --train-descriptors must be >= 1");
-    frames = synthetic_frames(a.max_frames > 0 ? std::min(a.frames, a.max_frames) : a.frames, a.keypoints, bytes,
-                              a.synthetic.seed + 1);
+    d.frames = synthetic_frames(a.max_frames > 0 ? std::min(a.frames, a.max_frames) : a.frames, a.keypoints, bytes,
+                                a.synthetic.seed + 1);
     Rng rng(a.synthetic.seed + 2);
-    train.resize(static_cast<size_t>(a.train_descriptors) * bytes);
-    for (uint8_t& b : train) b = static_cast<uint8_t>(rng.below(256));
+    d.train.resize(static_cast<size_t>(a.train_descriptors) * bytes);
+    for (uint8_t& b : d.train) b = static_cast<uint8_t>(rng.below(256));
   }
-  const int num_train = static_cast<int>(train.size() / bytes);
-  LMB_CHECK(num_train > 0, "bench infer: no training descriptors");
-  // OpenCV's BFMatcher takes at most 2^18 rows per training image: the descriptors go in as a
-  // collection of chunks (matched all at once by match / knnMatch).
-  cv::BFMatcher bf(cv::NORM_HAMMING, false);
-  {
-    constexpr int kChunk = 1 << 17;
-    std::vector<cv::Mat> chunks;
-    for (int first = 0; first < num_train; first += kChunk) {
-      chunks.emplace_back(std::min(kChunk, num_train - first), bytes, CV_8U,
-                          train.data() + static_cast<int64_t>(first) * bytes);
-    }
-    bf.add(chunks);
-    bf.train();
-  }
+  d.num_train = static_cast<int>(d.train.size() / bytes);
+  LMB_CHECK(d.num_train > 0, "bench infer: no training descriptors");
+  return d;
+}
 
-  LocalizerOptions dense_options;
-  dense_options.pose.max_iterations = a.ransac_iterations;
-  LocalizerOptions inverted_options = dense_options;
-  inverted_options.classifier.use_inverted_file = true;
-  const Localizer dense(model, dense_options), inverted(model, inverted_options);
-  Sums sd, si;
+// OpenCV's BFMatcher takes at most 2^18 rows per training image: the descriptors go in as a
+// collection of chunks (matched all at once by match / knnMatch).
+void train_bfmatcher(cv::BFMatcher& bf, BenchData& d, int bytes) {
+  constexpr int kChunk = 1 << 17;
+  std::vector<cv::Mat> chunks;
+  for (int first = 0; first < d.num_train; first += kChunk) {
+    chunks.emplace_back(std::min(kChunk, d.num_train - first), bytes, CV_8U,
+                        d.train.data() + static_cast<int64_t>(first) * bytes);
+  }
+  bf.add(chunks);
+  bf.train();
+}
+
+// The end-to-end pass: each frame localized dense and with the inverted file, and matched by the
+// BFMatcher (1-NN, 2-NN) and the popcount loop.
+struct EndToEnd {
+  Sums dense, inverted;
   double bf_ms = 0, bf_knn_ms = 0, popcount_ms = 0, bf_cpu_ms = 0;
-  int64_t keypoints_total = 0, checksum = 0, correspondences = 0, inliers = 0;
+  int64_t keypoints_total = 0, correspondences = 0, inliers = 0;
   int runs = 0;
+};
+
+void add_localization(const LocalizeResult& r, double cpu_ms, Sums& s) {
+  s.cpu += cpu_ms;
+  s.embedding += r.timings.embedding_ms + r.timings.words_ms;
+  s.classification += r.timings.classification_ms;
+  s.pose += r.timings.pose_ms;
+  s.total += r.timings.total_ms;
+}
+
+// The popcount 1-NN loop over every training descriptor; returns a checksum of the distances.
+int64_t popcount_1nn(const uint8_t* desc, int n, const BenchData& d, int bytes) {
+  int64_t checksum = 0;
+  for (int q = 0; q < n; ++q) {
+    int best = 1 << 30;
+    for (int j = 0; j < d.num_train; ++j) {
+      best = std::min(best, hamming_distance(desc + static_cast<int64_t>(q) * bytes,
+                                             d.train.data() + static_cast<int64_t>(j) * bytes, bytes));
+    }
+    checksum += best;
+  }
+  return checksum;
+}
+
+EndToEnd time_end_to_end(const BenchInferArgs& a, const BenchData& d, const Localizer& dense,
+                         const Localizer& inverted, cv::BFMatcher& bf, int bytes, int64_t& checksum) {
+  EndToEnd e;
   for (int rep = 0; rep < a.repeats; ++rep) {
-    for (const BenchFrame& f : frames) {
+    for (const BenchFrame& f : d.frames) {
       const int n = static_cast<int>(f.keypoints.size());
       const uint8_t* desc = f.descriptors.data();
       for (int mode = 0; mode < 2; ++mode) {
         const double cpu0 = thread_cpu_ms();
         const LocalizeResult r = (mode ? inverted : dense).localize(f.camera, f.keypoints, desc, f.gravity_in_cam);
-        Sums& s = mode ? si : sd;
-        s.cpu += thread_cpu_ms() - cpu0;
-        s.embedding += r.timings.embedding_ms + r.timings.words_ms;
-        s.classification += r.timings.classification_ms;
-        s.pose += r.timings.pose_ms;
-        s.total += r.timings.total_ms;
+        add_localization(r, thread_cpu_ms() - cpu0, mode ? e.inverted : e.dense);
         if (mode) {
-          correspondences += static_cast<int64_t>(r.correspondence_keypoint.size());
-          inliers += r.pose.num_inliers;
+          e.correspondences += static_cast<int64_t>(r.correspondence_keypoint.size());
+          e.inliers += r.pose.num_inliers;
         }
       }
       const cv::Mat query(n, bytes, CV_8U, const_cast<uint8_t*>(desc));
@@ -188,178 +223,230 @@ void run_bench_infer(const BenchInferArgs& a) {
       Clock::time_point t = Clock::now();
       const double cpu0 = thread_cpu_ms();
       bf.match(query, matches);
-      bf_cpu_ms += thread_cpu_ms() - cpu0;
-      bf_ms += ms_since(t);
+      e.bf_cpu_ms += thread_cpu_ms() - cpu0;
+      e.bf_ms += ms_since(t);
       std::vector<std::vector<cv::DMatch>> knn;
       t = Clock::now();
       bf.knnMatch(query, knn, 2);
-      bf_knn_ms += ms_since(t);
+      e.bf_knn_ms += ms_since(t);
       checksum += static_cast<int64_t>(matches.size() + knn.size());
       if (a.popcount) {
         t = Clock::now();
-        for (int q = 0; q < n; ++q) {
-          int best = 1 << 30;
-          for (int j = 0; j < num_train; ++j) {
-            best = std::min(best, hamming_distance(desc + static_cast<int64_t>(q) * bytes,
-                                                   train.data() + static_cast<int64_t>(j) * bytes, bytes));
-          }
-          checksum += best;
-        }
-        popcount_ms += ms_since(t);
+        checksum += popcount_1nn(desc, n, d, bytes);
+        e.popcount_ms += ms_since(t);
       }
-      keypoints_total += n;
-      ++runs;
+      e.keypoints_total += n;
+      ++e.runs;
     }
   }
-  // Thread CPU of each stage with the inverted file (the localizer's timings are wall clock, which
-  // a busy machine inflates): each stage run on its own, frame by frame. Embedding = descriptor
-  // quantization, keypoint normalization, and classify()'s own frame index and dims (its
-  // embedding_ms: one thread, so wall = CPU but for preemption); scoring = the rest of classify();
-  // pose = estimate_absolute_pose on the localizer's correspondences.
-  // Also the scoring without screening (ClassifierOptions::screening = false), for the ratio.
-  double stage_embedding = 0, stage_scoring = 0, stage_pose = 0, stage_unscreened = 0;
-  double scored_share = 0;
-  {
-    Classifier classifier(model, inverted_options.classifier);
-    ClassifierOptions unscreened_options = inverted_options.classifier;
-    unscreened_options.screening = false;
-    Classifier unscreened(model, unscreened_options);
-    for (int rep = 0; rep < a.repeats; ++rep) {
-      for (const BenchFrame& f : frames) {
-        const int n = static_cast<int>(f.keypoints.size());
-        const uint8_t* desc = f.descriptors.data();
-        const LocalizeResult r = inverted.localize(f.camera, f.keypoints, desc, f.gravity_in_cam);
-        const double t0 = thread_cpu_ms();
-        std::vector<uint8_t> words(static_cast<size_t>(n));
-        model->vocabulary().quantize(desc, n, words.data());
-        const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
-                                                                  f.gravity_in_cam, "bench");
-        const double t1 = thread_cpu_ms();
-        double embedding_ms = 0, unscreened_embedding_ms = 0;
-        checksum += static_cast<int64_t>(classifier.classify(fk, desc, "bench", &embedding_ms).matches.size());
-        const double t3 = thread_cpu_ms();
-        checksum += static_cast<int64_t>(unscreened.classify(fk, desc, "bench", &unscreened_embedding_ms).matches.size());
-        stage_unscreened += thread_cpu_ms() - t3 - unscreened_embedding_ms;
-        std::vector<Eigen::Vector2d> pixels;
-        std::vector<Eigen::Vector3d> points;
-        for (size_t i = 0; i < r.correspondence_keypoint.size(); ++i) {
-          const Keypoint& kp = f.keypoints[r.correspondence_keypoint[i]];
-          pixels.emplace_back(kp.x, kp.y);
-          points.push_back(model->class_position(r.matches.matches[r.correspondence_match[i]].cls));
-        }
-        const double t4 = thread_cpu_ms();
-        checksum += estimate_absolute_pose(f.camera, pixels, points, inverted_options.pose).num_inliers;
-        const double t5 = thread_cpu_ms();
-        stage_embedding += (t1 - t0) + embedding_ms;
-        stage_scoring += (t3 - t1) - embedding_ms;
-        stage_pose += t5 - t4;
+  return e;
+}
+
+// Thread CPU of each stage with the inverted file (the localizer's timings are wall clock, which
+// a busy machine inflates): each stage run on its own, frame by frame. Embedding = descriptor
+// quantization, keypoint normalization, and classify()'s own frame index and dims (its
+// embedding_ms: one thread, so wall = CPU but for preemption); scoring = the rest of classify();
+// pose = estimate_absolute_pose on the localizer's correspondences. Also the scoring without
+// screening (ClassifierOptions::screening = false), for the ratio.
+struct StageCpu {
+  double embedding = 0, scoring = 0, pose = 0, unscreened = 0;
+  double scored_share = 0;  // candidate classes scored exactly / screened
+};
+
+StageCpu time_stages(const BenchInferArgs& a, const std::shared_ptr<const Model>& model, const BenchData& d,
+                     const Localizer& inverted, int64_t& checksum) {
+  const LocalizerOptions& options = inverted.options();
+  StageCpu s;
+  Classifier classifier(model, options.classifier);
+  ClassifierOptions unscreened_options = options.classifier;
+  unscreened_options.screening = false;
+  Classifier unscreened(model, unscreened_options);
+  for (int rep = 0; rep < a.repeats; ++rep) {
+    for (const BenchFrame& f : d.frames) {
+      const int n = static_cast<int>(f.keypoints.size());
+      const uint8_t* desc = f.descriptors.data();
+      const LocalizeResult r = inverted.localize(f.camera, f.keypoints, desc, f.gravity_in_cam);
+      const double t0 = thread_cpu_ms();
+      std::vector<uint8_t> words(static_cast<size_t>(n));
+      model->vocabulary().quantize(desc, n, words.data());
+      const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
+                                                                f.gravity_in_cam, "bench");
+      const double t1 = thread_cpu_ms();
+      double embedding_ms = 0, unscreened_embedding_ms = 0;
+      checksum += static_cast<int64_t>(classifier.classify(fk, desc, "bench", &embedding_ms).matches.size());
+      const double t3 = thread_cpu_ms();
+      checksum += static_cast<int64_t>(unscreened.classify(fk, desc, "bench", &unscreened_embedding_ms).matches.size());
+      s.unscreened += thread_cpu_ms() - t3 - unscreened_embedding_ms;
+      std::vector<Eigen::Vector2d> pixels;
+      std::vector<Eigen::Vector3d> points;
+      for (size_t i = 0; i < r.correspondence_keypoint.size(); ++i) {
+        const Keypoint& kp = f.keypoints[r.correspondence_keypoint[i]];
+        pixels.emplace_back(kp.x, kp.y);
+        points.push_back(model->class_position(r.matches.matches[r.correspondence_match[i]].cls));
       }
+      const double t4 = thread_cpu_ms();
+      checksum += estimate_absolute_pose(f.camera, pixels, points, options.pose).num_inliers;
+      const double t5 = thread_cpu_ms();
+      s.embedding += (t1 - t0) + embedding_ms;
+      s.scoring += (t3 - t1) - embedding_ms;
+      s.pose += t5 - t4;
     }
-    scored_share = static_cast<double>(classifier.classes_scored()) /
+  }
+  s.scored_share = static_cast<double>(classifier.classes_scored()) /
                    static_cast<double>(std::max<int64_t>(1, classifier.classes_screened()));
-  }
-  // The unbatched path (one keypoint at a time: Classifier::dense_scores, and class_score over the
-  // word's candidates), on the first frame, for the speed-up of the batched classify().
-  double unbatched_dense_ms = 0, unbatched_inverted_ms = 0;
-  {
-    const BenchFrame& f = frames.front();
-    const int n = static_cast<int>(f.keypoints.size());
-    std::vector<uint8_t> words(static_cast<size_t>(n));
-    model->vocabulary().quantize(f.descriptors.data(), n, words.data());
-    const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
-                                                              f.gravity_in_cam, "bench");
-    Classifier c(model);
-    c.index_frame(fk);
-    std::vector<uint8_t> values(model->used_dims().size());
-    std::vector<double> scores(static_cast<size_t>(model->num_classes()) + 1);
-    double sink = 0;
-    for (int k = 0; k < n; ++k) {
-      c.compute_used_values(k, f.descriptors.data() + static_cast<int64_t>(k) * bytes, values.data());
-      Clock::time_point t = Clock::now();
-      c.dense_scores(values.data(), scores.data());
-      sink += scores[0];
-      unbatched_dense_ms += ms_since(t);
-      t = Clock::now();
-      const int32_t w = fk.word[k];
-      for (int32_t i = model->word_class_begin()[w]; i < model->word_class_begin()[w + 1]; ++i) {
-        sink += c.class_score(values.data(), model->word_classes()[i]);
-      }
-      sink += c.class_score(values.data(), model->background_class());
-      unbatched_inverted_ms += ms_since(t);
+  return s;
+}
+
+// The unbatched path (one keypoint at a time: Classifier::dense_scores, and class_score over the
+// word's candidates), on the first frame, for the speed-up of the batched classify().
+struct Unbatched {
+  double dense_ms = 0, inverted_ms = 0;
+};
+
+Unbatched time_unbatched(const std::shared_ptr<const Model>& model, const BenchFrame& f, int bytes,
+                         int64_t& checksum) {
+  Unbatched u;
+  const int n = static_cast<int>(f.keypoints.size());
+  std::vector<uint8_t> words(static_cast<size_t>(n));
+  model->vocabulary().quantize(f.descriptors.data(), n, words.data());
+  const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
+                                                            f.gravity_in_cam, "bench");
+  Classifier c(model);
+  c.index_frame(fk);
+  std::vector<uint8_t> values(model->used_dims().size());
+  std::vector<double> scores(static_cast<size_t>(model->num_classes()) + 1);
+  double sink = 0;
+  for (int k = 0; k < n; ++k) {
+    c.compute_used_values(k, f.descriptors.data() + static_cast<int64_t>(k) * bytes, values.data());
+    Clock::time_point t = Clock::now();
+    c.dense_scores(values.data(), scores.data());
+    sink += scores[0];
+    u.dense_ms += ms_since(t);
+    t = Clock::now();
+    const int32_t w = fk.word[k];
+    for (int32_t i = model->word_class_begin()[w]; i < model->word_class_begin()[w + 1]; ++i) {
+      sink += c.class_score(values.data(), model->word_classes()[i]);
     }
-    checksum += static_cast<int64_t>(sink) & 1;
+    sink += c.class_score(values.data(), model->background_class());
+    u.inverted_ms += ms_since(t);
   }
-  const double nr = runs;
-  const double kp_per_frame = static_cast<double>(keypoints_total) / nr;
+  checksum += static_cast<int64_t>(sink) & 1;
+  return u;
+}
+
+// Everything measured, for the printout and the JSON.
+struct BenchFigures {
+  double load_ms = 0;
+  size_t frames = 0;
+  int num_train = 0;
+  EndToEnd e;
+  StageCpu stages;
+  Unbatched unbatched;
+  int64_t checksum = 0;
+};
+
+void print_bench(const BenchInferArgs& a, const Model& m, const BenchFigures& b) {
+  const double nr = b.e.runs;
+  const Sums& sd = b.e.dense;
+  const Sums& si = b.e.inverted;
+  const double kp_per_frame = static_cast<double>(b.e.keypoints_total) / nr;
   const double match_dense = (sd.embedding + sd.classification) / nr;
   const double match_inverted = (si.embedding + si.classification) / nr;
-  const Model& m = *model;
+  const double bf = b.e.bf_ms / nr;
   std::printf(
       "bench infer: %s model: %d classes, %zu stumps, %lld sharing entries, %zu used dims, %lld inverted-file "
       "entries (built/loaded in %.0f ms)\n",
       a.synthetic_paper ? "synthetic" : "trained", m.num_classes(), m.data().stumps.size(),
       static_cast<long long>(m.stump_classes().size()), m.used_dims().size(),
-      static_cast<long long>(m.word_classes().size()), load_ms);
-  const std::string machine = machine_info().summary();
-  std::printf("  machine: %s\n", machine.c_str());
+      static_cast<long long>(m.word_classes().size()), b.load_ms);
+  std::printf("  machine: %s\n", machine_info().summary().c_str());
   std::printf("  %zu %s frames x %d repeats, %.0f keypoints a frame; %d training descriptors; 1 thread; %d RANSAC iterations\n",
-              frames.size(), a.map.empty() ? "synthetic" : "query", a.repeats, kp_per_frame, num_train,
+              b.frames, a.map.empty() ? "synthetic" : "query", a.repeats, kp_per_frame, b.num_train,
               a.ransac_iterations);
   std::printf("  dense:         embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame\n",
               sd.embedding / nr, sd.classification / nr, sd.pose / nr, sd.total / nr);
   std::printf("  inverted file: embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame "
               "(%.0f correspondences, %.1f inliers)\n",
-              si.embedding / nr, si.classification / nr, si.pose / nr, si.total / nr, correspondences / nr,
-              inliers / nr);
+              si.embedding / nr, si.classification / nr, si.pose / nr, si.total / nr, b.e.correspondences / nr,
+              b.e.inliers / nr);
   std::printf("  unbatched scoring (one keypoint at a time, first frame): dense %.2f ms, inverted file %.2f ms a frame\n",
-              unbatched_dense_ms, unbatched_inverted_ms);
+              b.unbatched.dense_ms, b.unbatched.inverted_ms);
   std::printf("  OpenCV BFMatcher (Hamming): 1-NN %.2f ms, 2-NN %.2f ms a frame; popcount 1-NN loop: %.2f ms a frame\n",
-              bf_ms / nr, bf_knn_ms / nr, popcount_ms / nr);
+              bf, b.e.bf_knn_ms / nr, b.e.popcount_ms / nr);
   std::printf("  thread CPU time a frame: localization dense %.2f ms, inverted file %.2f ms; BFMatcher 1-NN %.2f ms "
               "(inverted-file localization / BFMatcher 1-NN: 1/%.1f)\n",
-              sd.cpu / nr, si.cpu / nr, bf_cpu_ms / nr, bf_cpu_ms / si.cpu);
+              sd.cpu / nr, si.cpu / nr, b.e.bf_cpu_ms / nr, b.e.bf_cpu_ms / si.cpu);
   std::printf("  thread CPU time a frame by stage, inverted file (each stage run on its own): embedding %.2f ms, "
               "scoring %.2f ms, pose %.2f ms\n",
-              stage_embedding / nr, stage_scoring / nr, stage_pose / nr);
+              b.stages.embedding / nr, b.stages.scoring / nr, b.stages.pose / nr);
   std::printf("  screening: %.2f%% of the candidate classes scored exactly; scoring without screening %.2f ms "
               "(%.1fx)\n",
-              100.0 * scored_share, stage_unscreened / nr, stage_unscreened / stage_scoring);
+              100.0 * b.stages.scored_share, b.stages.unscreened / nr, b.stages.unscreened / b.stages.scoring);
   std::printf("  matching (embedding + classification) / BFMatcher 1-NN: dense %.4f (1/%.1f), inverted file %.4f "
               "(1/%.1f) (checksum %lld)\n",
-              match_dense / (bf_ms / nr), bf_ms / nr / match_dense, match_inverted / (bf_ms / nr),
-              bf_ms / nr / match_inverted, static_cast<long long>(checksum));
-  if (!a.json.empty()) {
-    nlohmann::json j = {{"model", a.synthetic_paper ? "synthetic" : a.model},
-                        {"machine", machine},
-                        {"classes", m.num_classes()},
-                        {"stumps", m.data().stumps.size()},
-                        {"sharing_entries", m.stump_classes().size()},
-                        {"used_dims", m.used_dims().size()},
-                        {"inverted_file_entries", m.word_classes().size()},
-                        {"frames", frames.size()},
-                        {"repeats", a.repeats},
-                        {"keypoints_per_frame", kp_per_frame},
-                        {"training_descriptors", num_train},
-                        {"ransac_iterations", a.ransac_iterations},
-                        {"dense_ms", {{"embedding", sd.embedding / nr}, {"classification", sd.classification / nr},
-                                      {"pose", sd.pose / nr}, {"total", sd.total / nr}}},
-                        {"inverted_file_ms", {{"embedding", si.embedding / nr}, {"classification", si.classification / nr},
-                                              {"pose", si.pose / nr}, {"total", si.total / nr}}},
-                        {"cpu_ms", {{"dense_localization", sd.cpu / nr}, {"inverted_file_localization", si.cpu / nr},
-                                    {"bfmatcher", bf_cpu_ms / nr},
-                                    {"inverted_file_stages", {{"embedding", stage_embedding / nr},
-                                                              {"scoring", stage_scoring / nr},
-                                                              {"pose", stage_pose / nr},
-                                                              {"scoring_unscreened", stage_unscreened / nr}}}}},
-                        {"screening_scored_share", scored_share},
-                        {"unbatched_scoring_ms", {{"dense", unbatched_dense_ms}, {"inverted_file", unbatched_inverted_ms}}},
-                        {"bfmatcher_ms", bf_ms / nr},
-                        {"bfmatcher_knn2_ms", bf_knn_ms / nr},
-                        {"popcount_ms", popcount_ms / nr},
-                        {"match_ratio_dense", match_dense / (bf_ms / nr)},
-                        {"match_ratio_inverted_file", match_inverted / (bf_ms / nr)}};
-    std::ofstream(a.json) << j.dump(1) << "\n";
-  }
+              match_dense / bf, bf / match_dense, match_inverted / bf, bf / match_inverted,
+              static_cast<long long>(b.checksum));
+}
+
+nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFigures& b) {
+  const double nr = b.e.runs;
+  const Sums& sd = b.e.dense;
+  const Sums& si = b.e.inverted;
+  const double bf = b.e.bf_ms / nr;
+  return {{"model", a.synthetic_paper ? "synthetic" : a.model},
+          {"machine", machine_info().summary()},
+          {"classes", m.num_classes()},
+          {"stumps", m.data().stumps.size()},
+          {"sharing_entries", m.stump_classes().size()},
+          {"used_dims", m.used_dims().size()},
+          {"inverted_file_entries", m.word_classes().size()},
+          {"frames", b.frames},
+          {"repeats", a.repeats},
+          {"keypoints_per_frame", static_cast<double>(b.e.keypoints_total) / nr},
+          {"training_descriptors", b.num_train},
+          {"ransac_iterations", a.ransac_iterations},
+          {"dense_ms", {{"embedding", sd.embedding / nr}, {"classification", sd.classification / nr},
+                        {"pose", sd.pose / nr}, {"total", sd.total / nr}}},
+          {"inverted_file_ms", {{"embedding", si.embedding / nr}, {"classification", si.classification / nr},
+                                {"pose", si.pose / nr}, {"total", si.total / nr}}},
+          {"cpu_ms", {{"dense_localization", sd.cpu / nr}, {"inverted_file_localization", si.cpu / nr},
+                      {"bfmatcher", b.e.bf_cpu_ms / nr},
+                      {"inverted_file_stages", {{"embedding", b.stages.embedding / nr},
+                                                {"scoring", b.stages.scoring / nr},
+                                                {"pose", b.stages.pose / nr},
+                                                {"scoring_unscreened", b.stages.unscreened / nr}}}}},
+          {"screening_scored_share", b.stages.scored_share},
+          {"unbatched_scoring_ms", {{"dense", b.unbatched.dense_ms}, {"inverted_file", b.unbatched.inverted_ms}}},
+          {"bfmatcher_ms", bf},
+          {"bfmatcher_knn2_ms", b.e.bf_knn_ms / nr},
+          {"popcount_ms", b.e.popcount_ms / nr},
+          {"match_ratio_dense", (sd.embedding + sd.classification) / nr / bf},
+          {"match_ratio_inverted_file", (si.embedding + si.classification) / nr / bf}};
+}
+
+void run_bench_infer(const BenchInferArgs& a) {
+  LMB_CHECK(a.keypoints >= 1 && a.repeats >= 1, "bench infer: --keypoints and --repeats must be >= 1");
+  LMB_CHECK(a.synthetic_paper != !a.model.empty(),
+            "bench infer: give exactly one of --model and --synthetic-paper");
+  BenchFigures b;
+  const std::shared_ptr<const Model> model = load_bench_model(a, &b.load_ms);
+  const int bytes = model->descriptor_bytes();
+  BenchData d = load_bench_data(a, bytes);
+  b.frames = d.frames.size();
+  b.num_train = d.num_train;
+  cv::BFMatcher bf(cv::NORM_HAMMING, false);
+  train_bfmatcher(bf, d, bytes);
+
+  LocalizerOptions dense_options;
+  dense_options.pose.max_iterations = a.ransac_iterations;
+  LocalizerOptions inverted_options = dense_options;
+  inverted_options.classifier.use_inverted_file = true;
+  const Localizer dense(model, dense_options), inverted(model, inverted_options);
+  b.e = time_end_to_end(a, d, dense, inverted, bf, bytes, b.checksum);
+  b.stages = time_stages(a, model, d, inverted, b.checksum);
+  b.unbatched = time_unbatched(model, d.frames.front(), bytes, b.checksum);
+  print_bench(a, *model, b);
+  if (!a.json.empty()) std::ofstream(a.json) << bench_json(a, *model, b).dump(1) << "\n";
 }
 
 }  // namespace

@@ -135,17 +135,21 @@ std::vector<RankedCandidate> BruteforceHamming::query(const uint8_t* descriptor,
   return neighbors_to_candidates(knn(descriptor, k), obs_.landmark);
 }
 
+std::vector<std::vector<Neighbor>> BruteforceHamming::knn_batch(const uint8_t* descriptors, int64_t num,
+                                                                int k) const {
+  LMB_CHECK(k >= 1, "BruteforceHamming::knn_batch: k " << k << " must be >= 1");
+  if (num <= 0) return {};
+  if (backend_ == Backend::kOpenCv) return knn_opencv(descriptors, num, k);
+  std::vector<std::vector<Neighbor>> out(static_cast<size_t>(num));
+  for (int64_t q = 0; q < num; ++q) out[static_cast<size_t>(q)] = knn(descriptors + q * obs_.descriptor_bytes, k);
+  return out;
+}
+
 std::vector<std::vector<RankedCandidate>> BruteforceHamming::query_batch(const uint8_t* descriptors, int64_t num,
                                                                          int k) const {
-  LMB_CHECK(k >= 1, "BruteforceHamming::query_batch: k " << k << " must be >= 1");
-  std::vector<std::vector<RankedCandidate>> out(static_cast<size_t>(num));
-  if (num <= 0) return out;
-  if (backend_ == Backend::kOpenCv) {
-    const auto nn = knn_opencv(descriptors, num, k);
-    for (int64_t q = 0; q < num; ++q) out[static_cast<size_t>(q)] = neighbors_to_candidates(nn[static_cast<size_t>(q)], obs_.landmark);
-    return out;
-  }
-  for (int64_t q = 0; q < num; ++q) out[static_cast<size_t>(q)] = query(descriptors + q * obs_.descriptor_bytes, k);
+  const std::vector<std::vector<Neighbor>> nn = knn_batch(descriptors, num, k);
+  std::vector<std::vector<RankedCandidate>> out(nn.size());
+  for (size_t q = 0; q < nn.size(); ++q) out[q] = neighbors_to_candidates(nn[q], obs_.landmark);
   return out;
 }
 

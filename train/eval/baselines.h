@@ -64,6 +64,7 @@ class BruteforceHamming {
   // Ranked distinct landmarks of the k nearest observations.
   std::vector<RankedCandidate> query(const uint8_t* descriptor, int k) const;
   // Batch over `num` descriptors (num * descriptor_bytes bytes); OpenCV runs one knnMatch call.
+  std::vector<std::vector<Neighbor>> knn_batch(const uint8_t* descriptors, int64_t num, int k) const;
   std::vector<std::vector<RankedCandidate>> query_batch(const uint8_t* descriptors, int64_t num, int k) const;
 
   const TrainingObservations& observations() const { return obs_; }

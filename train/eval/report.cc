@@ -27,6 +27,12 @@ double scalar(const nlohmann::json& m, const char* key) {
 
 }  // namespace
 
+nlohmann::json json_number_or_string(double value) {
+  if (std::isfinite(value)) return value;
+  if (std::isnan(value)) return "nan";
+  return value > 0 ? "inf" : "-inf";
+}
+
 nlohmann::json method_report(const MethodResult& r) {
   const RetrievalMetrics& q = r.retrieval;
   const PoseMetrics& p = r.pose;

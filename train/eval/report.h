@@ -39,6 +39,10 @@ struct MethodResult {
   std::vector<FrameOutcome> frames;  // same order as pose's per-frame vectors; may be empty
 };
 
+// A finite number as a JSON number; a non-finite one as the string "inf", "-inf" or "nan" (JSON has
+// no such numbers), for the report's settings.
+nlohmann::json json_number_or_string(double value);
+
 // The report object for one method.
 nlohmann::json method_report(const MethodResult& result);
 

@@ -1,12 +1,12 @@
-// Timers of the `lboost` commands that report figures: wall milliseconds since a steady-clock
-// point, and the calling thread's CPU milliseconds (the cross-check on a busy machine, where wall
-// time includes waiting for a core).
+// Timers of the evaluation and of the `lboost` commands that report figures: wall milliseconds
+// since a steady-clock point, and the calling thread's CPU milliseconds (the cross-check on a busy
+// machine, where wall time includes waiting for a core).
 #pragma once
 
 #include <chrono>
 #include <ctime>
 
-namespace lmb::cli {
+namespace lmb {
 
 using Clock = std::chrono::steady_clock;
 
@@ -20,4 +20,4 @@ inline double thread_cpu_ms() {
   return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
-}  // namespace lmb::cli
+}  // namespace lmb

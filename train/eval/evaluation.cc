@@ -1,0 +1,236 @@
+#include "train/eval/evaluation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <spdlog/spdlog.h>
+
+#include "common/error.h"
+#include "common/io/map_h5.h"
+#include "common/machine_info.h"
+#include "train/eval/pose_stage.h"
+#include "train/eval/report.h"
+#include "train/eval/timing.h"
+
+namespace lmb {
+
+namespace {
+
+// The model and the map must describe the same landmarks: every class's landmark exists in the
+// map at the same position. Returns the landmark -> class flag.
+std::vector<char> check_model_against_map(const Model& model, const LandmarkMap& map, const EvalOptions& a) {
+  LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
+            a.map << ": " << map.descriptor_bytes << "-byte descriptors, but " << a.model << " expects "
+                  << model.descriptor_bytes() << " (a model of another detector?)");
+  std::vector<char> is_class(map.landmarks.size(), 0);
+  for (int32_t c = 0; c < model.num_classes(); ++c) {
+    const landmark_t l = model.class_landmark(c);
+    LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
+              a.model << ": class " << c << " is landmark " << l << ", but " << a.map << " has "
+                      << map.landmarks.size() << " landmarks (the model was trained on another map)");
+    const double d = (map.landmarks[l].position - model.class_position(c)).norm();
+    LMB_CHECK(d <= 1e-6 * std::max(1.0, map.landmarks[l].position.norm()),
+              a.model << ": class " << c << " (landmark " << l << ") lies " << d << " m from that landmark in "
+                      << a.map << " (the model was trained on another map)");
+    is_class[l] = 1;
+  }
+  return is_class;
+}
+
+// The map's query frames, in map order.
+std::vector<EvalQuery> query_frames(const LandmarkMap& map, const std::vector<char>& is_class, const EvalOptions& a) {
+  std::vector<EvalQuery> out;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    if (!frame.is_query) continue;
+    EvalQuery q;
+    q.frame = f;
+    q.camera = &map.cameras[frame.camera];
+    q.keypoints.assign(map.keypoints.begin() + frame.first_keypoint,
+                       map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+    q.descriptors = map.descriptor(frame.first_keypoint);
+    q.gravity_in_cam = frame.gravity_in_cam;
+    q.true_cam_from_world = frame.cam_from_world;
+    for (int32_t k = 0; k < frame.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[frame.first_keypoint + k];
+      q.truth.push_back(l != kInvalidLandmarkId && is_class[l] ? l : kInvalidLandmarkId);
+    }
+    out.push_back(std::move(q));
+  }
+  LMB_CHECK(!out.empty(), a.map << ": no query frames (frames with is_query set; map the query images jointly, "
+                                   "see `lboost map --help`)");
+  return out;
+}
+
+// The dataset's counts; *with_class_truth: query keypoints whose true landmark is a model class.
+DatasetCounts count_dataset(const LandmarkMap& map, const std::vector<EvalQuery>& queries, int64_t* with_class_truth) {
+  DatasetCounts counts;
+  *with_class_truth = 0;
+  for (const MapFrame& f : map.frames) (f.is_query ? counts.query_frames : counts.map_frames) += 1;
+  counts.landmarks = static_cast<int64_t>(map.landmarks.size());
+  for (const EvalQuery& q : queries) {
+    const MapFrame& f = map.frames[q.frame];
+    counts.query_keypoints += f.num_keypoints;
+    for (int32_t k = 0; k < f.num_keypoints; ++k) {
+      counts.query_keypoints_with_truth += map.keypoint_landmark[f.first_keypoint + k] != kInvalidLandmarkId;
+    }
+    for (landmark_t t : q.truth) *with_class_truth += t != kInvalidLandmarkId;
+  }
+  return counts;
+}
+
+struct MethodRun {
+  MethodResult result;
+  double build_seconds = 0.0;               // matcher construction (the baselines' index)
+  std::vector<std::vector<int32_t>> ranks;  // per frame, per keypoint: 1-based rank of the truth, 0 absent
+  double cpu_ms_per_frame = 0.0;            // thread CPU time of matching + pose, mean over frames
+};
+
+// 1-based rank of `truth` in `ranking`, 0 when absent.
+int32_t rank_of(const std::vector<RankedCandidate>& ranking, landmark_t truth) {
+  for (size_t j = 0; j < ranking.size(); ++j) {
+    if (ranking[j].landmark == truth) return static_cast<int32_t>(j) + 1;
+  }
+  return 0;
+}
+
+MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context,
+                          const std::vector<EvalQuery>& queries) {
+  const EvalOptions& a = *context.options;
+  MethodRun run;
+  run.result.name = method.name;
+  const Clock::time_point t_build = Clock::now();
+  const std::unique_ptr<Matcher> matcher = method.make(context);
+  run.build_seconds = ms_since(t_build) / 1000.0;
+  std::vector<KeypointRanking> rankings;
+  for (const EvalQuery& q : queries) {
+    FrameMatches m = matcher->match(q);
+    const double c0 = thread_cpu_ms();
+    const Clock::time_point t0 = Clock::now();
+    FrameOutcome o = estimate_frame_pose(q, select_correspondences(q, m.accepted, a.max_correspondences), a.pose);
+    o.match_ms = m.match_ms;
+    o.total_ms = m.match_ms + ms_since(t0);
+    run.cpu_ms_per_frame += m.cpu_ms + thread_cpu_ms() - c0;
+    run.result.frames.push_back(o);
+    std::vector<int32_t> ranks;
+    for (size_t k = 0; k < q.keypoints.size(); ++k) {
+      ranks.push_back(q.truth[k] == kInvalidLandmarkId ? 0 : rank_of(m.ranking[k], q.truth[k]));
+      rankings.push_back(KeypointRanking{std::move(m.ranking[k]), q.truth[k]});
+    }
+    run.ranks.push_back(std::move(ranks));
+  }
+  run.cpu_ms_per_frame /= static_cast<double>(queries.size());
+  run.result.retrieval = evaluate_retrieval(rankings);
+  run.result.pose = evaluate_poses(run.result.frames);
+  return run;
+}
+
+nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build) {
+  return {{"model", a.model},
+          {"map", a.map},
+          {"top_k", a.top_k},
+          {"landmarkboost_min_margin", std::isfinite(a.min_margin) ? nlohmann::json(a.min_margin)
+                                                                    : nlohmann::json(nullptr)},
+          {"max_correspondences", a.max_correspondences},
+          {"ransac_iterations", a.pose.max_iterations},
+          {"inlier_threshold_px", a.pose.max_reprojection_error_px},
+          {"min_inliers", a.pose.min_inliers},
+          {"ransac_seed", a.pose.seed},
+          {"hamming_backend", a.hamming_backend},
+          {"pca_dims", a.pca_dims},
+          {"threads", 1},
+          {"index_build_seconds", build},
+          {"machine", {{"cpu_model", machine_info().cpu_model}, {"logical_cores", machine_info().logical_cores}}}};
+}
+
+std::string cpu_line(const nlohmann::json& cpu) {
+  std::string line;
+  for (const auto& [name, ms] : cpu.items()) {
+    char cell[128];
+    std::snprintf(cell, sizeof(cell), "%s%s %.1f", line.empty() ? "" : ", ", name.c_str(), ms.get<double>());
+    line += cell;
+  }
+  return "thread CPU ms per frame (matching + pose; the table's times are wall clock): " + line + "\n";
+}
+
+}  // namespace
+
+EvalResult run_evaluation(const EvalOptions& a) {
+  a.check();
+  cv::setNumThreads(1);
+  const std::shared_ptr<const Model> model = Model::load(a.model);
+  const LandmarkMap map = read_map_h5(a.map);
+  const std::vector<char> is_class = check_model_against_map(*model, map, a);
+  const std::vector<EvalQuery> queries = query_frames(map, is_class, a);
+  int64_t with_class_truth = 0;
+  const DatasetCounts counts = count_dataset(map, queries, &with_class_truth);
+  LMB_CHECK(with_class_truth > 0, a.map << ": none of the " << counts.query_keypoints
+                                        << " query keypoints observes one of the model's " << model->num_classes()
+                                        << " landmarks (were the query frames mapped jointly with the map?)");
+  const std::vector<std::string> names = a.method_names();
+  std::string method_list;
+  for (const std::string& m : names) method_list += (method_list.empty() ? "" : ", ") + m;
+  spdlog::info("eval: {} query frames, {} keypoints ({} with a true landmark, {} of them a model class), "
+               "model {} classes, {} stumps; methods: {}",
+               counts.query_frames, counts.query_keypoints, counts.query_keypoints_with_truth, with_class_truth,
+               model->num_classes(), model->data().stumps.size(), method_list);
+
+  const MethodContext context{model, &map, &a};
+  std::vector<MethodResult> results;
+  nlohmann::json build = nlohmann::json::object(), ranks = nlohmann::json::object();
+  nlohmann::json cpu = nlohmann::json::object();
+  for (const std::string& name : names) {
+    const Clock::time_point t0 = Clock::now();
+    MethodRun run = evaluate_method(find_eval_method(name), context, queries);
+    spdlog::info("eval: {}: P@1 {:.4f}, MRR {:.4f}, {}/{} frames correct, {:.2f} ms/frame matching ({:.1f} s)",
+                 name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr, run.result.pose.num_correct,
+                 run.result.pose.num_frames, run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
+    build[name] = run.build_seconds;
+    ranks[name] = run.ranks;
+    cpu[name] = run.cpu_ms_per_frame;
+    results.push_back(std::move(run.result));
+  }
+
+  EvalResult out;
+  out.report = build_report(counts, results);
+  for (const auto& [name, ms] : cpu.items()) out.report["methods"][name]["cpu_ms_per_frame"] = ms;
+  out.report["dataset"]["model_classes"] = model->num_classes();
+  out.report["dataset"]["query_keypoints_with_class_truth"] = with_class_truth;
+  out.report["settings"] = settings_json(a, build);
+  nlohmann::json frame_names = nlohmann::json::array();
+  for (const EvalQuery& q : queries) frame_names.push_back(map.frames[q.frame].name);
+  out.report["query_frame_names"] = frame_names;
+  out.keypoint_ranks = {{"frames", frame_names},
+                        {"truth_rank", ranks},
+                        {"note", "per method, per query frame, per keypoint: 1-based rank of the true landmark "
+                                 "among the method's candidates, 0 when absent or the keypoint has no true "
+                                 "landmark among the model's classes"}};
+  char heading[512];
+  std::snprintf(heading, sizeof(heading),
+                "Results on %lld query frames, %lld query keypoints with a true landmark among the model's %d "
+                "classes (%s):\n",
+                static_cast<long long>(counts.query_frames), static_cast<long long>(with_class_truth),
+                model->num_classes(), machine_info().summary().c_str());
+  out.heading = heading;
+  out.table = format_results_table(out.report);
+  out.cpu_line = cpu_line(cpu);
+  return out;
+}
+
+void attach_training_summary(nlohmann::json& report, const std::filesystem::path& run_dir) {
+  const std::filesystem::path summary = run_dir / "summary.json";
+  std::ifstream in(summary);
+  LMB_CHECK(in.good(), "eval: --run " << run_dir.string() << ": no summary.json (not a finished `lboost train` run dir)");
+  try {
+    report["training"] = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    LMB_FAIL(summary.string() << ": not JSON (" << e.what() << ")");
+  }
+}
+
+}  // namespace lmb

@@ -1,0 +1,39 @@
+// LandmarkBoost as a matcher of `lboost eval` (train/eval/matcher.h): the inference library's
+// classification of a frame, as the Localizer runs it (infer/localizer.h: quantize the descriptors,
+// place the keypoints, Classifier::classify), dense or with the inverted file.
+//
+// Two passes a frame:
+//   - the ranking: every keypoint's top_k landmark classes WITHOUT background rejection
+//     (min_margin -inf), each scored by its margin over the background (the same order as the
+//     class scores within a keypoint, and comparable across keypoints); not timed;
+//   - the configured classification (background rejection at min_margin), timed: its best match
+//     per keypoint is the accepted match, confidence = its margin, point = the class's position in
+//     the model. With pose_top_k = 1 these are exactly the Localizer's correspondences.
+#pragma once
+
+#include <memory>
+
+#include "infer/classifier.h"
+#include "infer/model.h"
+#include "train/eval/matcher.h"
+
+namespace lmb {
+
+class LandmarkBoostMatcher : public Matcher {
+ public:
+  // options: top_k, use_inverted_file, min_margin, min_score, screening. Throws lmb::Error on a
+  // null model or invalid options.
+  LandmarkBoostMatcher(std::shared_ptr<const Model> model, const ClassifierOptions& options);
+
+  FrameMatches match(const EvalQuery& query) const override;
+  nlohmann::json parameters() const override;
+
+ private:
+  KeypointMatches classify(const EvalQuery& query, const ClassifierOptions& options) const;
+
+  std::shared_ptr<const Model> model_;
+  ClassifierOptions options_;  // the configured classification
+  ClassifierOptions ranking_;  // the same without rejection
+};
+
+}  // namespace lmb

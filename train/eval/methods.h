@@ -1,0 +1,59 @@
+// The methods of `lboost eval` and their options: a table of named matcher factories
+// (train/eval/matcher.h). Adding a method is one entry in eval_methods() (methods.cc) and, when
+// it needs one, a Matcher class.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/landmark_map.h"
+#include "infer/model.h"
+#include "infer/pose_estimator.h"
+#include "train/eval/baselines.h"
+#include "train/eval/matcher.h"
+
+namespace lmb {
+
+// Everything `lboost eval` is configured with (its flags, one field each).
+struct EvalOptions {
+  std::string model;                  // model.lbm
+  std::string map;                    // map.h5 the model was trained on, with its query frames
+  std::vector<std::string> methods;   // names from eval_methods(); empty = all
+  int top_k = 20;                     // ranked landmarks per keypoint, 1..10000
+  double min_margin = 0.0;            // LandmarkBoost's background rejection for the pose (-inf = none)
+  int max_correspondences = 0;        // most confident accepted matches fed to RANSAC (0 = all)
+  PoseEstimatorOptions pose;          // RANSAC: iterations, inlier threshold, min inliers, seed
+  std::string hamming_backend = "opencv";  // bruteforce_hamming: opencv or popcount
+  int pca_dims = 16;                  // projected_kdtree
+
+  // Throws lmb::Error naming the flag (e.g. "eval: --top-k 0 must be in 1..10000").
+  void check() const;
+  // The methods to run: `methods`, or every method when empty.
+  std::vector<std::string> method_names() const;
+};
+
+// What a method's factory gets.
+struct MethodContext {
+  std::shared_ptr<const Model> model;
+  const LandmarkMap* map = nullptr;
+  const EvalOptions* options = nullptr;
+  // The training observations the descriptor baselines search: every observation of a model
+  // class's landmark in the map's non-query frames. Throws lmb::Error when there is none.
+  TrainingObservations class_observations() const;
+  // The map's landmark positions by landmark id.
+  std::vector<Eigen::Vector3d> landmark_positions() const;
+};
+
+struct EvalMethod {
+  std::string name;
+  std::string description;  // one line, for --help and docs
+  std::unique_ptr<Matcher> (*make)(const MethodContext& context);
+};
+
+// Every method, in report order.
+const std::vector<EvalMethod>& eval_methods();
+// The method called `name`; throws lmb::Error naming the known ones otherwise.
+const EvalMethod& find_eval_method(const std::string& name);
+
+}  // namespace lmb

@@ -1,0 +1,35 @@
+// The pose stage of `lboost eval`, the same for every method: a method's accepted matches of one
+// query frame -> the correspondences given to P3P RANSAC (infer/pose_estimator.h) -> the frame's
+// outcome (pose, inliers, times) that evaluate_poses (train/eval/metrics.h) scores.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "infer/pose_estimator.h"
+#include "train/eval/matcher.h"
+#include "train/eval/metrics.h"
+
+namespace lmb {
+
+// The 2D-3D correspondences of one frame, as given to estimate_absolute_pose.
+struct PoseInput {
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points_world;
+};
+
+// The accepted matches fed to RANSAC: all of them, or with max_correspondences > 0 the
+// max_correspondences of largest confidence (ties: keypoint order), back in keypoint order. The
+// same rule as the Localizer's with pose_top_k = 1 (where the confidence is the margin).
+// Throws lmb::Error on max_correspondences < 0 or a keypoint index out of range.
+PoseInput select_correspondences(const EvalQuery& query, const std::vector<Correspondence>& accepted,
+                                 int max_correspondences);
+
+// RANSAC on `input` with `options`: the frame's outcome with its truth, correspondence and inlier
+// counts and confidence = inlier count. Times are left to the caller.
+FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
+                                 const PoseEstimatorOptions& options);
+
+}  // namespace lmb
