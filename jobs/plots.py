@@ -7,10 +7,13 @@ Needs matplotlib (Debian: python3-matplotlib); run it with the system /usr/bin/p
 Either input may be left out; the plots that need it are skipped.
 
 Inputs
-  report.json (`lboost eval --report`): the schema of DESIGN.md, and per method the curve arrays
-    "miss_rate_curve": {"n": [...], "fppi": [...], "miss_rate": [...]}
-    "pose_pr_curve":   {"threshold": [...], "recall": [...], "precision": [...]}
-    "per_frame":       {"match_ms": [...], "total_ms": [...], "inlier_ratio": [...], ...}
+  report.json (`lboost eval --report`, every field documented in docs/report.md); per method the
+  plots read
+    "miss_rate_curve":   {"n": [...], "fppi": [...], "miss_rate": [...]}
+    "pose_pr_curve":     {"threshold": [...], "recall": [...], "precision": [...]}
+    "per_frame":         {"match_ms": [...], "total_ms": [...], "inlier_ratio": [...], ...}
+    "pose_recall_sweep": {"ransac_iterations": [...], "seeds": [...], "mean": [...], "min": [...],
+                          "max": [...]}   (optional; older reports have none)
   RUN_DIR/metrics.jsonl (`lboost train`): one JSON object a round with at least "round" (0-based),
     "cost", "validation_p1" (null or -1 when not evaluated), "sharing_size", optionally
     "validation_p1_landmarks"; a resumed run may repeat rounds, the last line of a round wins.
@@ -19,6 +22,8 @@ Outputs (in PLOT_DIR)
   miss_rate_fppi.png   average miss rate vs false positives per query (log x)       [report]
   pose_pr.png          pose precision-recall at 20 cm / 5 deg, AUC in the legend   [report]
   runtime_inlier.png   matching time per frame vs inlier ratio, means emphasized    [report]
+  pose_recall_iterations.png  pose recall vs RANSAC iterations, mean and min-max over
+                       the seeds                                                    [report sweep]
   training.png         training cost and validation precision@1 per round          [metrics]
   sharing_size.png     sharing-set size per round                                  [metrics]
 """
@@ -38,9 +43,12 @@ METHOD_STYLE = {
     "landmarkboost": ("#d62728", "LandmarkBoost"),
     "landmarkboost_invfile": ("#ff7f0e", "LandmarkBoost + inv. file"),
     "bruteforce_hamming": ("#1f77b4", "Brute-force Hamming"),
+    "hamming_ratio": ("#17becf", "Hamming + ratio test"),
+    "hamming_ratio_2nn": ("#9467bd", "Hamming + ratio test (2nd observation)"),
+    "faiss_hnsw_ratio": ("#8c564b", "faiss HNSW + ratio test"),
     "projected_kdtree": ("#2ca02c", "Projected 16-d kd-tree"),
 }
-EXTRA_COLOURS = ["#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"]
+EXTRA_COLOURS = ["#e377c2", "#7f7f7f", "#bcbd22", "#393b79", "#637939", "#843c39"]
 
 
 def method_order(methods):
@@ -175,6 +183,43 @@ def plot_runtime_inlier(report, out_dir):
     save(fig, out_dir, "runtime_inlier.png")
 
 
+def plot_pose_recall_sweep(report, out_dir):
+    """Pose recall against the RANSAC budget: the mean over the seeds, bars from min to max."""
+    methods = report.get("methods", {})
+    sweeps = [(i, name, methods[name]["pose_recall_sweep"]) for i, name in enumerate(method_order(methods))
+              if isinstance(methods[name].get("pose_recall_sweep"), dict)]
+    if not sweeps:
+        print("no pose_recall_sweep in the report: pose_recall_iterations.png skipped")
+        return
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    budgets = sorted({b for _, _, sw in sweeps for b in sw["ransac_iterations"]})
+    # Methods side by side around each budget (a small multiplicative offset on the log axis).
+    spread = 0.06
+    for j, (i, name, sw) in enumerate(sweeps):
+        colour, label = style(name, i)
+        shift = math.exp(spread * (j - (len(sweeps) - 1) / 2))
+        pts = [(b * shift, m, lo, hi) for b, m, lo, hi in zip(sw["ransac_iterations"], sw["mean"], sw["min"], sw["max"])
+               if m is not None and lo is not None and hi is not None]
+        if not pts:
+            continue
+        x = [p[0] for p in pts]
+        mean = [p[1] for p in pts]
+        err = [[p[1] - p[2] for p in pts], [p[3] - p[1] for p in pts]]
+        ax.errorbar(x, mean, yerr=err, fmt="-o", color=colour, markersize=4, capsize=3, label=label)
+    seeds = sweeps[0][2].get("seeds", [])
+    ax.set_xscale("log")
+    ax.set_xticks(budgets)
+    ax.set_xticklabels([str(b) for b in budgets])
+    ax.set_ylim(0.0, 1.02)
+    ax.set_xlabel("RANSAC iterations (budget)")
+    ax.set_ylabel("pose recall (correct frames / query frames)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_title(f"Pose recall vs RANSAC budget: mean, min-max over {len(seeds)} seeds\n" + dataset_note(report),
+                 fontsize=10)
+    ax.legend(fontsize=7, loc="lower right")
+    save(fig, out_dir, "pose_recall_iterations.png")
+
+
 def read_metrics(path):
     rounds = {}
     with open(path) as f:
@@ -263,6 +308,7 @@ def main(argv=None):
         plot_miss_rate(report, a.out)
         plot_pose_pr(report, a.out)
         plot_runtime_inlier(report, a.out)
+        plot_pose_recall_sweep(report, a.out)
     metrics = a.metrics or (os.path.join(a.run, "metrics.jsonl") if a.run else None)
     if metrics:
         rows = read_metrics(metrics)

@@ -10,6 +10,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   libgtest-dev libgmock-dev
   libcli11-dev libspdlog-dev nlohmann-json3-dev libtomlplusplus-dev
+  libfaiss-dev
   python3-matplotlib python3-numpy
 )
 

@@ -69,7 +69,22 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--min-inliers", o.pose.min_inliers, "Inliers for a pose")->capture_default_str();
   cmd->add_option("--seed", o.pose.seed, "RANSAC seed (the same for every method)")->capture_default_str();
-  cmd->add_option("--hamming-backend", o.hamming_backend, "bruteforce_hamming: opencv (BFMatcher) or popcount")
+  cmd->add_option("--ransac-sweep-iterations", o.sweep.iterations,
+                  "Pose recall also at these RANSAC budgets, each over --ransac-sweep-seeds seeds")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--ransac-sweep-seeds", o.sweep.seeds, "Seeds of the sweep: --seed, --seed + 1, ...")
+      ->capture_default_str();
+  cmd->add_option("--ratio", o.ratio, "Lowe's ratio of the ratio-test methods: d1 < ratio * d2")
+      ->capture_default_str();
+  cmd->add_option("--faiss-hnsw-m", o.faiss.m, "faiss_hnsw_ratio: HNSW graph degree M")->capture_default_str();
+  cmd->add_option("--faiss-ef-construction", o.faiss.ef_construction, "faiss_hnsw_ratio: efConstruction")
+      ->capture_default_str();
+  cmd->add_option("--faiss-ef-search", o.faiss.ef_search,
+                  "faiss_hnsw_ratio: efSearch (faiss searches with max(efSearch, 4 x --top-k))")
+      ->capture_default_str();
+  cmd->add_option("--hamming-backend", o.hamming_backend,
+                  "bruteforce_hamming, hamming_ratio*: opencv (BFMatcher) or popcount")
       ->capture_default_str();
   cmd->add_option("--pca-dims", o.pca_dims, "projected_kdtree: PCA dimensions")->capture_default_str();
   cmd->callback([args] { run_eval(args->options, args->report, args->run, args->keypoint_ranks); });

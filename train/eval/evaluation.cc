@@ -86,6 +86,7 @@ DatasetCounts count_dataset(const LandmarkMap& map, const std::vector<EvalQuery>
 
 struct MethodRun {
   MethodResult result;
+  nlohmann::json parameters;                // the matcher's own parameters
   double build_seconds = 0.0;               // matcher construction (the baselines' index)
   std::vector<std::vector<int32_t>> ranks;  // per frame, per keypoint: 1-based rank of the truth, 0 absent
   double cpu_ms_per_frame = 0.0;            // thread CPU time of matching + pose, mean over frames
@@ -107,16 +108,22 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
   const Clock::time_point t_build = Clock::now();
   const std::unique_ptr<Matcher> matcher = method.make(context);
   run.build_seconds = ms_since(t_build) / 1000.0;
+  run.parameters = matcher->parameters();
+  run.result.sweep = start_pose_sweep(a.sweep, a.pose.seed);
   std::vector<KeypointRanking> rankings;
   for (const EvalQuery& q : queries) {
     FrameMatches m = matcher->match(q);
+    LMB_CHECK(m.ranking.size() == q.keypoints.size(), "eval: " << method.name << " ranked " << m.ranking.size()
+                                                               << " of " << q.keypoints.size() << " keypoints");
     const double c0 = thread_cpu_ms();
     const Clock::time_point t0 = Clock::now();
-    FrameOutcome o = estimate_frame_pose(q, select_correspondences(q, m.accepted, a.max_correspondences), a.pose);
+    const PoseInput input = select_correspondences(q, m.accepted, a.max_correspondences);
+    FrameOutcome o = estimate_frame_pose(q, input, a.pose);
     o.match_ms = m.match_ms;
     o.total_ms = m.match_ms + ms_since(t0);
     run.cpu_ms_per_frame += m.cpu_ms + thread_cpu_ms() - c0;
     run.result.frames.push_back(o);
+    sweep_frame_pose(q, input, a.pose, PoseThresholds{}, run.result.sweep);
     std::vector<int32_t> ranks;
     for (size_t k = 0; k < q.keypoints.size(); ++k) {
       ranks.push_back(q.truth[k] == kInvalidLandmarkId ? 0 : rank_of(m.ranking[k], q.truth[k]));
@@ -130,7 +137,7 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
   return run;
 }
 
-nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build) {
+nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build, const nlohmann::json& parameters) {
   return {{"model", a.model},
           {"map", a.map},
           {"top_k", a.top_k},
@@ -141,8 +148,12 @@ nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build) 
           {"inlier_threshold_px", a.pose.max_reprojection_error_px},
           {"min_inliers", a.pose.min_inliers},
           {"ransac_seed", a.pose.seed},
+          {"ransac_sweep_iterations", a.sweep.iterations},
+          {"ransac_sweep_seeds", a.sweep.seeds},
           {"hamming_backend", a.hamming_backend},
           {"pca_dims", a.pca_dims},
+          {"ratio", a.ratio},
+          {"method_parameters", parameters},
           {"threads", 1},
           {"index_build_seconds", build},
           {"machine", {{"cpu_model", machine_info().cpu_model}, {"logical_cores", machine_info().logical_cores}}}};
@@ -183,7 +194,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
   const MethodContext context{model, &map, &a};
   std::vector<MethodResult> results;
   nlohmann::json build = nlohmann::json::object(), ranks = nlohmann::json::object();
-  nlohmann::json cpu = nlohmann::json::object();
+  nlohmann::json cpu = nlohmann::json::object(), parameters = nlohmann::json::object();
   for (const std::string& name : names) {
     const Clock::time_point t0 = Clock::now();
     MethodRun run = evaluate_method(find_eval_method(name), context, queries);
@@ -193,6 +204,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
     build[name] = run.build_seconds;
     ranks[name] = run.ranks;
     cpu[name] = run.cpu_ms_per_frame;
+    parameters[name] = run.parameters;
     results.push_back(std::move(run.result));
   }
 
@@ -201,7 +213,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
   for (const auto& [name, ms] : cpu.items()) out.report["methods"][name]["cpu_ms_per_frame"] = ms;
   out.report["dataset"]["model_classes"] = model->num_classes();
   out.report["dataset"]["query_keypoints_with_class_truth"] = with_class_truth;
-  out.report["settings"] = settings_json(a, build);
+  out.report["settings"] = settings_json(a, build, parameters);
   nlohmann::json frame_names = nlohmann::json::array();
   for (const EvalQuery& q : queries) frame_names.push_back(map.frames[q.frame].name);
   out.report["query_frame_names"] = frame_names;

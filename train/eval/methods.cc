@@ -1,5 +1,6 @@
 #include "train/eval/methods.h"
 
+#include <cmath>
 #include <set>
 
 #include "common/error.h"
@@ -36,6 +37,23 @@ std::unique_ptr<Matcher> make_bruteforce_hamming(const MethodContext& c) {
       knn_options(c));
 }
 
+std::unique_ptr<Matcher> make_hamming_ratio(const MethodContext& c, RatioNeighbor neighbor) {
+  DescriptorMatcherOptions o = knn_options(c);
+  o.ratio_test = true;
+  o.ratio = c.options->ratio;
+  o.ratio_neighbor = neighbor;
+  return std::make_unique<DescriptorMatcher>(
+      std::make_unique<HammingKnnIndex>(c.class_observations(), hamming_backend(c)), c.landmark_positions(), o);
+}
+
+std::unique_ptr<Matcher> make_faiss_hnsw_ratio(const MethodContext& c) {
+  DescriptorMatcherOptions o = knn_options(c);
+  o.ratio_test = true;
+  o.ratio = c.options->ratio;
+  return std::make_unique<DescriptorMatcher>(std::make_unique<FaissHnswIndex>(c.class_observations(), c.options->faiss),
+                                             c.landmark_positions(), o);
+}
+
 std::unique_ptr<Matcher> make_projected_kdtree(const MethodContext& c) {
   ProjectedKdTreeOptions kd;
   kd.dims = c.options->pca_dims;
@@ -50,6 +68,9 @@ void EvalOptions::check() const {
   LMB_CHECK(max_correspondences >= 0, "eval: --max-correspondences " << max_correspondences << " must be >= 0");
   LMB_CHECK(hamming_backend == "opencv" || hamming_backend == "popcount",
             "eval: --hamming-backend '" << hamming_backend << "' must be opencv or popcount");
+  LMB_CHECK(std::isfinite(ratio) && ratio > 0.0 && ratio <= 1.0, "eval: --ratio " << ratio << " must be in (0, 1]");
+  sweep.check();
+  faiss.check();
   std::set<std::string> seen;
   for (const std::string& m : methods) {
     find_eval_method(m);
@@ -89,7 +110,15 @@ const std::vector<EvalMethod>& eval_methods() {
        [](const MethodContext& c) { return make_landmarkboost(c, true); }},
       {"bruteforce_hamming", "exact Hamming k-NN over the training observations (--hamming-backend)",
        make_bruteforce_hamming},
+      {"hamming_ratio",
+       "exact Hamming 1-NN with Lowe's ratio test against the nearest other landmark (--ratio)",
+       [](const MethodContext& c) { return make_hamming_ratio(c, RatioNeighbor::kOtherLandmark); }},
+      {"hamming_ratio_2nn", "the same against the 2nd nearest observation, whatever its landmark (OpenCV's 2-NN recipe)",
+       [](const MethodContext& c) { return make_hamming_ratio(c, RatioNeighbor::kSecondObservation); }},
       {"projected_kdtree", "exact k-NN of PCA-projected descriptors (--pca-dims)", make_projected_kdtree},
+      {"faiss_hnsw_ratio",
+       "approximate Hamming k-NN (faiss IndexBinaryHNSW, --faiss-*) with hamming_ratio's ratio test",
+       make_faiss_hnsw_ratio},
   };
   return methods;
 }

@@ -11,7 +11,9 @@
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
 #include "train/eval/baselines.h"
+#include "train/eval/faiss_index.h"
 #include "train/eval/matcher.h"
+#include "train/eval/pose_stage.h"
 
 namespace lmb {
 
@@ -24,8 +26,11 @@ struct EvalOptions {
   double min_margin = 0.0;            // LandmarkBoost's background rejection for the pose (-inf = none)
   int max_correspondences = 0;        // most confident accepted matches fed to RANSAC (0 = all)
   PoseEstimatorOptions pose;          // RANSAC: iterations, inlier threshold, min inliers, seed
-  std::string hamming_backend = "opencv";  // bruteforce_hamming: opencv or popcount
+  PoseSweepOptions sweep;             // pose recall over RANSAC budgets and seeds
+  std::string hamming_backend = "opencv";  // the exact Hamming methods: opencv (BFMatcher) or popcount
   int pca_dims = 16;                  // projected_kdtree
+  double ratio = 0.8;                 // the ratio-test methods: Lowe's ratio, in (0, 1]
+  FaissHnswOptions faiss;             // faiss_hnsw_ratio
 
   // Throws lmb::Error naming the flag (e.g. "eval: --top-k 0 must be in 1..10000").
   void check() const;

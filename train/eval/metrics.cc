@@ -136,6 +136,31 @@ void PoseThresholds::check() const {
             "PoseThresholds: max_rotation_error_deg " << max_rotation_error_deg << " must be finite and > 0");
 }
 
+bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world,
+                 const PoseThresholds& thresholds) {
+  return within(position_error(cam_from_world, true_cam_from_world), thresholds.max_position_error_m) &&
+         within(rotation_error_deg(cam_from_world, true_cam_from_world), thresholds.max_rotation_error_deg);
+}
+
+double PoseSweep::recall(size_t b, size_t s) const {
+  return num_frames > 0 ? static_cast<double>(frames_correct[b][s]) / static_cast<double>(num_frames) : 0.0;
+}
+
+SeedRange seed_range(const PoseSweep& sweep, size_t budget) {
+  SeedRange r;
+  const size_t n = sweep.seeds.size();
+  if (n == 0) return r;
+  r.min = r.max = sweep.recall(budget, 0);
+  for (size_t s = 0; s < n; ++s) {
+    const double v = sweep.recall(budget, s);
+    r.mean += v;
+    r.min = std::min(r.min, v);
+    r.max = std::max(r.max, v);
+  }
+  r.mean /= static_cast<double>(n);
+  return r;
+}
+
 double trapezoid_auc(const std::vector<PosePrPoint>& curve) {
   double auc = 0.0;
   for (size_t i = 1; i < curve.size(); ++i) {

@@ -1,7 +1,7 @@
 // Evaluation metrics of `lboost eval`: landmark retrieval quality (precision@1, MRR, the
 // Caltech-style miss rate vs false positives per query) and pose quality (errors, recall at
-// 20 cm / 5 deg, a precision-recall curve with its AUC, inlier ratio). Pure functions of the
-// per-keypoint rankings and per-frame pose outcomes; no I/O.
+// 20 cm / 5 deg, a precision-recall curve with its AUC, inlier ratio, recall over RANSAC seeds and
+// budgets). Pure functions of the per-keypoint rankings and per-frame pose outcomes; no I/O.
 #pragma once
 
 #include <cstdint>
@@ -98,6 +98,10 @@ struct PoseThresholds {
   void check() const;  // throws lmb::Error unless both are finite and > 0
 };
 
+// Whether an estimate is within the thresholds of the truth (the rule below, slack included).
+bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world,
+                 const PoseThresholds& thresholds);
+
 // One point of the pose precision-recall curve: frames accepted when localized and
 // confidence >= threshold.
 struct PosePrPoint {
@@ -149,5 +153,22 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames,
 // The area under a precision-recall curve by the trapezoid rule over recall (points in order of
 // non-decreasing recall). Exposed for tests and other curves.
 double trapezoid_auc(const std::vector<PosePrPoint>& curve);
+
+// Pose recall at several RANSAC iteration budgets and seeds (the same correspondences, one
+// RANSAC run per budget and seed): how much of a method's recall is the luck of one seed.
+struct PoseSweep {
+  std::vector<int> iterations;                      // budgets
+  std::vector<uint64_t> seeds;
+  std::vector<std::vector<int64_t>> frames_correct;  // [budget][seed]
+  int64_t num_frames = 0;
+  // Recall of budget b, seed s: frames_correct[b][s] / num_frames (0 when no frame).
+  double recall(size_t b, size_t s) const;
+};
+
+// Summary over the seeds of one budget.
+struct SeedRange {
+  double mean = 0.0, min = 0.0, max = 0.0;
+};
+SeedRange seed_range(const PoseSweep& sweep, size_t budget);
 
 }  // namespace lmb

@@ -46,4 +46,35 @@ FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
   return o;
 }
 
+void PoseSweepOptions::check() const {
+  LMB_CHECK(!iterations.empty(), "PoseSweepOptions: no iteration budget");
+  for (int it : iterations) LMB_CHECK(it >= 2, "PoseSweepOptions: iteration budget " << it << " must be >= 2");
+  LMB_CHECK(seeds >= 1 && seeds <= 1000, "PoseSweepOptions: seeds " << seeds << " must be in 1..1000");
+}
+
+PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed) {
+  sweep_options.check();
+  PoseSweep sweep;
+  sweep.iterations = sweep_options.iterations;
+  for (int s = 0; s < sweep_options.seeds; ++s) sweep.seeds.push_back(base_seed + static_cast<uint64_t>(s));
+  sweep.frames_correct.assign(sweep.iterations.size(), std::vector<int64_t>(sweep.seeds.size(), 0));
+  return sweep;
+}
+
+void sweep_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options,
+                      const PoseThresholds& thresholds, PoseSweep& sweep) {
+  PoseEstimatorOptions o = options;
+  for (size_t b = 0; b < sweep.iterations.size(); ++b) {
+    for (size_t s = 0; s < sweep.seeds.size(); ++s) {
+      o.max_iterations = sweep.iterations[b];
+      o.seed = sweep.seeds[s];
+      const FrameOutcome f = estimate_frame_pose(query, input, o);
+      if (f.localized && pose_within(f.cam_from_world, f.true_cam_from_world, thresholds)) {
+        ++sweep.frames_correct[b][s];
+      }
+    }
+  }
+  ++sweep.num_frames;
+}
+
 }  // namespace lmb

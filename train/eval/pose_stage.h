@@ -32,4 +32,18 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
 FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
                                  const PoseEstimatorOptions& options);
 
+// The RANSAC budgets and seeds of the pose-recall sweep.
+struct PoseSweepOptions {
+  std::vector<int> iterations = {50, 100, 500};  // each >= 2 (PoseEstimatorOptions::max_iterations)
+  int seeds = 5;  // seeds base, base + 1, ..., base + seeds - 1, base = the pose options' seed; >= 1
+  void check() const;  // throws lmb::Error naming the field
+};
+
+// Adds one frame to `sweep` (set up by start_pose_sweep): RANSAC on `input` for every budget and
+// seed, otherwise with `options`, counting the poses within `thresholds` of the truth.
+void sweep_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options,
+                      const PoseThresholds& thresholds, PoseSweep& sweep);
+// An empty sweep (no frame yet) of the budgets and seeds of `sweep_options` from base_seed.
+PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed);
+
 }  // namespace lmb

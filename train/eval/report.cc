@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <set>
+#include <string>
 
 #include "common/error.h"
 #include "common/file_container.h"
@@ -17,6 +18,22 @@ nlohmann::json numbers(const std::vector<double>& v) {
   nlohmann::json a = nlohmann::json::array();
   for (double x : v) a.push_back(number(x));
   return a;
+}
+
+nlohmann::json sweep_report(const PoseSweep& sweep) {
+  nlohmann::json recall = nlohmann::json::array(), mean = nlohmann::json::array();
+  nlohmann::json lo = nlohmann::json::array(), hi = nlohmann::json::array();
+  for (size_t b = 0; b < sweep.iterations.size(); ++b) {
+    nlohmann::json row = nlohmann::json::array();
+    for (size_t s = 0; s < sweep.seeds.size(); ++s) row.push_back(number(sweep.recall(b, s)));
+    recall.push_back(row);
+    const SeedRange range = seed_range(sweep, b);
+    mean.push_back(number(range.mean));
+    lo.push_back(number(range.min));
+    hi.push_back(number(range.max));
+  }
+  return {{"ransac_iterations", sweep.iterations}, {"seeds", sweep.seeds}, {"recall", recall},
+          {"mean", mean}, {"min", lo}, {"max", hi}};
 }
 
 double scalar(const nlohmann::json& m, const char* key) {
@@ -70,6 +87,7 @@ nlohmann::json method_report(const MethodResult& r) {
     pr["precision"].push_back(number(pt.precision));
   }
   m["pose_pr_curve"] = pr;
+  if (!r.sweep.iterations.empty()) m["pose_recall_sweep"] = sweep_report(r.sweep);
 
   nlohmann::json f;
   nlohmann::json localized = nlohmann::json::array(), correct = nlohmann::json::array();
@@ -120,6 +138,49 @@ void write_report(const std::filesystem::path& path, const nlohmann::json& repor
   write_file_atomically(path, text.data(), text.size());
 }
 
+namespace {
+
+// The pose recall over the seeds at each budget, one row per method.
+std::string format_sweep_table(const nlohmann::json& methods) {
+  std::string out;
+  const nlohmann::json* first = nullptr;
+  for (const auto& [name, m] : methods.items()) {
+    if (m.contains("pose_recall_sweep")) {
+      first = &m.at("pose_recall_sweep");
+      break;
+    }
+  }
+  if (first == nullptr) return out;
+  const nlohmann::json& seeds = first->at("seeds");
+  char line[512];
+  std::snprintf(line, sizeof(line), "\npose recall over %zu RANSAC seeds (%llu..%llu), mean [min, max]:\n%-24s",
+                seeds.size(), seeds.front().get<unsigned long long>(), seeds.back().get<unsigned long long>(), "method");
+  out += line;
+  for (const auto& it : first->at("ransac_iterations")) {
+    std::snprintf(line, sizeof(line), " %21s", (std::to_string(it.get<int>()) + " iterations").c_str());
+    out += line;
+  }
+  out += "\n";
+  for (const auto& [name, m] : methods.items()) {
+    const auto sw = m.find("pose_recall_sweep");
+    if (sw == m.end()) continue;
+    std::snprintf(line, sizeof(line), "%-24s", name.c_str());
+    out += line;
+    for (size_t b = 0; b < sw->at("mean").size(); ++b) {
+      const auto value = [&](const char* key) {
+        const nlohmann::json& v = sw->at(key).at(b);
+        return v.is_number() ? v.get<double>() : std::nan("");
+      };
+      std::snprintf(line, sizeof(line), " %5.3f [%5.3f, %5.3f]", value("mean"), value("min"), value("max"));
+      out += line;
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string format_results_table(const nlohmann::json& report) {
   std::string out;
   char line[512];
@@ -138,7 +199,7 @@ std::string format_results_table(const nlohmann::json& report) {
                   scalar(m, "match_ms_per_frame"), scalar(m, "total_ms_per_frame"));
     out += line;
   }
-  return out;
+  return out + format_sweep_table(*methods);
 }
 
 }  // namespace lmb

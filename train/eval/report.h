@@ -7,6 +7,8 @@
 //   "per_frame":       {"localized": [0/1], "correct": [0/1], "position_error_m": [...],
 //                       "rotation_error_deg": [...], "inlier_ratio": [...], "match_ms": [...],
 //                       "total_ms": [...]}
+//   "pose_recall_sweep": {"ransac_iterations": [...], "seeds": [...], "recall": [[per seed] per
+//                        budget], "mean": [...], "min": [...], "max": [...]}
 // and the extra scalars "log_average_miss_rate", "background_rejection_rate", "frames_localized",
 // "frames_correct". Non-finite numbers (e.g. medians with no localized frame) are written as null.
 #pragma once
@@ -36,6 +38,7 @@ struct MethodResult {
   std::string name;  // e.g. "landmarkboost", "bruteforce_hamming"
   RetrievalMetrics retrieval;
   PoseMetrics pose;
+  PoseSweep sweep;                   // written as pose_recall_sweep when it has budgets
   std::vector<FrameOutcome> frames;  // same order as pose's per-frame vectors; may be empty
 };
 
@@ -54,7 +57,8 @@ nlohmann::json build_report(const DatasetCounts& dataset, const std::vector<Meth
 void write_report(const std::filesystem::path& path, const nlohmann::json& report);
 
 // A fixed-width table, one row per method: P@1, MRR, MR@FPPI=1, pose recall, AUC, median errors,
-// inlier ratio, match and total ms per frame. Reads only DESIGN.md's scalar fields.
+// inlier ratio, match and total ms per frame; then, when the report has pose_recall_sweep, the pose
+// recall over the seeds (mean [min, max]) at each RANSAC budget.
 std::string format_results_table(const nlohmann::json& report);
 
 }  // namespace lmb

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -95,7 +96,8 @@ RunResult EvalCliTest::eval_;
 TEST_F(EvalCliTest, ReportSchemaCountsAndRanges) {
   ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
   // The results table is printed, one row per method.
-  for (const char* name : {"landmarkboost ", "landmarkboost_invfile", "bruteforce_hamming", "projected_kdtree"}) {
+  for (const char* name : {"landmarkboost ", "landmarkboost_invfile", "bruteforce_hamming", "hamming_ratio ",
+                           "hamming_ratio_2nn", "faiss_hnsw_ratio", "projected_kdtree"}) {
     EXPECT_NE(eval_.out.find(name), std::string::npos) << name << "\n" << eval_.out;
   }
   const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
@@ -116,7 +118,7 @@ TEST_F(EvalCliTest, ReportSchemaCountsAndRanges) {
   EXPECT_GT(query_frames, 0);
 
   const nlohmann::json& methods = report.at("methods");
-  ASSERT_EQ(methods.size(), 4u);
+  ASSERT_EQ(methods.size(), 7u);
   for (const auto& [name, m] : methods.items()) {
     SCOPED_TRACE(name);
     for (const char* key : {"precision_at_1", "mrr", "pose_recall_20cm_5deg", "pose_auc", "mean_inlier_ratio"}) {
@@ -142,7 +144,24 @@ TEST_F(EvalCliTest, ReportSchemaCountsAndRanges) {
     if (m.at("frames_localized").get<int>() > 0) {
       EXPECT_TRUE(m.at("median_position_error_m").is_number());
     }
+    // The sweep: 3 budgets x 5 seeds; its 500-iteration run with seed 0 is the reported pose run
+    // (--ransac-iterations 500, --seed 0), and mean/min/max summarize the seeds.
+    const nlohmann::json& sweep = m.at("pose_recall_sweep");
+    EXPECT_EQ(sweep.at("ransac_iterations"), nlohmann::json({50, 100, 500}));
+    EXPECT_EQ(sweep.at("seeds"), nlohmann::json({0, 1, 2, 3, 4}));
+    EXPECT_DOUBLE_EQ(sweep.at("recall")[2][0].get<double>(),
+                     m.at("frames_correct").get<double>() / static_cast<double>(query_frames));
+    for (size_t b = 0; b < 3; ++b) {
+      const auto row = sweep.at("recall")[b].get<std::vector<double>>();
+      double mean = 0;
+      for (double r : row) mean += r / 5.0;
+      EXPECT_NEAR(sweep.at("mean")[b].get<double>(), mean, 1e-12);
+      EXPECT_EQ(sweep.at("min")[b].get<double>(), *std::min_element(row.begin(), row.end()));
+      EXPECT_EQ(sweep.at("max")[b].get<double>(), *std::max_element(row.begin(), row.end()));
+    }
   }
+  EXPECT_EQ(report.at("settings").at("method_parameters").at("hamming_ratio").at("ratio").get<double>(), 0.8);
+  EXPECT_EQ(report.at("settings").at("method_parameters").at("faiss_hnsw_ratio").at("hnsw_m").get<int>(), 32);
   // The descriptor baseline localizes the tiny world's query frames (it has little aliasing).
   EXPECT_GT(methods.at("bruteforce_hamming").at("pose_recall_20cm_5deg").get<double>(), 0.5);
   // The training summary is carried over, and the side file ranks every query keypoint.

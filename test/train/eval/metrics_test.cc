@@ -178,6 +178,8 @@ TEST(EvaluatePoses, ThresholdsAreConfigurable) {
   EXPECT_EQ(m.num_correct, 5);
   // All localized frames correct: the curve ends at recall 5/6 with precision 1, AUC = 5/6.
   EXPECT_NEAR(m.auc, 5.0 / 6.0, 1e-12);
+  EXPECT_TRUE(pose_within(perturbed(5.8, {0.25, 0, 0}), perturbed(0, {0, 0, 0}), loose));
+  EXPECT_FALSE(pose_within(perturbed(5.8, {0.25, 0, 0}), perturbed(0, {0, 0, 0}), PoseThresholds{}));
   PoseThresholds bad;
   bad.max_rotation_error_deg = 0.0;
   EXPECT_THROW(evaluate_poses(pose_case(), bad), Error);
@@ -202,6 +204,20 @@ TEST(EvaluatePoses, EvenCountMedianAndInvalidInput) {
   EXPECT_NEAR(evaluate_poses(frames).median_position_error_m, 0.2, 1e-9);
   frames[0].num_inliers = 5;  // more inliers than correspondences
   EXPECT_THROW(evaluate_poses(frames), Error);
+}
+
+TEST(PoseSweepTest, RecallAndSeedRange) {
+  PoseSweep sweep;
+  sweep.iterations = {50, 500};
+  sweep.seeds = {0, 1, 2};
+  sweep.frames_correct = {{1, 3, 2}, {4, 4, 4}};
+  sweep.num_frames = 4;
+  EXPECT_DOUBLE_EQ(sweep.recall(0, 1), 0.75);
+  const SeedRange r = seed_range(sweep, 0);
+  EXPECT_DOUBLE_EQ(r.mean, 0.5);
+  EXPECT_DOUBLE_EQ(r.min, 0.25);
+  EXPECT_DOUBLE_EQ(r.max, 0.75);
+  EXPECT_DOUBLE_EQ(seed_range(sweep, 1).min, 1.0);
 }
 
 TEST(TrapezoidAuc, KnownArea) {

@@ -1,5 +1,6 @@
 #!/bin/sh
-# Runs jobs/plots.py on a small fake report and metrics.jsonl and checks that every PNG is written.
+# Runs jobs/plots.py on a small fake report and metrics.jsonl and checks that every PNG is written
+# (the pose-recall sweep plot included).
 #   plots_test.sh PLOTS_PY SOURCE_DIR OUT_DIR        (exit 77 = skipped: no matplotlib)
 set -eu
 plots=$1
@@ -28,6 +29,10 @@ def method(p1, mrr, slope, auc_scale, ms):
         "mean_inlier_ratio": 0.3 + 0.2 * p1, "match_ms_per_frame": ms, "total_ms_per_frame": ms * 1.3,
         "miss_rate_curve": {"n": list(range(21)), "fppi": fppi, "miss_rate": miss},
         "pose_pr_curve": {"threshold": list(range(25, 0, -1)), "recall": recall, "precision": precision},
+        "pose_recall_sweep": {"ransac_iterations": [50, 100, 500], "seeds": [0, 1, 2, 3, 4],
+                              "mean": [0.3 * auc_scale, 0.4 * auc_scale, 0.5 * auc_scale],
+                              "min": [0.25 * auc_scale, 0.35 * auc_scale, 0.48 * auc_scale],
+                              "max": [0.35 * auc_scale, 0.45 * auc_scale, 0.52 * auc_scale]},
         "per_frame": {"match_ms": [ms * (0.8 + 0.01 * i) for i in range(frames)],
                       "total_ms": [ms * 1.3] * frames,
                       "inlier_ratio": [min(1.0, 0.2 + 0.2 * p1 + 0.005 * i) for i in range(frames)],
@@ -38,6 +43,7 @@ report = {"dataset": {"map_frames": 200, "query_frames": 40, "landmarks": 1000, 
           "methods": {"landmarkboost": method(0.86, 0.91, 0.5, 1.2, 6.0),
                       "landmarkboost_invfile": method(0.85, 0.90, 0.55, 1.15, 3.0),
                       "bruteforce_hamming": method(0.81, 0.83, 0.9, 1.0, 40.0),
+                      "hamming_ratio": method(0.81, 0.83, 0.9, 1.1, 41.0),
                       "projected_kdtree": method(0.66, 0.72, 1.3, 0.7, 2.0)}}
 json.dump(report, open(out + "/report.json", "w"), indent=1)
 with open(out + "/run/metrics.jsonl", "w") as f:
@@ -50,7 +56,7 @@ with open(out + "/run/metrics.jsonl", "w") as f:
     f.write('{"round": 300, "cost"')  # a torn last line, as a preempted run leaves
 PY
 "$py" "$plots" --report "$out/report.json" --run "$out/run" --out "$out/plots"
-for f in miss_rate_fppi pose_pr runtime_inlier training sharing_size; do
+for f in miss_rate_fppi pose_pr runtime_inlier pose_recall_iterations training sharing_size; do
   png="$out/plots/$f.png"
   test -s "$png" || { echo "FAIL: $png missing"; exit 1; }
   # PNG signature and a plausible size (an empty figure is ~5 KB).
@@ -63,4 +69,4 @@ if "$py" "$plots" --report "$out/bad.json" --out "$out/plots_bad" 2>"$out/bad.er
   echo "FAIL: a report without methods was accepted"; exit 1
 fi
 grep -q "bad.json" "$out/bad.err" || { echo "FAIL: error does not name the file"; cat "$out/bad.err"; exit 1; }
-echo "OK: 5 plots in $out/plots"
+echo "OK: 6 plots in $out/plots"

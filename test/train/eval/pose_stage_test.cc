@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "test/infer/test_models.h"
 
 namespace lmb {
 namespace {
@@ -38,6 +39,43 @@ TEST(PoseStageTest, SelectsTheMostConfidentInKeypointOrder) {
   EXPECT_EQ(three.pixels[1], Eigen::Vector2d(20, 2));
   EXPECT_EQ(three.pixels[2], Eigen::Vector2d(40, 4));
   EXPECT_EQ(select_correspondences(q, accepted, 10).pixels.size(), 5u);
+}
+
+// The sweep runs RANSAC once per budget and seed on the same correspondences: each count is the
+// outcome of estimate_frame_pose with that budget and seed.
+TEST(PoseStageTest, SweepCountsEachBudgetAndSeed) {
+  const test::TestWorld w = test::make_test_world(101, 60, 140, 21);
+  EvalQuery q;
+  q.camera = &w.frame.camera;
+  q.keypoints = w.frame.keypoints;
+  q.true_cam_from_world = w.frame.cam_from_world;
+  std::vector<Correspondence> accepted;
+  for (int32_t k = 0; k < static_cast<int32_t>(q.keypoints.size()); ++k) {
+    const int32_t cls = w.frame.keypoint_class[k] >= 0 ? w.frame.keypoint_class[k] : (k * 13) % 101;
+    accepted.push_back(Correspondence{k, cls, w.positions[cls], 0.0});
+  }
+  const PoseInput input = select_correspondences(q, accepted, 0);
+  PoseSweepOptions options;
+  options.iterations = {3, 500};
+  options.seeds = 4;
+  PoseSweep sweep = start_pose_sweep(options, 7);
+  EXPECT_EQ(sweep.seeds, (std::vector<uint64_t>{7, 8, 9, 10}));
+  PoseEstimatorOptions pose;
+  sweep_frame_pose(q, input, pose, PoseThresholds{}, sweep);
+  EXPECT_EQ(sweep.num_frames, 1);
+  for (size_t b = 0; b < 2; ++b) {
+    for (size_t s = 0; s < 4; ++s) {
+      pose.max_iterations = options.iterations[b];
+      pose.seed = 7 + s;
+      const FrameOutcome o = estimate_frame_pose(q, input, pose);
+      EXPECT_EQ(sweep.frames_correct[b][s], o.localized && pose_within(o.cam_from_world, o.true_cam_from_world,
+                                                                       PoseThresholds{}));
+    }
+  }
+  // 60 of 200 correspondences are exact: 500 iterations find the pose with every seed.
+  EXPECT_EQ(sweep.frames_correct[1], (std::vector<int64_t>{1, 1, 1, 1}));
+  options.iterations = {1};
+  EXPECT_THROW(start_pose_sweep(options, 0), Error);
 }
 
 TEST(PoseStageTest, RejectsBadInput) {
