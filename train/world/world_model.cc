@@ -51,7 +51,7 @@ WorldOptions world_preset(const std::string& name) {
     o.map_frames = 30;
     o.query_frames = 10;
   } else if (name == "default") {
-    // Strong aliasing at a small size (README "Measured"): dense half-resolution frames, many
+    // Strong aliasing at a small size (docs/evaluation.md, "The rendered worlds and their aliasing"): dense half-resolution frames, many
     // repeats of one door, two poster designs and pillars every 3 m, few unique stains and signs.
     // 200 map frames (9 cm apart) give the classifier's top 1,000 landmarks about 5 training
     // observations each; 100 gave 3-4, too few to learn from.
@@ -68,7 +68,7 @@ WorldOptions world_preset(const std::string& name) {
     o.floor_stains_per_m = 0.15;
   } else if (name == "paper") {
     // Dense frames (1,000 map frames on 37 m of walk, one each way) so that landmarks collect >= 10
-    // observations (README "Measured").
+    // observations (docs/evaluation.md, "The rendered worlds and their aliasing").
     o.length_m = 40.0;
     o.map_frames = 1000;
     o.query_frames = 150;
