@@ -63,6 +63,23 @@ void run_colmap(const ColmapImportOptions& options) {
   spdlog::info("import colmap: {} + {} -> {}", options.sparse_dir.string(), options.image_dir.string(),
                options.out_dir.string());
   const ColmapImportStats s = import_colmap(options);
+  if (s.depths) {
+    std::printf("import: the model's 3D points lie at depth median %.3g, 95th percentile %.3g (model units, %lld "
+                "observations); lboost map --max-depth (default 40, same units) must cover the scene\n",
+                s.depths->median, s.depths->p95, static_cast<long long>(s.depths->observations));
+  }
+  if (s.up_estimate) {
+    const UpEstimate& e = *s.up_estimate;
+    std::printf("import: --up auto: up = (%.4f, %.4f, %.4f), minus the mean image down direction (camera +y) of %d "
+                "cameras (mean resultant length %.3f; 1 = all parallel); nearest world axis %s, %.1f deg away\n",
+                e.up.x(), e.up.y(), e.up.z(), e.cameras, e.mean_resultant_length, e.nearest_axis.c_str(),
+                e.nearest_axis_deg);
+    if (e.mean_resultant_length < 0.5) {
+      std::printf("import: warning: the cameras' down directions disagree (mean resultant length %.3f < 0.5): the "
+                  "estimate assumes upright cameras; prefer a gravity file or a known --up AXIS\n",
+                  e.mean_resultant_length);
+    }
+  }
   std::printf("import: %s model, %d images (%d map, %d query), %s; wrote %s\n", s.binary ? "binary" : "text",
               s.images, s.map_frames, s.query_frames, s.has_gravity ? "gravity.txt written" : "no gravity file",
               options.out_dir.string().c_str());
@@ -119,7 +136,9 @@ void add_import_command(CLI::App& app) {
                                           "list:FILE (map frames)")
       ->capture_default_str();
   c->add_option("--gravity-file", (*paths)[3], "Per-image gravity (IMAGE_NAME gx gy gz, camera frame, down)");
-  c->add_option("--up", colmap->up, "Or: the model's world up axis (+x, -x, +y, -y, +z, -z) for gravity.txt");
+  c->add_option("--up", colmap->up,
+                "Or: the model's world up axis (+x, -x, +y, -y, +z, -z) for gravity.txt; 'auto' estimates it "
+                "from the cameras (minus their mean image down direction) and reports the nearest axis");
   c->add_flag("--overwrite", colmap->overwrite, "Replace sparse/, images/ and gravity.txt of an existing output");
   c->callback([colmap, paths] {
     ColmapImportOptions options = *colmap;

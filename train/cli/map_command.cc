@@ -7,6 +7,7 @@
 #include "common/error.h"
 #include "common/io/map_h5.h"
 #include "train/cli/commands.h"
+#include "train/mapping/map_gravity.h"
 #include "train/mapping/mapper.h"
 
 namespace lmb::cli {
@@ -17,14 +18,25 @@ struct MapArgs {
   std::string collection;
   std::string out;
   std::string up = "+z";
+  std::string gravity;  // --gravity: a file, "none", or "" (COLLECTION/gravity.txt when present)
+  bool up_given = false;
   MapperOptions options;
 };
 
 void run_map(const MapArgs& args) {
   MapperOptions options = args.options;
-  options.up = parse_up_axis(args.up);
+  MapGravityRequest request;
+  request.collection = args.collection;
+  request.gravity = args.gravity;
+  request.up = args.up;
+  request.up_given = args.up_given;
+  const MapGravityChoice gravity = choose_map_gravity(request);
+  options.up = gravity.up;
+  options.gravity_file = gravity.gravity_file;
   options.check();
   spdlog::info("map: collection {} -> {}", args.collection, args.out);
+  std::printf("map: gravity: %s\n", gravity.description.c_str());
+  std::fflush(stdout);
   MapperStats stats;
   const LandmarkMap map = map_collection(args.collection, options, &stats);
   LMB_CHECK(!map.landmarks.empty(), args.collection << ": no landmark survived mapping (too few overlapping "
@@ -61,11 +73,13 @@ void add_map_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-keypoints", args->options.detector.max_keypoints, "Keypoints per image (strongest)")
       ->capture_default_str();
-  cmd->add_option("--gravity", args->options.gravity_file,
-                 "Per-image gravity file (IMAGE_NAME gx gy gz: down, camera frame); replaces --up")
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--up", args->up, "World up axis: +x, -x, +y, -y, +z, -z (gravity is -up)")
-      ->capture_default_str();
+  cmd->add_option("--gravity", args->gravity,
+                  "Per-image gravity file (IMAGE_NAME gx gy gz: down, camera frame), or 'none' for --up. "
+                  "Default: COLLECTION/gravity.txt when it exists, else --up");
+  auto* up = cmd->add_option("--up", args->up,
+                             "World up axis: +x, -x, +y, -y, +z, -z (gravity is -up); with "
+                             "COLLECTION/gravity.txt present it must agree with the file")
+                 ->capture_default_str();
   cmd->add_option("--threads", args->options.threads, "Worker threads")->capture_default_str();
   cmd->add_option("--pair-distance", args->options.pairs.max_center_distance,
                   "Max camera centre distance of matched frame pairs, world units (0 = automatic)")
@@ -75,7 +89,10 @@ void add_map_command(CLI::App& app) {
   cmd->add_option("--min-observations", args->options.min_map_observations,
                   "Map-frame observations a landmark needs")
       ->capture_default_str();
-  cmd->callback([args] { run_map(*args); });
+  cmd->callback([args, up] {
+    args->up_given = up->count() > 0;
+    run_map(*args);
+  });
 }
 
 }  // namespace lmb::cli

@@ -1,6 +1,9 @@
 #include "train/import/colmap_import.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
 
 #include "common/error.h"
 #include "common/io/colmap_model.h"
@@ -18,8 +21,64 @@ void ColmapImportOptions::check() const {
   LMB_CHECK(!image_dir.empty(), "--images: missing");
   LMB_CHECK(!out_dir.empty(), "--out: missing");
   LMB_CHECK(gravity_file.empty() || up.empty(), "--gravity-file and --up are exclusive");
-  if (!up.empty()) parse_axis(up, "--up");
+  if (!up.empty() && up != "auto") {
+    try {
+      parse_axis(up, "--up");
+    } catch (const Error&) {
+      LMB_FAIL("--up: '" << up << "' is neither an axis nor auto (expected +x, -x, +y, -y, +z, -z or auto)");
+    }
+  }
   parse_split_rule(split);
+}
+
+UpEstimate estimate_up_from_cameras(const std::vector<Rigid3d>& cam_from_world) {
+  LMB_CHECK(!cam_from_world.empty(), "--up auto: no cameras to estimate the up axis from");
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Rigid3d& pose : cam_from_world) {
+    sum += (pose.rotation.conjugate() * Eigen::Vector3d::UnitY()).normalized();  // camera +y in the world
+  }
+  const Eigen::Vector3d mean_down = sum / static_cast<double>(cam_from_world.size());
+  LMB_CHECK(mean_down.norm() > 1e-6, "--up auto: the " << cam_from_world.size()
+                                         << " cameras' down directions cancel out; give --up AXIS or a gravity file");
+  UpEstimate e;
+  e.up = -mean_down.normalized();
+  e.cameras = static_cast<int>(cam_from_world.size());
+  e.mean_resultant_length = mean_down.norm();
+  static const std::array<const char*, 6> names = {"+x", "-x", "+y", "-y", "+z", "-z"};
+  double best = -2.0;
+  for (int a = 0; a < 6; ++a) {
+    Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+    axis[a / 2] = a % 2 ? -1.0 : 1.0;
+    const double c = e.up.dot(axis);
+    if (c > best) {
+      best = c;
+      e.nearest_axis = names[a];
+    }
+  }
+  e.nearest_axis_deg = std::acos(std::clamp(best, -1.0, 1.0)) * 180.0 / M_PI;
+  return e;
+}
+
+std::optional<DepthStats> observed_point_depths(const ColmapModel& model) {
+  std::map<int, const ColmapImage*> by_id;
+  for (const ColmapImage& im : model.images) by_id[im.image_id] = &im;
+  std::vector<double> depths;
+  for (const ColmapPoint3D& p : model.points) {
+    for (const ColmapTrackElement& e : p.track) {
+      const auto it = by_id.find(e.image_id);
+      if (it == by_id.end()) continue;
+      const double z = (it->second->cam_from_world * p.xyz).z();
+      if (z > 0) depths.push_back(z);
+    }
+  }
+  if (depths.empty()) return std::nullopt;
+  std::sort(depths.begin(), depths.end());
+  const auto quantile = [&](double q) { return depths[static_cast<size_t>(q * (depths.size() - 1) + 0.5)]; };
+  DepthStats d;
+  d.observations = static_cast<int64_t>(depths.size());
+  d.median = quantile(0.5);
+  d.p95 = quantile(0.95);
+  return d;
 }
 
 ColmapImportStats import_colmap(const ColmapImportOptions& options) {
@@ -44,6 +103,16 @@ ColmapImportStats import_colmap(const ColmapImportOptions& options) {
 
   ColmapImportStats stats;
   stats.binary = format == ColmapFormat::kBinary;
+  stats.depths = observed_point_depths(model);
+  std::optional<Eigen::Vector3d> up;
+  if (options.up == "auto") {
+    std::vector<Rigid3d> poses;
+    for (const ColmapImage& im : model.images) poses.push_back(im.cam_from_world);
+    stats.up_estimate = estimate_up_from_cameras(poses);
+    up = stats.up_estimate->up;
+  } else if (!options.up.empty()) {
+    up = parse_axis(options.up, "--up");
+  }
   std::vector<CollectionImage> images;
   for (size_t i = 0; i < order.size(); ++i) {
     const ColmapImage& src = *order[i];
@@ -54,8 +123,8 @@ ColmapImportStats import_colmap(const ColmapImportOptions& options) {
     out.source = options.image_dir / src.name;
     if (!gravity.empty()) {
       out.gravity_in_cam = gravity.at(src.name);
-    } else if (!options.up.empty()) {
-      out.gravity_in_cam = (src.cam_from_world.rotation * (-parse_axis(options.up, "--up"))).normalized();
+    } else if (up) {
+      out.gravity_in_cam = (src.cam_from_world.rotation * (-*up)).normalized();
     }
     (is_map[i] ? stats.map_frames : stats.query_frames) += 1;
     images.push_back(std::move(out));

@@ -2,7 +2,10 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -133,6 +136,126 @@ TEST_F(ColmapImportTest, BadInputsFailWithOneClearLine) {
   o.up = "+z";
   o.gravity_file = root_ / "g.txt";
   EXPECT_NE(error(o).find("--gravity-file and --up are exclusive"), std::string::npos);
+}
+
+// Cameras of a world whose up is `up`: evenly spaced headings, pitch and roll alternating in sign, so
+// that the cameras' down axes average to exactly -up.
+std::vector<Rigid3d> upright_cameras(const Eigen::Vector3d& up, int n, double pitch_deg, double roll_deg) {
+  const Eigen::Vector3d down = -up.normalized();
+  const Eigen::Vector3d a = down.unitOrthogonal(), b = down.cross(a);
+  std::vector<Rigid3d> poses;
+  for (int k = 0; k < n; ++k) {
+    const double yaw = 2.0 * M_PI * k / n, sign = k % 2 ? -1.0 : 1.0;
+    const Eigen::Vector3d forward = std::cos(yaw) * a + std::sin(yaw) * b;
+    Eigen::Matrix3d world_from_level;
+    world_from_level << down.cross(forward), down, forward;  // columns: camera x, y, z
+    const Eigen::Matrix3d level_from_cam =
+        (Eigen::AngleAxisd(sign * pitch_deg * M_PI / 180, Eigen::Vector3d::UnitX()) *
+         Eigen::AngleAxisd(sign * roll_deg * M_PI / 180, Eigen::Vector3d::UnitZ()))
+            .toRotationMatrix();
+    const Eigen::Matrix3d world_from_cam = world_from_level * level_from_cam;
+    poses.emplace_back(Eigen::Quaterniond(world_from_cam.transpose()).normalized(),
+                       Eigen::Vector3d(0.1 * k, 0, 0));
+  }
+  return poses;
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+TEST(EstimateUpFromCameras, UprightCamerasGiveTheUpDirectionAndTheNearestAxis) {
+  // Up is -y turned 4 deg about x: the nearest axis is -y, 4 deg away.
+  const Eigen::Vector3d up = Eigen::AngleAxisd(4.0 * M_PI / 180, Eigen::Vector3d::UnitX()) * Eigen::Vector3d(0, -1, 0);
+  const UpEstimate e = estimate_up_from_cameras(upright_cameras(up, 24, 15.0, 3.0));
+  EXPECT_LT(angle_deg(e.up, up), 1e-6);
+  EXPECT_EQ(e.cameras, 24);
+  EXPECT_EQ(e.nearest_axis, "-y");
+  EXPECT_NEAR(e.nearest_axis_deg, 4.0, 1e-6);
+  // Tilted cameras: each down axis is 15.3 deg off -up, so the mean is shorter than 1.
+  EXPECT_NEAR(e.mean_resultant_length,
+              std::cos(15.0 * M_PI / 180) * std::cos(3.0 * M_PI / 180), 1e-9);
+
+  const UpEstimate z = estimate_up_from_cameras(upright_cameras(Eigen::Vector3d(0, 0, 1), 6, 0.0, 0.0));
+  EXPECT_EQ(z.nearest_axis, "+z");
+  EXPECT_LT(z.nearest_axis_deg, 1e-6);
+  EXPECT_NEAR(z.mean_resultant_length, 1.0, 1e-12);
+}
+
+TEST(EstimateUpFromCameras, CancellingCamerasAndNoCamerasFail) {
+  std::vector<Rigid3d> poses = upright_cameras(Eigen::Vector3d(0, 0, 1), 4, 0.0, 0.0);
+  const std::vector<Rigid3d> upside_down = upright_cameras(Eigen::Vector3d(0, 0, -1), 4, 0.0, 0.0);
+  poses.insert(poses.end(), upside_down.begin(), upside_down.end());
+  try {
+    estimate_up_from_cameras(poses);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--up auto: the 8 cameras' down directions cancel out"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(estimate_up_from_cameras({}), Error);
+}
+
+TEST_F(ColmapImportTest, UpAutoWritesGravityFromTheEstimatedUp) {
+  const Eigen::Vector3d up = Eigen::AngleAxisd(-10.0 * M_PI / 180, Eigen::Vector3d::UnitY()) * Eigen::Vector3d(0, 0, 1);
+  model_.images.clear();
+  const std::vector<Rigid3d> poses = upright_cameras(up, 8, 20.0, 5.0);
+  const cv::Mat pixels(6, 8, CV_8UC1, cv::Scalar(99));
+  for (int i = 0; i < 8; ++i) {
+    ColmapImage im;
+    im.image_id = i + 1;
+    im.camera_id = 2;
+    im.name = "day1/cam_" + std::to_string(i) + ".jpg";
+    im.cam_from_world = poses[i];
+    model_.images.push_back(im);
+    ASSERT_TRUE(cv::imwrite((root_ / "photos" / im.name).string(), pixels));
+  }
+  write_colmap_text(model_, root_ / "sparse");
+  ColmapImportOptions o = options();
+  o.up = "auto";
+  const ColmapImportStats s = import_colmap(o);
+  ASSERT_TRUE(s.up_estimate.has_value());
+  EXPECT_LT(angle_deg(s.up_estimate->up, up), 1e-6);
+  EXPECT_EQ(s.up_estimate->nearest_axis, "+z");
+  EXPECT_NEAR(s.up_estimate->nearest_axis_deg, 10.0, 1e-6);
+  ASSERT_TRUE(s.has_gravity);
+  const ColmapModel r = read_colmap_text(o.out_dir / "sparse");
+  const auto g = read_gravity_file(o.out_dir / "gravity.txt", r);
+  for (const ColmapImage& im : r.images) {
+    EXPECT_LT(angle_deg(g.at(im.name), im.cam_from_world.rotation * -up), 1e-6) << im.name;
+  }
+  // "auto" is the only word --up takes besides the axes.
+  o.up = "automatic";
+  EXPECT_NE(error(o).find("--up: 'automatic' is neither an axis nor auto"), std::string::npos) << error(o);
+}
+
+TEST_F(ColmapImportTest, DepthsOfTheModelsPointsAreReported) {
+  // Without points: nothing to report.
+  EXPECT_FALSE(observed_point_depths(model_).has_value());
+  // Points straight ahead of image 50 (identity rotation, centre at the origin) at depths 1..20,
+  // seen by it; one point behind it (not counted) and one element of a missing image (ignored).
+  for (int i = 1; i <= 20; ++i) {
+    ColmapPoint3D p;
+    p.point3d_id = i;
+    p.xyz = Eigen::Vector3d(0, 0, i);
+    p.track = {{50, 0}};
+    model_.points.push_back(p);
+  }
+  ColmapPoint3D behind;
+  behind.point3d_id = 100;
+  behind.xyz = Eigen::Vector3d(0, 0, -5);
+  behind.track = {{50, 0}, {7, 0}};
+  model_.points.push_back(behind);
+  const std::optional<DepthStats> d = observed_point_depths(model_);
+  ASSERT_TRUE(d.has_value());
+  EXPECT_EQ(d->observations, 20);
+  EXPECT_EQ(d->median, 11.0);  // the element at 0.5 * 19 + 0.5, rounded down: the 11th
+  EXPECT_EQ(d->p95, 19.0);
+  model_.points.back().track = {{50, 0}};  // the reader refuses tracks of missing images
+  write_colmap_text(model_, root_ / "sparse");
+  const ColmapImportStats s = import_colmap(options());
+  ASSERT_TRUE(s.depths.has_value());
+  EXPECT_EQ(s.depths->observations, 20);
 }
 
 }  // namespace
