@@ -15,7 +15,10 @@ ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& optio
   LMB_CHECK(!image.empty() && image.depth() == CV_8U &&
                 (image.channels() == 1 || image.channels() == 3 || image.channels() == 4),
             "detect_features: expected an 8-bit image with 1, 3 or 4 channels");
-  cv::Mat gray = image;
+  // OpenCV's BRISK describes some keypoints differently in a view into a larger buffer (a
+  // non-continuous Mat: an ROI, or rows with a stride) than in the same pixels stored alone, so a
+  // view is copied first: the result depends on the pixels only, as the mapper's does.
+  cv::Mat gray = image.isContinuous() ? image : image.clone();
   if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
   if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
   cv::Ptr<cv::Feature2D> detector;

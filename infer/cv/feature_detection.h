@@ -9,7 +9,8 @@
 //
 // Keypoints: lmb::Keypoint in COLMAP's pixel convention (OpenCV KeyPoint::pt + 0.5), scale =
 // KeyPoint::size (detector diameter, pixels), angle = KeyPoint::angle; sorted by decreasing
-// response (ties by position), at most options.max_keypoints. Deterministic for a given image.
+// response (ties by position), at most options.max_keypoints. Deterministic for a given image,
+// and the same for a view into a larger image (an ROI) as for its pixels alone.
 // Colour images are converted with cv::cvtColor(..., COLOR_BGR2GRAY) (COLOR_BGRA2GRAY): pass the
 // grayscale image itself when the map was built from images read as grayscale files, to get
 // the mapper's pixels exactly.

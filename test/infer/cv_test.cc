@@ -50,6 +50,13 @@ TEST(InferCvTest, ColourImageGivesTheMappersKeypointsAndDescriptors) {
     }
     EXPECT_EQ(got.descriptors.size(), got.keypoints.size() * 64);
     total += got.keypoints.size();
+    // The same pixels as a view into a wider image (an ROI, rows with a stride): the same result.
+    cv::Mat wide(gray.rows + 8, gray.cols + 24, CV_8UC1, cv::Scalar(77));
+    const cv::Mat roi = wide(cv::Rect(0, 0, gray.cols, gray.rows));
+    gray.copyTo(roi);
+    ASSERT_FALSE(roi.isContinuous());
+    const ImageFeatures from_roi = detect_features(roi);
+    ASSERT_EQ(from_roi.descriptors, expected.descriptors) << "frame " << f;
 
     // Pixel convention: every keypoint is one of OpenCV's BRISK keypoints moved by +0.5.
     std::vector<cv::KeyPoint> raw;
