@@ -12,6 +12,7 @@ packages=(
   libcli11-dev libspdlog-dev nlohmann-json3-dev libtomlplusplus-dev
   libfaiss-dev
   python3-matplotlib python3-numpy
+  python3-dev pybind11-dev python3-pytest python3-pil
 )
 
 missing=()

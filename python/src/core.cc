@@ -1,0 +1,413 @@
+// landmarkboost._core: the inference library (infer/localizer.h, infer/model.h, common/camera.h)
+// for Python. Inputs are numpy arrays (descriptors are read in place when they are a C-contiguous
+// uint8 array); results are read-only numpy views into the C++ result, kept alive by it. The GIL
+// is released while a frame is localized, so Python threads localize in parallel.
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "common/rigid3.h"
+#include "common/types.h"
+#include "infer/c_api.h"
+#include "infer/localizer.h"
+#include "infer/model.h"
+#include "numpy_util.h"
+
+namespace lmb::python {
+namespace {
+
+static_assert(sizeof(Keypoint) == 4 * sizeof(float), "Keypoint must be 4 packed floats");
+
+// Localize calls that ran with the GIL released (read by the tests through _calls_without_gil).
+std::atomic<int64_t> calls_without_gil{0};
+
+// ---- Camera -------------------------------------------------------------------------------------
+
+Camera make_camera(const py::object& model, int width, int height, const std::vector<double>& params) {
+  Camera c;
+  if (py::isinstance<py::str>(model)) {
+    c.model = camera_model_from_name(model.cast<std::string>(), "Camera: model");
+  } else {
+    c.model = camera_model_from_id(model.cast<int>());
+  }
+  c.width = width;
+  c.height = height;
+  c.params = params;
+  c.check("Camera");
+  return c;
+}
+
+// ---- Options: flat Python names over the nested C++ struct --------------------------------------
+
+struct OptionField {
+  const char* name;
+  py::object (*get)(const LocalizerOptions&);
+  void (*set)(LocalizerOptions&, const py::object&);
+  const char* doc;
+};
+
+#define LMB_OPTION(NAME, MEMBER, TYPE, DOC)                                                   \
+  OptionField {                                                                               \
+    NAME, [](const LocalizerOptions& o) -> py::object { return py::cast(o.MEMBER); },         \
+        [](LocalizerOptions& o, const py::object& v) { o.MEMBER = v.cast<TYPE>(); }, DOC      \
+  }
+
+const std::vector<OptionField>& option_fields() {
+  static const std::vector<OptionField> fields = {
+      LMB_OPTION("top_k", classifier.top_k, int, "Matches kept per keypoint (>= 1)."),
+      LMB_OPTION("use_inverted_file", classifier.use_inverted_file, bool,
+                 "Score only the candidate classes of the keypoint's visual word."),
+      LMB_OPTION("min_margin", classifier.min_margin, double,
+                 "A match's score must exceed the background's by more than this (-inf: no rejection)."),
+      LMB_OPTION("min_score", classifier.min_score, double, "... and be at least this (-inf: no bound)."),
+      LMB_OPTION("screening", classifier.screening, bool,
+                 "Skip classes whose score bound cannot pass (same matches either way)."),
+      LMB_OPTION("pose_top_k", pose_top_k, int, "Matches per keypoint given to RANSAC (1..top_k)."),
+      LMB_OPTION("max_correspondences", max_correspondences, int,
+                 "At most this many correspondences, the largest margins (0 = all)."),
+      LMB_OPTION("ransac_iterations", pose.max_iterations, int, "Most RANSAC hypotheses."),
+      LMB_OPTION("max_reprojection_error_px", pose.max_reprojection_error_px, double,
+                 "RANSAC inlier threshold, pixels."),
+      LMB_OPTION("ransac_confidence", pose.confidence, double, "RANSAC's early-stop confidence, in (0, 1)."),
+      LMB_OPTION("seed", pose.seed, uint64_t, "RANSAC seed: equal seeds and inputs give equal results."),
+      LMB_OPTION("min_inliers", pose.min_inliers, int, "Fewest inliers for a pose (>= 4)."),
+      LMB_OPTION("refine", pose.refine, bool, "Non-linear refinement on the inliers."),
+  };
+  return fields;
+}
+#undef LMB_OPTION
+
+LocalizerOptions options_from_kwargs(const py::kwargs& kwargs) {
+  LocalizerOptions o;
+  for (const auto& [key, value] : kwargs) {
+    const std::string name = key.cast<std::string>();
+    bool found = false;
+    for (const OptionField& f : option_fields()) {
+      if (name == f.name) {
+        f.set(o, py::reinterpret_borrow<py::object>(value));
+        found = true;
+      }
+    }
+    if (!found) {
+      std::string names;
+      for (const OptionField& f : option_fields()) names += std::string(names.empty() ? "" : ", ") + f.name;
+      throw py::type_error("LocalizerOptions: unknown option '" + name + "' (options: " + names + ")");
+    }
+  }
+  o.check();
+  return o;
+}
+
+// ---- Inputs -------------------------------------------------------------------------------------
+
+std::vector<Keypoint> keypoints_from(const py::array& a) {
+  if (a.ndim() != 2 || a.shape(1) != 4) {
+    throw py::value_error("localize: keypoints: expected an (n, 4) array of x, y, size, angle; got a " +
+                          describe(a));
+  }
+  // float32 C-contiguous arrays are read as they are; other dtypes and layouts are converted.
+  const auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!f) throw py::value_error("localize: keypoints: cannot convert a " + describe(a) + " to float32");
+  std::vector<Keypoint> keypoints(static_cast<size_t>(a.shape(0)));
+  if (!keypoints.empty()) std::memcpy(static_cast<void*>(keypoints.data()), f.data(), keypoints.size() * sizeof(Keypoint));
+  return keypoints;
+}
+
+// The descriptors as a C-contiguous uint8 array of shape (n, bytes): the caller's array itself
+// when it is one (zero-copy), else a contiguous copy of it.
+py::array_t<uint8_t> descriptors_from(const py::array& a, size_t n, int bytes) {
+  if (a.dtype().kind() != 'u' || a.dtype().itemsize() != 1 || a.ndim() != 2 ||
+      a.shape(0) != static_cast<py::ssize_t>(n) || a.shape(1) != bytes) {
+    throw py::value_error("localize: descriptors: expected a uint8 array of shape (" + std::to_string(n) + ", " +
+                          std::to_string(bytes) + ") (one row per keypoint, the model's descriptor bytes); got a " +
+                          describe(a));
+  }
+  return py::array_t<uint8_t, py::array::c_style | py::array::forcecast>::ensure(a);
+}
+
+// ---- Results ------------------------------------------------------------------------------------
+
+struct Result {
+  LocalizeResult r;
+};
+
+template <class F>
+auto field_view(const std::vector<ClassMatch>& m, const F* first_field, py::handle owner) {
+  return view<F>(first_field, {static_cast<py::ssize_t>(m.size())},
+                 {static_cast<py::ssize_t>(sizeof(ClassMatch))}, owner);
+}
+
+const ClassMatch& first_match(const Result& r) {
+  static const ClassMatch none;
+  return r.r.matches.matches.empty() ? none : r.r.matches.matches.front();
+}
+
+}  // namespace
+}  // namespace lmb::python
+
+PYBIND11_MODULE(_core, m) {
+  using namespace lmb;
+  using namespace lmb::python;
+  m.doc() = "LandmarkBoost inference (landmarkboost._core; use the package landmarkboost)";
+  m.attr("__version__") = lmb_version();
+  static py::exception<Error> error(m, "Error", PyExc_RuntimeError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Error& e) {
+      error(e.what());
+    }
+  });
+  m.def("_calls_without_gil", [] { return calls_without_gil.load(); },
+        "Localize calls that ran with the GIL released (tests).");
+
+  // ---- Rigid3d ----
+  py::class_<Rigid3d>(m, "Rigid3d", R"(A rigid transform a_from_b: x_a = rotation * x_b + translation.
+rotation: unit quaternion (w, x, y, z); translation: 3 values. Poses are cam_from_world (camera
+frame x right, y down, z forward).)")
+      .def(py::init([](const Eigen::Vector4d& wxyz, const Eigen::Vector3d& t) {
+             const Eigen::Quaterniond q(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+             LMB_CHECK(std::abs(q.norm() - 1.0) < 1e-6,
+                       "Rigid3d: rotation must be a unit quaternion (w, x, y, z); its norm is " << q.norm());
+             return Rigid3d(q.normalized(), t);
+           }),
+           py::arg("rotation") = Eigen::Vector4d(1, 0, 0, 0), py::arg("translation") = Eigen::Vector3d::Zero())
+      .def_static("from_matrix",
+                  [](const Eigen::Matrix<double, 3, 4>& m34) {
+                    const Eigen::Matrix3d r = m34.leftCols<3>();
+                    LMB_CHECK((r * r.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0,
+                              "Rigid3d.from_matrix: the left 3x3 block is not a rotation");
+                    return Rigid3d(Eigen::Quaterniond(r).normalized(), m34.col(3));
+                  },
+                  py::arg("matrix"), "From a 3x4 matrix [R | t].")
+      .def_property_readonly("rotation", [](const Rigid3d& p) {
+        return Eigen::Vector4d(p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z());
+      }, "Unit quaternion (w, x, y, z).")
+      .def_property_readonly("translation", [](const Rigid3d& p) { return Eigen::Vector3d(p.translation); })
+      .def("matrix", [](const Rigid3d& p) {
+        Eigen::Matrix<double, 3, 4> m34;
+        m34 << p.rotation.toRotationMatrix(), p.translation;
+        return m34;
+      }, "The 3x4 matrix [R | t].")
+      .def("center", &Rigid3d::center, "For a cam_from_world pose: the camera centre in the world.")
+      .def("inverse", &Rigid3d::inverse)
+      .def("__mul__", [](const Rigid3d& a, const Rigid3d& b) { return a * b; })
+      .def("__mul__", [](const Rigid3d& a, const Eigen::Vector3d& x) { return Eigen::Vector3d(a * x); })
+      .def("__repr__", [](const Rigid3d& p) {
+        return "Rigid3d(rotation=[" + std::to_string(p.rotation.w()) + ", " + std::to_string(p.rotation.x()) + ", " +
+               std::to_string(p.rotation.y()) + ", " + std::to_string(p.rotation.z()) + "], translation=[" +
+               std::to_string(p.translation.x()) + ", " + std::to_string(p.translation.y()) + ", " +
+               std::to_string(p.translation.z()) + "])";
+      });
+
+  // ---- Camera ----
+  py::class_<Camera>(m, "Camera", R"(A camera with COLMAP's models and parameter orders:
+SIMPLE_PINHOLE f, cx, cy; PINHOLE fx, fy, cx, cy; SIMPLE_RADIAL f, cx, cy, k; RADIAL f, cx, cy, k1, k2;
+OPENCV fx, fy, cx, cy, k1, k2, p1, p2; FULL_OPENCV fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6.
+Pixels follow COLMAP's convention: the centre of the top-left pixel is (0.5, 0.5).)")
+      .def(py::init(&make_camera), py::arg("model"), py::arg("width"), py::arg("height"), py::arg("params"))
+      .def_property_readonly("model", [](const Camera& c) { return camera_model_name(c.model); })
+      .def_property_readonly("width", [](const Camera& c) { return c.width; })
+      .def_property_readonly("height", [](const Camera& c) { return c.height; })
+      .def_property_readonly("params", [](const Camera& c) { return c.params; })
+      .def("project", [](const Camera& c, const py::array_t<double, py::array::c_style | py::array::forcecast>& points) {
+        if (points.ndim() != 2 || points.shape(1) != 3) {
+          throw py::value_error("Camera.project: points: expected an (n, 3) array; got a " + describe(points));
+        }
+        const py::ssize_t n = points.shape(0);
+        std::vector<double> out(static_cast<size_t>(2 * n));
+        for (py::ssize_t i = 0; i < n; ++i) {
+          Eigen::Vector2d pixel(std::nan(""), std::nan(""));
+          if (!c.project(Eigen::Vector3d(points.at(i, 0), points.at(i, 1), points.at(i, 2)), &pixel)) {
+            pixel.setConstant(std::nan(""));
+          }
+          out[2 * i] = pixel.x();
+          out[2 * i + 1] = pixel.y();
+        }
+        return take(std::move(out), {n, 2});
+      }, py::arg("points_in_cam"),
+      "(n, 2) pixels (COLMAP's convention, distortion applied) of (n, 3) points in the camera frame; nan behind.")
+      .def("__eq__", [](const Camera& a, const Camera& b) {
+        return a.model == b.model && a.width == b.width && a.height == b.height && a.params == b.params;
+      })
+      .def("__repr__", [](const Camera& c) {
+        std::string s = "Camera('" + camera_model_name(c.model) + "', " + std::to_string(c.width) + ", " +
+                        std::to_string(c.height) + ", [";
+        for (size_t i = 0; i < c.params.size(); ++i) s += (i ? ", " : "") + py::repr(py::float_(c.params[i])).cast<std::string>();
+        return s + "])";
+      });
+
+  // ---- Options ----
+  py::class_<LocalizerOptions> opts(m, "LocalizerOptions", R"(Localization options; keyword arguments set them:
+LocalizerOptions(top_k=5, pose_top_k=2, seed=1). The defaults are those of `lboost localize`.)");
+  opts.def(py::init([](const py::kwargs& kwargs) { return options_from_kwargs(kwargs); }))
+      .def("check", &LocalizerOptions::check, "Raises landmarkboost.Error naming an invalid field.")
+      .def("__repr__", [](const LocalizerOptions& o) {
+        std::string s = "LocalizerOptions(";
+        bool first = true;
+        for (const OptionField& f : option_fields()) {
+          s += (first ? "" : ", ") + std::string(f.name) + "=" + py::repr(f.get(o)).cast<std::string>();
+          first = false;
+        }
+        return s + ")";
+      });
+  for (const OptionField& f : option_fields()) {
+    const OptionField* field = &f;
+    opts.def_property(
+        f.name, [field](const LocalizerOptions& o) { return field->get(o); },
+        [field](LocalizerOptions& o, const py::object& v) { field->set(o, v); }, f.doc);
+  }
+
+  // ---- Model ----
+  py::class_<Model, std::shared_ptr<Model>>(m, "Model", "An inference model (model.lbm), immutable.")
+      .def_static("load", [](const std::filesystem::path& path) {
+        return std::const_pointer_cast<Model>(Model::load(path));
+      }, py::arg("path"), "Reads model.lbm; raises landmarkboost.Error naming the file and reason.")
+      .def_static("from_bytes", [](const py::bytes& b) {
+        const std::string s = b;
+        return std::const_pointer_cast<Model>(
+            Model::from_bytes(reinterpret_cast<const uint8_t*>(s.data()), s.size(), "bytes"));
+      }, py::arg("data"), "The same from the file's bytes.")
+      .def_property_readonly("num_classes", &Model::num_classes, "Landmark classes C (class C is the background).")
+      .def_property_readonly("descriptor_bytes", &Model::descriptor_bytes)
+      .def_property_readonly("num_words", &Model::num_words)
+      .def_property_readonly("detector", [](const Model& mo) { return mo.data().detector; })
+      .def_property_readonly("num_stumps", [](const Model& mo) { return mo.data().stumps.size(); })
+      .def_property_readonly("class_landmarks", [](py::object self) {
+        const Model& mo = self.cast<const Model&>();
+        return view<landmark_t>(mo.data().class_landmark.data(), mo.data().class_landmark.size(), self);
+      }, "(C,) int64: the map landmark id of each class.")
+      .def_property_readonly("class_positions", [](py::object self) {
+        const Model& mo = self.cast<const Model&>();
+        const auto& p = mo.data().class_position;
+        static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double));
+        return view<double>(p.empty() ? nullptr : p.front().data(), {static_cast<py::ssize_t>(p.size()), 3},
+                            {static_cast<py::ssize_t>(sizeof(Eigen::Vector3d)), static_cast<py::ssize_t>(sizeof(double))},
+                            self);
+      }, "(C, 3) float64: each class's landmark position, world frame.")
+      .def("__repr__", [](const Model& mo) {
+        return "<landmarkboost.Model: " + std::to_string(mo.num_classes()) + " classes, " +
+               std::to_string(mo.data().stumps.size()) + " stumps, " + std::to_string(mo.num_words()) + " words, " +
+               mo.data().detector + " " + std::to_string(mo.descriptor_bytes()) + "-byte descriptors>";
+      });
+
+  // ---- Result ----
+  py::class_<Result, std::shared_ptr<Result>>(m, "LocalizeResult", R"(One frame's localization.
+success, cam_from_world (Rigid3d), num_inliers, iterations; the ranked matches of every keypoint in
+CSR form (keypoint k's matches, best first, are rows match_begin[k]:match_begin[k+1] of the match_*
+arrays); the correspondences given to RANSAC (indices into the keypoints and into the matches) and
+their inlier mask; timings in milliseconds. Arrays are read-only views into this result.)")
+      .def_property_readonly("success", [](const Result& r) { return r.r.pose.success; })
+      .def_property_readonly("cam_from_world", [](const Result& r) { return r.r.pose.cam_from_world; })
+      .def_property_readonly("num_inliers", [](const Result& r) { return r.r.pose.num_inliers; })
+      .def_property_readonly("iterations", [](const Result& r) { return r.r.pose.iterations; })
+      .def_property_readonly("num_keypoints", [](const Result& r) { return r.r.matches.num_keypoints(); })
+      .def_property_readonly("num_matches", [](const Result& r) { return r.r.matches.matches.size(); })
+      .def_property_readonly("match_begin", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return view<int32_t>(r.r.matches.begin.data(), r.r.matches.begin.size(), self);
+      }, "(n + 1,) int32: keypoint k's matches are rows match_begin[k]:match_begin[k + 1].")
+      .def_property_readonly("match_keypoint", [](const Result& r) {
+        std::vector<int32_t> k(r.r.matches.matches.size());
+        for (int32_t i = 0; i < r.r.matches.num_keypoints(); ++i) {
+          for (int32_t j = r.r.matches.begin[i]; j < r.r.matches.begin[i + 1]; ++j) k[j] = i;
+        }
+        return take(std::move(k), {static_cast<py::ssize_t>(r.r.matches.matches.size())});
+      }, "(m,) int32: the keypoint of each match.")
+      .def_property_readonly("match_rank", [](const Result& r) {
+        std::vector<int32_t> k(r.r.matches.matches.size());
+        for (int32_t i = 0; i < r.r.matches.num_keypoints(); ++i) {
+          for (int32_t j = r.r.matches.begin[i]; j < r.r.matches.begin[i + 1]; ++j) k[j] = j - r.r.matches.begin[i];
+        }
+        return take(std::move(k), {static_cast<py::ssize_t>(r.r.matches.matches.size())});
+      }, "(m,) int32: 0 for a keypoint's best match, 1 for the next...")
+      .def_property_readonly("match_class", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return field_view(r.r.matches.matches, &first_match(r).cls, self);
+      }, "(m,) int32: the landmark class.")
+      .def_property_readonly("match_landmark", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return field_view(r.r.matches.matches, &first_match(r).landmark, self);
+      }, "(m,) int64: the map landmark id.")
+      .def_property_readonly("match_score", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return field_view(r.r.matches.matches, &first_match(r).score, self);
+      }, "(m,) float64: the class score.")
+      .def_property_readonly("match_background_score", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return field_view(r.r.matches.matches, &first_match(r).background_score, self);
+      }, "(m,) float64: the keypoint's background score.")
+      .def_property_readonly("correspondence_keypoint", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return view<int32_t>(r.r.correspondence_keypoint.data(), r.r.correspondence_keypoint.size(), self);
+      }, "(c,) int32: the keypoint of each correspondence given to RANSAC.")
+      .def_property_readonly("correspondence_match", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return view<int32_t>(r.r.correspondence_match.data(), r.r.correspondence_match.size(), self);
+      }, "(c,) int32: the match (row of the match_* arrays) of each correspondence.")
+      .def_property_readonly("inlier_mask", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        return bool_view(r.r.pose.inlier_mask, self);
+      }, "(c,) bool: the correspondences that are inliers of cam_from_world.")
+      .def_property_readonly("timings_ms", [](const Result& r) {
+        py::dict d;
+        d["words"] = r.r.timings.words_ms;
+        d["embedding"] = r.r.timings.embedding_ms;
+        d["classification"] = r.r.timings.classification_ms;
+        d["pose"] = r.r.timings.pose_ms;
+        d["total"] = r.r.timings.total_ms;
+        return d;
+      })
+      .def("__repr__", [](const Result& r) {
+        return std::string("<landmarkboost.LocalizeResult: ") + (r.r.pose.success ? "localized, " : "not localized, ") +
+               std::to_string(r.r.pose.num_inliers) + " inliers of " +
+               std::to_string(r.r.correspondence_match.size()) + " correspondences, " +
+               std::to_string(r.r.matches.matches.size()) + " matches of " +
+               std::to_string(r.r.matches.num_keypoints()) + " keypoints>";
+      });
+
+  // ---- Localizer ----
+  py::class_<Localizer>(m, "Localizer", R"(Localizes frames with a model: Localizer(model, options=None).
+One Localizer may serve any number of threads at once; localize() releases the GIL.)")
+      .def(py::init([](std::shared_ptr<Model> model, const LocalizerOptions* options) {
+             return Localizer(std::move(model), options ? *options : LocalizerOptions());
+           }),
+           py::arg("model"), py::arg("options") = nullptr)
+      .def_property_readonly("model", [](const Localizer& l) { return std::const_pointer_cast<Model>(l.shared_model()); })
+      .def_property_readonly("options", [](const Localizer& l) { return l.options(); })
+      .def("localize",
+           [](const Localizer& l, const Camera& camera, const py::array& keypoints, const py::array& descriptors,
+              const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions* options) {
+             const std::vector<Keypoint> kps = keypoints_from(keypoints);
+             const py::array_t<uint8_t> desc = descriptors_from(descriptors, kps.size(), l.model().descriptor_bytes());
+             const uint8_t* d = kps.empty() ? nullptr : desc.data();
+             auto result = std::make_shared<Result>();
+             {
+               py::gil_scoped_release release;
+               if (!PyGILState_Check()) ++calls_without_gil;
+               result->r = l.localize(camera, kps, d, gravity_in_cam, options ? *options : l.options());
+             }
+             return result;
+           },
+           py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
+           py::arg("options") = nullptr,
+           R"(Localizes one frame.
+camera: Camera; keypoints: (n, 4) array of x, y, size, angle (pixels in COLMAP's convention: OpenCV's
+KeyPoint.pt + 0.5; size = the detector's diameter, pixels; angle in degrees or -1); descriptors:
+(n, model.descriptor_bytes) uint8, read in place when C-contiguous; gravity_in_cam: the direction
+of gravity (down) in the camera frame (x right, y down, z forward), any length; options: per-call
+LocalizerOptions (default: the Localizer's). Raises landmarkboost.Error for invalid input; not
+finding a pose is result.success False.)");
+}

@@ -1,0 +1,55 @@
+"""landmarkboost.cv: the OpenCV front-end on numpy images, against the map's own detections."""
+import numpy as np
+import pytest
+from PIL import Image
+
+import landmarkboost as lb
+from landmarkboost import cv
+
+
+def test_detect_features_equals_the_mappers_detections(tiny):
+    m = lb.io.read_map(tiny.map)
+    f = m.query_frames[0]
+    frame = m.frames[f]
+    image = np.asarray(Image.open(tiny.collection / "images" / frame.name))
+    assert image.dtype == np.uint8 and image.ndim == 2  # the rendered world's grey PNG
+    features = cv.detect_features(image)
+    assert np.array_equal(features.keypoints, m.frame_keypoints(f))
+    assert np.array_equal(features.descriptors, m.frame_descriptors(f))
+    assert np.all(np.diff(features.responses) <= 0)
+    assert features.keypoints.flags.writeable and features.keypoints.base is not None  # no copy out
+    # A view with a row stride (the left half of a wider array) and a column-strided view (every
+    # other column; copied) give the same result.
+    wide = np.zeros((image.shape[0], image.shape[1] * 2), np.uint8)
+    wide[:, :image.shape[1]] = image
+    assert np.array_equal(cv.detect_features(wide[:, :image.shape[1]]).descriptors, features.descriptors)
+    wide[:, ::2] = image
+    assert np.array_equal(cv.detect_features(wide[:, ::2]).descriptors, features.descriptors)
+    # ... and localizes like the map's keypoints.
+    localizer = lb.Localizer(lb.load(tiny.model))
+    r = localizer.localize(m.cameras[frame.camera], features.keypoints, features.descriptors, frame.gravity_in_cam)
+    r_map = localizer.localize(m.cameras[frame.camera], m.frame_keypoints(f), m.frame_descriptors(f),
+                               frame.gravity_in_cam)
+    assert r.cam_from_world.rotation.tolist() == r_map.cam_from_world.rotation.tolist()
+
+
+def test_colour_orders_options_and_errors():
+    rng = np.random.default_rng(3)
+    rgb = (rng.random((120, 160, 3)) * 255).astype(np.uint8)
+    rgb[40:80, 50:110] = [250, 20, 90]
+    a = cv.detect_features(rgb)
+    b = cv.detect_features(np.ascontiguousarray(rgb[..., ::-1]), channels="BGR")
+    c = cv.detect_features(np.dstack([rgb, np.full(rgb.shape[:2], 255, np.uint8)]), channels="RGB")
+    assert len(a.keypoints) > 0
+    for other in (b, c):
+        assert np.array_equal(a.keypoints, other.keypoints) and np.array_equal(a.descriptors, other.descriptors)
+    orb = cv.detect_features(rgb, detector="ORB", max_keypoints=50)
+    assert orb.descriptors.shape[1] == 32 and 0 < len(orb.keypoints) <= 50
+    with pytest.raises(ValueError, match=r"image: expected a uint8 array .* got a float64 array of shape \(4, 4\)"):
+        cv.detect_features(np.zeros((4, 4)))
+    with pytest.raises(ValueError, match="channels: 'HSV'"):
+        cv.detect_features(rgb, channels="HSV")
+    with pytest.raises(lb.Error, match="max_keypoints"):
+        cv.detect_features(rgb, max_keypoints=0)
+    with pytest.raises(lb.Error, match="unknown detector 'SIFT'"):
+        cv.detect_features(rgb, detector="SIFT")
