@@ -100,7 +100,8 @@ void add_import_command(CLI::App& app) {
       ->required();
   t->add_option("--split", tum->split,
                 "Map/query split over the imported frames: every:N (frames 0, N, 2N.. map), first:F, "
-                "time:A:B (seconds from the first frame), list:FILE (map frames)")
+                "time:A:B (seconds from the first frame), map-list:FILE (FILE names the map frames), "
+                "query-list:FILE (FILE names the query frames); list:FILE = map-list:FILE")
       ->capture_default_str();
   t->add_option("--gravity", tum->gravity, "gravity.txt from: accelerometer, groundtruth-up, none")
       ->check(CLI::IsMember({"accelerometer", "groundtruth-up", "none"}))
@@ -132,8 +133,9 @@ void add_import_command(CLI::App& app) {
   c->add_option("--sparse", (*paths)[0], "Sparse model folder (cameras/images .bin or .txt)")->required();
   c->add_option("--images", (*paths)[1], "Image folder the model's image names are relative to")->required();
   c->add_option("--out", (*paths)[2], "Collection folder to write")->required();
-  c->add_option("--split", colmap->split, "Map/query split over the images sorted by name: every:N, first:F, "
-                                          "list:FILE (map frames)")
+  c->add_option("--split", colmap->split,
+                "Map/query split over the images sorted by name: every:N, first:F, map-list:FILE (FILE names "
+                "the map images), query-list:FILE (FILE names the query images); list:FILE = map-list:FILE")
       ->capture_default_str();
   c->add_option("--gravity-file", (*paths)[3], "Per-image gravity (IMAGE_NAME gx gy gz, camera frame, down)");
   c->add_option("--up", colmap->up,

@@ -14,7 +14,7 @@ SplitRule parse_split_rule(const std::string& text) {
   SplitRule rule;
   const size_t colon = text.find(':');
   LMB_CHECK(colon != std::string::npos,
-            "--split '" << text << "': expected every:N, first:F, time:A:B or list:FILE");
+            "--split '" << text << "': expected every:N, first:F, time:A:B, map-list:FILE or query-list:FILE");
   const std::string kind = text.substr(0, colon);
   const std::string arg = text.substr(colon + 1);
   if (kind == "every") {
@@ -34,8 +34,9 @@ SplitRule parse_split_rule(const std::string& text) {
     rule.time_begin_s = parse_finite_number(arg.substr(0, second), "--split '" + text + "'", "A");
     rule.time_end_s = parse_finite_number(arg.substr(second + 1), "--split '" + text + "'", "B");
     LMB_CHECK(rule.time_begin_s < rule.time_end_s, "--split '" << text << "': A must be smaller than B");
-  } else if (kind == "list") {
+  } else if (kind == "list" || kind == "map-list" || kind == "query-list") {
     rule.kind = SplitRule::Kind::kList;
+    rule.list_names_queries = kind == "query-list";
     rule.list_file = arg;
     std::ifstream in(rule.list_file);
     LMB_CHECK(!arg.empty() && in.good(), "--split '" << text << "': cannot open list file '" << arg << "'");
@@ -52,7 +53,8 @@ SplitRule parse_split_rule(const std::string& text) {
     }
     LMB_CHECK(!rule.list.empty(), arg << ": the split list names no frame");
   } else {
-    LMB_FAIL("--split '" << text << "': unknown rule '" << kind << "' (expected every, first, time or list)");
+    LMB_FAIL("--split '" << text << "': unknown rule '" << kind
+                          << "' (expected every, first, time, map-list, query-list or list)");
   }
   return rule;
 }
@@ -85,10 +87,11 @@ std::vector<bool> assign_map_frames(const SplitRule& rule, const std::vector<Spl
       for (size_t i = 0; i < n; ++i) {
         for (const std::string& key : frames[i].keys) by_key.emplace(key, i);
       }
+      if (rule.list_names_queries) is_map.assign(n, true);
       for (const std::string& entry : rule.list) {
         const auto it = by_key.find(entry);
         LMB_CHECK(it != by_key.end(), rule.list_file.string() << ": entry '" << entry << "' names no frame");
-        is_map[it->second] = true;
+        is_map[it->second] = !rule.list_names_queries;
       }
       break;
     }

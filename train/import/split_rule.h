@@ -5,8 +5,10 @@
 //   first:F        the first round(F * count) frames are map frames, the rest query (0 < F <= 1)
 //   time:A:B       frames whose time since the first frame lies in [A, B) seconds are map frames
 //                  (needs timestamps, e.g. a TUM sequence)
-//   list:FILE      FILE lists the map frames, one per line (first field; '#' comments); every
-//                  entry must name a frame
+//   map-list:FILE  FILE lists the map frames, one per line (first field; '#' comments), the
+//                  other frames are queries; every entry must name a frame
+//   query-list:FILE  the same, FILE listing the query frames (the other frames are map frames)
+//   list:FILE      the older spelling of map-list:FILE
 #pragma once
 
 #include <filesystem>
@@ -24,11 +26,12 @@ struct SplitRule {
   double time_begin_s = 0.0;
   double time_end_s = 0.0;
   std::filesystem::path list_file;
-  std::vector<std::string> list;  // map-frame entries of list_file, in file order
+  std::vector<std::string> list;  // entries of list_file, in file order
+  bool list_names_queries = false;  // query-list: the entries are the query frames
 };
 
-// Parses "every:N", "first:F", "time:A:B" or "list:FILE" (reading FILE). Throws lmb::Error naming
-// the rule (or the list file and line) and the reason.
+// Parses "every:N", "first:F", "time:A:B", "map-list:FILE", "query-list:FILE" or "list:FILE"
+// (reading FILE). Throws lmb::Error naming the rule (or the list file and line) and the reason.
 SplitRule parse_split_rule(const std::string& text);
 
 // A frame as the split sees it: the names a list entry may use for it (e.g. a TUM timestamp and

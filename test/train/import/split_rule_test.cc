@@ -72,8 +72,29 @@ TEST(SplitRule, ListMatchesAnyKeyAndRejectsUnknownEntries) {
   EXPECT_NE(error_of("list:" + list.string()).find("cannot open list file"), std::string::npos);
 }
 
+// map-list:FILE names the map frames (the same as list:FILE); query-list:FILE names the queries.
+TEST(SplitRule, MapListAndQueryList) {
+  const fs::path list = fs::temp_directory_path() / ("lmb_split_q_" + std::to_string(::getpid()) + ".txt");
+  std::ofstream(list) << "# frames\nf1\ndir/f5.jpg\n";
+  EXPECT_EQ(map_indices(assign_map_frames(parse_split_rule("map-list:" + list.string()), frames(8), false)),
+            (std::vector<int>{1, 5}));
+  EXPECT_EQ(map_indices(assign_map_frames(parse_split_rule("query-list:" + list.string()), frames(8), false)),
+            (std::vector<int>{0, 2, 3, 4, 6, 7}));
+  // Every frame a query: no map frame is left.
+  std::ofstream(list, std::ios::trunc) << "f0\nf1\n";
+  try {
+    assign_map_frames(parse_split_rule("query-list:" + list.string()), frames(2), false);
+    ADD_FAILURE() << "a split without map frames accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("leaves no map frame"), std::string::npos) << e.what();
+  }
+  fs::remove(list);
+  EXPECT_NE(error_of("query-list:" + list.string()).find("cannot open list file"), std::string::npos);
+}
+
 TEST(SplitRule, BadRulesFailClearly) {
-  EXPECT_NE(error_of("every").find("expected every:N, first:F, time:A:B or list:FILE"), std::string::npos);
+  EXPECT_NE(error_of("every").find("expected every:N, first:F, time:A:B, map-list:FILE or query-list:FILE"),
+            std::string::npos);
   EXPECT_NE(error_of("every:0").find("N must be an integer >= 1"), std::string::npos);
   EXPECT_NE(error_of("every:2.5").find("N must be an integer >= 1"), std::string::npos);
   EXPECT_NE(error_of("first:0").find("F must be in (0, 1]"), std::string::npos);
