@@ -2,7 +2,7 @@
 # The evaluation of a finished main-job output dir: `lboost eval` (LandmarkBoost and the baselines on
 # the map's query frames) and the plots.
 #   jobs/eval.sh OUT_DIR [extra lboost eval flags...]
-# Reads OUT_DIR/{model.lbm,map.h5,run/}; writes OUT_DIR/report.json (DESIGN.md schema + curves),
+# Reads OUT_DIR/{model.lbm,map.h5,run/}; writes OUT_DIR/report.json (fields: docs/report.md),
 # OUT_DIR/report_keypoints.json (each query keypoint's rank of its true landmark, per method),
 # OUT_DIR/results.txt (the results table) and OUT_DIR/plots/*.png (jobs/plots.py).
 # LBOOST points at the lboost binary (default: build/train/lboost); plots need /usr/bin/python3

@@ -37,6 +37,7 @@ void add_eval_command(CLI::App& app) {
   struct EvalArgs {
     EvalOptions options;
     std::string report, run, keypoint_ranks;
+    std::string pose_thresholds = "0.2,5";
   };
   auto args = std::make_shared<EvalArgs>();
   EvalOptions& o = args->options;
@@ -51,7 +52,8 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--map", o.map, "The map the model was trained on, with its query frames (map.h5)")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("--report", args->report, "Output report (JSON, DESIGN.md schema + curves)")->required();
+  cmd->add_option("--report", args->report, "Output report (JSON; every field is documented in docs/report.md)")
+      ->required();
   cmd->add_option("--run", args->run, "Training run dir: its summary.json is copied into the report");
   cmd->add_option("--keypoint-ranks", args->keypoint_ranks,
                   "Side file: every query keypoint's rank of its true landmark, per method");
@@ -59,8 +61,9 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--top-k", o.top_k, "Ranked landmarks per keypoint (MRR and miss-rate depth)")
       ->capture_default_str();
   cmd->add_option("--min-margin", o.min_margin,
-                  "LandmarkBoost: matches fed to RANSAC must beat the background's score by this "
-                  "(-inf = no rejection); P@1, MRR and miss rate always rank without rejection")
+                  "LandmarkBoost's background rejection: a keypoint's best match is accepted (fed to RANSAC) "
+                  "only when its score beats the background's by more than this; the default 0 rejects, "
+                  "-inf turns rejection off. P@1, MRR and miss rate always rank without rejection")
       ->capture_default_str();
   cmd->add_option("--max-correspondences", o.max_correspondences,
                   "Most confident matches fed to RANSAC, every method (0 = all)")->capture_default_str();
@@ -69,6 +72,10 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--min-inliers", o.pose.min_inliers, "Inliers for a pose")->capture_default_str();
   cmd->add_option("--seed", o.pose.seed, "RANSAC seed (the same for every method)")->capture_default_str();
+  cmd->add_option("--pose-thresholds", args->pose_thresholds,
+                  "Pose recall at each METRES,DEGREES pair, ';'-separated (e.g. '0.2,5;1,2;0.05,1'); a frame "
+                  "is correct (frames_correct, PR curve, sweep) within the first pair")
+      ->capture_default_str();
   cmd->add_option("--ransac-sweep-iterations", o.sweep.iterations,
                   "Pose recall also at these RANSAC budgets, each over --ransac-sweep-seeds seeds")
       ->delimiter(',')
@@ -87,7 +94,10 @@ void add_eval_command(CLI::App& app) {
                   "bruteforce_hamming, hamming_ratio*: opencv (BFMatcher) or popcount")
       ->capture_default_str();
   cmd->add_option("--pca-dims", o.pca_dims, "projected_kdtree: PCA dimensions")->capture_default_str();
-  cmd->callback([args] { run_eval(args->options, args->report, args->run, args->keypoint_ranks); });
+  cmd->callback([args] {
+    args->options.pose_thresholds = parse_pose_thresholds(args->pose_thresholds, "eval: --pose-thresholds");
+    run_eval(args->options, args->report, args->run, args->keypoint_ranks);
+  });
 }
 
 }  // namespace lmb::cli

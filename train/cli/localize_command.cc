@@ -23,6 +23,8 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
+#include "train/eval/metrics.h"
+#include "train/eval/report.h"
 
 namespace lmb::cli {
 
@@ -40,10 +42,9 @@ struct LocalizeArgs {
 
 struct FrameOutcome {
   LocalizeResult result;
-  int32_t keypoints_with_truth = 0;
-  int32_t correct_top1 = 0;   // top-1 landmark equals the keypoint's true landmark
-  int32_t matched = 0;        // keypoints with a match
-  int32_t matched_correct = 0;
+  // Per keypoint: its accepted match (the best match left after background rejection, or
+  // kInvalidLandmarkId) and its true landmark when that landmark is a model class.
+  std::vector<KeypointMatch> matches;
 };
 
 double median(std::vector<double> v) {
@@ -73,7 +74,8 @@ std::vector<frame_t> select_frames(const LandmarkMap& map, const std::vector<std
   return frames;
 }
 
-FrameOutcome localize_frame(const Localizer& localizer, const LandmarkMap& map, frame_t f) {
+FrameOutcome localize_frame(const Localizer& localizer, const LandmarkMap& map, const std::vector<char>& is_class,
+                            frame_t f) {
   const MapFrame& frame = map.frames[f];
   const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
                                         map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
@@ -83,42 +85,26 @@ FrameOutcome localize_frame(const Localizer& localizer, const LandmarkMap& map, 
   for (int32_t k = 0; k < frame.num_keypoints; ++k) {
     const landmark_t truth = map.keypoint_landmark[frame.first_keypoint + k];
     const bool has_match = o.result.matches.count(k) > 0;
-    const landmark_t top1 = has_match ? o.result.matches.of(k)[0].landmark : kInvalidLandmarkId;
-    if (truth != kInvalidLandmarkId) {
-      ++o.keypoints_with_truth;
-      if (top1 == truth) ++o.correct_top1;
-    }
-    if (has_match) {
-      ++o.matched;
-      if (top1 == truth) ++o.matched_correct;
-    }
+    o.matches.push_back(KeypointMatch{has_match ? o.result.matches.of(k)[0].landmark : kInvalidLandmarkId,
+                                      truth != kInvalidLandmarkId && is_class[truth] ? truth : kInvalidLandmarkId});
   }
   return o;
 }
 
-void run_localize(const LocalizeArgs& a) {
-  LMB_CHECK(a.threads >= 1 && a.threads <= 256, "localize: --threads = " << a.threads << " must be in 1..256");
-  const std::shared_ptr<const Model> model = Model::load(a.model);
-  const LandmarkMap map = read_map_h5(a.map);
-  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(),
-            a.map << ": " << map.descriptor_bytes << "-byte descriptors, the model expects "
-                  << model->descriptor_bytes());
-  const Localizer localizer(model, a.options);
-  const std::vector<frame_t> frames = select_frames(map, a.queries);
-  spdlog::info("localize: {} frames, model {} classes, {} stumps, {} used dims, {} scoring, {} thread(s)",
-               frames.size(), model->num_classes(), model->data().stumps.size(), model->used_dims().size(),
-               a.options.classifier.use_inverted_file ? "inverted-file" : "dense", a.threads);
-
+// Every frame, --threads at a time.
+std::vector<FrameOutcome> localize_all(const Localizer& localizer, const LandmarkMap& map,
+                                       const std::vector<char>& is_class, const std::vector<frame_t>& frames,
+                                       int threads) {
   std::vector<FrameOutcome> outcomes(frames.size());
   std::atomic<size_t> next{0};
   std::vector<std::thread> pool;
   std::exception_ptr error;
   std::mutex error_mutex;
-  for (int t = 0; t < a.threads; ++t) {
+  for (int t = 0; t < threads; ++t) {
     pool.emplace_back([&] {
       for (size_t i = next++; i < frames.size(); i = next++) {
         try {
-          outcomes[i] = localize_frame(localizer, map, frames[i]);
+          outcomes[i] = localize_frame(localizer, map, is_class, frames[i]);
         } catch (...) {
           std::lock_guard<std::mutex> lock(error_mutex);
           if (!error) error = std::current_exception();
@@ -128,113 +114,157 @@ void run_localize(const LocalizeArgs& a) {
   }
   for (std::thread& t : pool) t.join();
   if (error) std::rethrow_exception(error);
+  return outcomes;
+}
+
+// One frame's entry of the output: pose, errors, timings and matches [keypoint, rank, landmark,
+// score, inlier] (the pose's correspondences, or every ranked match with --all-matches).
+nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all_matches) {
+  const LocalizeResult& r = o.result;
+  nlohmann::json jf;
+  jf["name"] = frame.name;
+  jf["success"] = r.pose.success;
+  const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
+  const Eigen::Vector3d& t = r.pose.cam_from_world.translation;
+  jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
+                          {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
+  jf["num_inliers"] = r.pose.num_inliers;
+  jf["num_correspondences"] = r.correspondence_keypoint.size();
+  jf["num_keypoints"] = frame.num_keypoints;
+  int matched = 0;
+  for (const KeypointMatch& m : o.matches) matched += m.accepted != kInvalidLandmarkId;
+  jf["num_matched_keypoints"] = matched;
+  if (r.pose.success) {
+    jf["position_error_m"] = position_error(r.pose.cam_from_world, frame.cam_from_world);
+    jf["rotation_error_deg"] = rotation_error_deg(r.pose.cam_from_world, frame.cam_from_world);
+  }
+  jf["timings_ms"] = {{"embedding", r.timings.embedding_ms},
+                      {"classification", r.timings.classification_ms},
+                      {"pose", r.timings.pose_ms},
+                      {"total", r.timings.total_ms}};
+  std::vector<char> inlier(r.matches.matches.size(), 0), used(r.matches.matches.size(), 0);
+  for (size_t c = 0; c < r.correspondence_match.size(); ++c) {
+    used[r.correspondence_match[c]] = 1;
+    if (r.pose.inlier_mask[c]) inlier[r.correspondence_match[c]] = 1;
+  }
+  nlohmann::json jm = nlohmann::json::array();
+  for (int32_t k = 0; k < r.matches.num_keypoints(); ++k) {
+    for (int32_t j = 0; j < r.matches.count(k); ++j) {
+      const int32_t idx = r.matches.begin[k] + j;
+      if (!all_matches && !used[idx]) continue;
+      const ClassMatch& m = r.matches.matches[idx];
+      jm.push_back({k, j, m.landmark, m.score, inlier[idx] != 0});
+    }
+  }
+  jf["matches"] = std::move(jm);
+  return jf;
+}
+
+// The summary over the frames (also printed): pose counts and errors, the accepted matches'
+// metrics (train/eval/metrics.h: match_precision, match_recall, background_rejection_rate, the
+// same definitions as `lboost eval`'s report) and the mean timings.
+nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& frames,
+                            const std::vector<FrameOutcome>& outcomes) {
+  std::vector<double> position_errors, rotation_errors;
+  int localized = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
+  double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
+  std::vector<KeypointMatch> matches;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const LocalizeResult& r = outcomes[i].result;
+    matches.insert(matches.end(), outcomes[i].matches.begin(), outcomes[i].matches.end());
+    total_ms += r.timings.total_ms;
+    embedding_ms += r.timings.embedding_ms;
+    classification_ms += r.timings.classification_ms;
+    pose_ms += r.timings.pose_ms;
+    if (!r.pose.success) continue;
+    ++localized;
+    const Rigid3d& truth = map.frames[frames[i]].cam_from_world;
+    position_errors.push_back(position_error(r.pose.cam_from_world, truth));
+    rotation_errors.push_back(rotation_error_deg(r.pose.cam_from_world, truth));
+    within_5cm_1deg += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.05, 1.0});
+    within_20cm_5deg += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
+  }
+  const MatchMetrics mm = evaluate_matches(matches);
+  const double nf = static_cast<double>(frames.size());
+  return {{"frames", frames.size()},
+          {"localized", localized},
+          {"within_5cm_1deg", within_5cm_1deg},
+          {"within_20cm_5deg", within_20cm_5deg},
+          {"median_position_error_m", median(position_errors)},
+          {"median_rotation_error_deg", median(rotation_errors)},
+          {"match_recall", mm.match_recall},
+          {"keypoints_with_class_truth", mm.num_with_truth},
+          {"match_precision", mm.match_precision},
+          {"accepted_matches", mm.num_accepted},
+          {"background_rejection_rate", mm.background_rejection_rate},
+          {"background_keypoints", mm.num_background},
+          {"ms_per_frame", {{"embedding", embedding_ms / nf},
+                            {"classification", classification_ms / nf},
+                            {"pose", pose_ms / nf},
+                            {"total", total_ms / nf}}}};
+}
+
+void print_summary(const nlohmann::json& s, int threads, const std::string& out) {
+  const nlohmann::json& ms = s.at("ms_per_frame");
+  std::printf(
+      "localize: %d/%zu frames localized, %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
+      "%.3f m %.2f deg (localized frames); match recall %.3f of %lld keypoints whose true landmark is a "
+      "model class, match precision %.3f of %lld accepted matches, background rejection %.3f of %lld "
+      "background keypoints; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d thread(s)) -> %s\n",
+      s.at("localized").get<int>(), s.at("frames").get<size_t>(), s.at("within_5cm_1deg").get<int>(),
+      s.at("within_20cm_5deg").get<int>(), s.at("median_position_error_m").get<double>(),
+      s.at("median_rotation_error_deg").get<double>(), s.at("match_recall").get<double>(),
+      s.at("keypoints_with_class_truth").get<long long>(), s.at("match_precision").get<double>(),
+      s.at("accepted_matches").get<long long>(), s.at("background_rejection_rate").get<double>(),
+      s.at("background_keypoints").get<long long>(), ms.at("total").get<double>(), ms.at("embedding").get<double>(),
+      ms.at("classification").get<double>(), ms.at("pose").get<double>(), threads, out.c_str());
+}
+
+void run_localize(const LocalizeArgs& a) {
+  LMB_CHECK(a.threads >= 1 && a.threads <= 256, "localize: --threads = " << a.threads << " must be in 1..256");
+  const std::shared_ptr<const Model> model = Model::load(a.model);
+  const LandmarkMap map = read_map_h5(a.map);
+  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(),
+            a.map << ": " << map.descriptor_bytes << "-byte descriptors, the model expects "
+                  << model->descriptor_bytes());
+  std::vector<char> is_class(map.landmarks.size(), 0);
+  for (int32_t c = 0; c < model->num_classes(); ++c) {
+    const landmark_t l = model->class_landmark(c);
+    LMB_CHECK(l >= 0 && static_cast<size_t>(l) < map.landmarks.size(),
+              a.model << ": class " << c << " is landmark " << l << ", but " << a.map << " has "
+                      << map.landmarks.size() << " landmarks (the model was trained on another map)");
+    is_class[l] = 1;
+  }
+  const Localizer localizer(model, a.options);
+  const std::vector<frame_t> frames = select_frames(map, a.queries);
+  spdlog::info("localize: {} frames, model {} classes, {} stumps, {} used dims, {} scoring, {} thread(s)",
+               frames.size(), model->num_classes(), model->data().stumps.size(), model->used_dims().size(),
+               a.options.classifier.use_inverted_file ? "inverted-file" : "dense", a.threads);
+  const std::vector<FrameOutcome> outcomes = localize_all(localizer, map, is_class, frames, a.threads);
 
   nlohmann::json out;
   out["model"] = a.model;
   out["map"] = a.map;
   out["options"] = {{"top_k", a.options.classifier.top_k},
                     {"use_inverted_file", a.options.classifier.use_inverted_file},
-                    {"min_margin", a.options.classifier.min_margin},
+                    {"min_margin", json_number_or_string(a.options.classifier.min_margin)},
                     {"pose_top_k", a.options.pose_top_k},
                     {"max_correspondences", a.options.max_correspondences},
                     {"ransac_iterations", a.options.pose.max_iterations},
                     {"max_reprojection_error_px", a.options.pose.max_reprojection_error_px},
                     {"min_inliers", a.options.pose.min_inliers},
                     {"seed", a.options.pose.seed}};
-  std::vector<double> position_errors, rotation_errors;
-  int localized = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
-  int64_t with_truth = 0, correct = 0, matched = 0, matched_correct = 0;
-  double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
   nlohmann::json jframes = nlohmann::json::array();
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const MapFrame& frame = map.frames[frames[i]];
-    const FrameOutcome& o = outcomes[i];
-    const LocalizeResult& r = o.result;
-    nlohmann::json jf;
-    jf["name"] = frame.name;
-    jf["success"] = r.pose.success;
-    const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
-    const Eigen::Vector3d& t = r.pose.cam_from_world.translation;
-    jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
-                            {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
-    jf["num_inliers"] = r.pose.num_inliers;
-    jf["num_correspondences"] = r.correspondence_keypoint.size();
-    jf["num_keypoints"] = frame.num_keypoints;
-    jf["num_matched_keypoints"] = o.matched;
-    if (r.pose.success) {
-      ++localized;
-      const double pe = position_error(r.pose.cam_from_world, frame.cam_from_world);
-      const double re = rotation_error_deg(r.pose.cam_from_world, frame.cam_from_world);
-      position_errors.push_back(pe);
-      rotation_errors.push_back(re);
-      if (pe <= 0.05 && re <= 1.0) ++within_5cm_1deg;
-      if (pe <= 0.20 && re <= 5.0) ++within_20cm_5deg;
-      jf["position_error_m"] = pe;
-      jf["rotation_error_deg"] = re;
-    }
-    jf["timings_ms"] = {{"embedding", r.timings.embedding_ms},
-                        {"classification", r.timings.classification_ms},
-                        {"pose", r.timings.pose_ms},
-                        {"total", r.timings.total_ms}};
-    // Matches: [keypoint, rank, landmark, score, inlier]; the pose's correspondences (or every
-    // ranked match with --all-matches).
-    std::vector<char> inlier(r.matches.matches.size(), 0), used(r.matches.matches.size(), 0);
-    for (size_t c = 0; c < r.correspondence_match.size(); ++c) {
-      used[r.correspondence_match[c]] = 1;
-      if (r.pose.inlier_mask[c]) inlier[r.correspondence_match[c]] = 1;
-    }
-    nlohmann::json jm = nlohmann::json::array();
-    for (int32_t k = 0; k < r.matches.num_keypoints(); ++k) {
-      for (int32_t j = 0; j < r.matches.count(k); ++j) {
-        const int32_t idx = r.matches.begin[k] + j;
-        if (!a.all_matches && !used[idx]) continue;
-        const ClassMatch& m = r.matches.matches[idx];
-        jm.push_back({k, j, m.landmark, m.score, inlier[idx] != 0});
-      }
-    }
-    jf["matches"] = std::move(jm);
-    jframes.push_back(std::move(jf));
-    with_truth += o.keypoints_with_truth;
-    correct += o.correct_top1;
-    matched += o.matched;
-    matched_correct += o.matched_correct;
-    total_ms += r.timings.total_ms;
-    embedding_ms += r.timings.embedding_ms;
-    classification_ms += r.timings.classification_ms;
-    pose_ms += r.timings.pose_ms;
-  }
-  const double nf = static_cast<double>(frames.size());
-  const double med_pos = median(position_errors), med_rot = median(rotation_errors);
-  const double p1 = with_truth ? static_cast<double>(correct) / with_truth : 0.0;
-  const double match_precision = matched ? static_cast<double>(matched_correct) / matched : 0.0;
+  for (size_t i = 0; i < frames.size(); ++i) jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
   out["frames"] = std::move(jframes);
-  out["summary"] = {{"frames", frames.size()},
-                    {"localized", localized},
-                    {"within_5cm_1deg", within_5cm_1deg},
-                    {"within_20cm_5deg", within_20cm_5deg},
-                    {"median_position_error_m", med_pos},
-                    {"median_rotation_error_deg", med_rot},
-                    {"precision_at_1", p1},
-                    {"keypoints_with_truth", with_truth},
-                    {"match_precision", match_precision},
-                    {"ms_per_frame", {{"embedding", embedding_ms / nf},
-                                      {"classification", classification_ms / nf},
-                                      {"pose", pose_ms / nf},
-                                      {"total", total_ms / nf}}}};
+  out["summary"] = summary_json(map, frames, outcomes);
   const std::string text = out.dump(1);
   std::ofstream os(a.out);
   LMB_CHECK(os.good(), a.out << ": cannot open for writing");
   os << text << "\n";
   os.close();
   LMB_CHECK(os.good(), a.out << ": write failed");
-  std::printf(
-      "localize: %d/%zu frames localized, %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
-      "%.3f m %.2f deg (localized frames); precision@1 %.3f of %lld keypoints with a true landmark, "
-      "match precision %.3f; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d "
-      "thread(s)) -> %s\n",
-      localized, frames.size(), within_5cm_1deg, within_20cm_5deg, med_pos, med_rot, p1,
-      static_cast<long long>(with_truth), match_precision, total_ms / nf, embedding_ms / nf,
-      classification_ms / nf, pose_ms / nf, a.threads, a.out.c_str());
+  print_summary(out["summary"], a.threads, a.out);
 }
 
 }  // namespace
@@ -251,7 +281,8 @@ void add_localize_command(CLI::App& app) {
   cmd->add_flag("--inverted-file", args->options.classifier.use_inverted_file,
                 "Score only the keypoint word's candidate classes");
   cmd->add_option("--min-margin", args->options.classifier.min_margin,
-                  "Score margin over the background for a match")->capture_default_str();
+                  "Background rejection: a match must beat the background's score by more than this "
+                  "(-inf = no rejection)")->capture_default_str();
   cmd->add_option("--pose-top-k", args->options.pose_top_k, "Matches per keypoint fed to RANSAC")
       ->capture_default_str();
   cmd->add_option("--max-correspondences", args->options.max_correspondences,

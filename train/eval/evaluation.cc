@@ -1,7 +1,6 @@
 #include "train/eval/evaluation.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -100,6 +99,27 @@ int32_t rank_of(const std::vector<RankedCandidate>& ranking, landmark_t truth) {
   return 0;
 }
 
+// Each keypoint's accepted match (at most one a keypoint, in keypoint order) and truth.
+void add_keypoint_matches(const EvalQuery& q, const std::vector<Correspondence>& accepted,
+                          std::vector<KeypointMatch>& out) {
+  const size_t first = out.size();
+  for (landmark_t t : q.truth) out.push_back(KeypointMatch{kInvalidLandmarkId, t});
+  for (const Correspondence& c : accepted) {
+    KeypointMatch& m = out[first + static_cast<size_t>(c.keypoint)];
+    LMB_CHECK(m.accepted == kInvalidLandmarkId, "eval: a matcher accepted keypoint " << c.keypoint << " twice");
+    m.accepted = c.landmark;
+  }
+}
+
+// The pose metrics at the primary (first) thresholds and the recall at every pair.
+void evaluate_pose_stage(const EvalOptions& a, MethodResult& r) {
+  r.pose = evaluate_poses(r.frames, a.pose_thresholds.front());
+  for (const PoseThresholds& t : a.pose_thresholds) {
+    const PoseMetrics p = evaluate_poses(r.frames, t);
+    r.recall_at_thresholds.push_back(ThresholdRecall{t, p.num_correct, p.recall});
+  }
+}
+
 MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context,
                           const std::vector<EvalQuery>& queries) {
   const EvalOptions& a = *context.options;
@@ -111,6 +131,7 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
   run.parameters = matcher->parameters();
   run.result.sweep = start_pose_sweep(a.sweep, a.pose.seed);
   std::vector<KeypointRanking> rankings;
+  std::vector<KeypointMatch> matches;
   for (const EvalQuery& q : queries) {
     FrameMatches m = matcher->match(q);
     LMB_CHECK(m.ranking.size() == q.keypoints.size(), "eval: " << method.name << " ranked " << m.ranking.size()
@@ -123,7 +144,8 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
     o.total_ms = m.match_ms + ms_since(t0);
     run.cpu_ms_per_frame += m.cpu_ms + thread_cpu_ms() - c0;
     run.result.frames.push_back(o);
-    sweep_frame_pose(q, input, a.pose, PoseThresholds{}, run.result.sweep);
+    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), run.result.sweep);
+    add_keypoint_matches(q, m.accepted, matches);
     std::vector<int32_t> ranks;
     for (size_t k = 0; k < q.keypoints.size(); ++k) {
       ranks.push_back(q.truth[k] == kInvalidLandmarkId ? 0 : rank_of(m.ranking[k], q.truth[k]));
@@ -133,21 +155,27 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
   }
   run.cpu_ms_per_frame /= static_cast<double>(queries.size());
   run.result.retrieval = evaluate_retrieval(rankings);
-  run.result.pose = evaluate_poses(run.result.frames);
+  run.result.matches = evaluate_matches(matches);
+  evaluate_pose_stage(a, run.result);
   return run;
 }
 
 nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build, const nlohmann::json& parameters) {
+  nlohmann::json thresholds = nlohmann::json::array();
+  for (const PoseThresholds& t : a.pose_thresholds) {
+    thresholds.push_back({{"max_position_error_m", t.max_position_error_m},
+                          {"max_rotation_error_deg", t.max_rotation_error_deg}});
+  }
   return {{"model", a.model},
           {"map", a.map},
           {"top_k", a.top_k},
-          {"landmarkboost_min_margin", std::isfinite(a.min_margin) ? nlohmann::json(a.min_margin)
-                                                                    : nlohmann::json(nullptr)},
+          {"landmarkboost_min_margin", json_number_or_string(a.min_margin)},
           {"max_correspondences", a.max_correspondences},
           {"ransac_iterations", a.pose.max_iterations},
           {"inlier_threshold_px", a.pose.max_reprojection_error_px},
           {"min_inliers", a.pose.min_inliers},
           {"ransac_seed", a.pose.seed},
+          {"pose_thresholds", thresholds},
           {"ransac_sweep_iterations", a.sweep.iterations},
           {"ransac_sweep_seeds", a.sweep.seeds},
           {"hamming_backend", a.hamming_backend},
@@ -198,8 +226,10 @@ EvalResult run_evaluation(const EvalOptions& a) {
   for (const std::string& name : names) {
     const Clock::time_point t0 = Clock::now();
     MethodRun run = evaluate_method(find_eval_method(name), context, queries);
-    spdlog::info("eval: {}: P@1 {:.4f}, MRR {:.4f}, {}/{} frames correct, {:.2f} ms/frame matching ({:.1f} s)",
-                 name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr, run.result.pose.num_correct,
+    spdlog::info("eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
+                 "correct, {:.2f} ms/frame matching ({:.1f} s)",
+                 name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr,
+                 run.result.matches.match_precision, run.result.matches.match_recall, run.result.pose.num_correct,
                  run.result.pose.num_frames, run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
     build[name] = run.build_seconds;
     ranks[name] = run.ranks;

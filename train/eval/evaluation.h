@@ -8,8 +8,8 @@
 // the classifier was trained on), otherwise the keypoint is background for the metrics. The
 // descriptor baselines search the same classes' observations in the map's non-query frames (the
 // observations training used). Each method (train/eval/methods.h) ranks at most top_k distinct
-// landmarks per keypoint and accepts at most one match a keypoint (after its own rejection: a
-// background margin, a ratio test); every method's accepted matches go to the same pose stage
+// landmarks per keypoint (without rejection) and accepts at most one match a keypoint (after its
+// own rejection); every method's accepted matches go to the same pose stage
 // (train/eval/pose_stage.h: P3P RANSAC with the same options and seed; no voting or clustering),
 // then to the same RANSAC at each budget and seed of the sweep. Times are single-thread, one
 // frame at a time (OpenCV and faiss limited to one thread): match = the method's timed matching,

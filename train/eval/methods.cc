@@ -69,6 +69,8 @@ void EvalOptions::check() const {
   LMB_CHECK(hamming_backend == "opencv" || hamming_backend == "popcount",
             "eval: --hamming-backend '" << hamming_backend << "' must be opencv or popcount");
   LMB_CHECK(std::isfinite(ratio) && ratio > 0.0 && ratio <= 1.0, "eval: --ratio " << ratio << " must be in (0, 1]");
+  LMB_CHECK(!pose_thresholds.empty(), "eval: --pose-thresholds is empty");
+  for (const PoseThresholds& t : pose_thresholds) t.check();
   sweep.check();
   faiss.check();
   std::set<std::string> seen;

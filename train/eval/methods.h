@@ -13,6 +13,7 @@
 #include "train/eval/baselines.h"
 #include "train/eval/faiss_index.h"
 #include "train/eval/matcher.h"
+#include "train/eval/metrics.h"
 #include "train/eval/pose_stage.h"
 
 namespace lmb {
@@ -26,6 +27,9 @@ struct EvalOptions {
   double min_margin = 0.0;            // LandmarkBoost's background rejection for the pose (-inf = none)
   int max_correspondences = 0;        // most confident accepted matches fed to RANSAC (0 = all)
   PoseEstimatorOptions pose;          // RANSAC: iterations, inlier threshold, min inliers, seed
+  // A frame is correct within the first pair (frames_correct, the PR curve, the sweep); recall is
+  // reported at every pair.
+  std::vector<PoseThresholds> pose_thresholds = {PoseThresholds{}};
   PoseSweepOptions sweep;             // pose recall over RANSAC budgets and seeds
   std::string hamming_backend = "opencv";  // the exact Hamming methods: opencv (BFMatcher) or popcount
   int pca_dims = 16;                  // projected_kdtree

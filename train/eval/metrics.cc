@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 
 #include "common/error.h"
@@ -64,7 +65,6 @@ RetrievalMetrics evaluate_retrieval(const std::vector<KeypointRanking>& rankings
   RetrievalMetrics m;
   m.num_keypoints = static_cast<int64_t>(rankings.size());
   size_t max_len = 0;
-  int64_t rejected = 0;
   // hits_at_rank[r]: keypoints with truth whose true landmark is at rank r (1-based).
   std::vector<int64_t> hits_at_rank(1, 0);
   // ended_at[l]: keypoints with truth whose list has length l (bounds the false positives).
@@ -75,11 +75,7 @@ RetrievalMetrics evaluate_retrieval(const std::vector<KeypointRanking>& rankings
     const KeypointRanking& r = rankings[i];
     check_candidates(r, i);
     const size_t len = r.candidates.size();
-    if (r.truth == kInvalidLandmarkId) {
-      ++m.num_background;
-      if (len == 0) ++rejected;
-      continue;
-    }
+    if (r.truth == kInvalidLandmarkId) continue;
     ++m.num_with_truth;
     max_len = std::max(max_len, len);
     if (ended_at.size() <= len) ended_at.resize(len + 1, 0);
@@ -94,8 +90,6 @@ RetrievalMetrics evaluate_retrieval(const std::vector<KeypointRanking>& rankings
       }
     }
   }
-  m.background_rejection_rate =
-      m.num_background > 0 ? static_cast<double>(rejected) / static_cast<double>(m.num_background) : 0.0;
 
   m.miss_rate_curve.push_back(MissRatePoint{0, 0.0, 1.0});
   if (m.num_with_truth > 0) {
@@ -129,11 +123,62 @@ RetrievalMetrics evaluate_retrieval(const std::vector<KeypointRanking>& rankings
   return m;
 }
 
+MatchMetrics evaluate_matches(const std::vector<KeypointMatch>& matches) {
+  MatchMetrics m;
+  m.num_keypoints = static_cast<int64_t>(matches.size());
+  int64_t background_rejected = 0;
+  for (const KeypointMatch& k : matches) {
+    const bool accepted = k.accepted != kInvalidLandmarkId;
+    const bool correct = accepted && k.accepted == k.truth;
+    m.num_accepted += accepted;
+    m.num_accepted_correct += correct;
+    if (k.truth == kInvalidLandmarkId) {
+      ++m.num_background;
+      background_rejected += !accepted;
+    } else {
+      ++m.num_with_truth;
+    }
+  }
+  const auto ratio = [](int64_t a, int64_t b) { return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0; };
+  m.match_precision = ratio(m.num_accepted_correct, m.num_accepted);
+  m.match_recall = ratio(m.num_accepted_correct, m.num_with_truth);
+  m.background_rejection_rate = ratio(background_rejected, m.num_background);
+  return m;
+}
+
 void PoseThresholds::check() const {
   LMB_CHECK(std::isfinite(max_position_error_m) && max_position_error_m > 0.0,
             "PoseThresholds: max_position_error_m " << max_position_error_m << " must be finite and > 0");
   LMB_CHECK(std::isfinite(max_rotation_error_deg) && max_rotation_error_deg > 0.0,
             "PoseThresholds: max_rotation_error_deg " << max_rotation_error_deg << " must be finite and > 0");
+}
+
+std::vector<PoseThresholds> parse_pose_thresholds(const std::string& text, const std::string& what) {
+  std::vector<PoseThresholds> out;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(';', start), text.size());
+    const std::string pair = text.substr(start, end - start);
+    const size_t comma = pair.find(',');
+    PoseThresholds t;
+    bool ok = comma != std::string::npos;
+    if (ok) {
+      char* rest = nullptr;
+      const std::string metres = pair.substr(0, comma), degrees = pair.substr(comma + 1);
+      t.max_position_error_m = std::strtod(metres.c_str(), &rest);
+      ok = !metres.empty() && *rest == '\0';
+      t.max_rotation_error_deg = std::strtod(degrees.c_str(), &rest);
+      ok = ok && !degrees.empty() && *rest == '\0';
+    }
+    LMB_CHECK(ok, what << " '" << text << "': '" << pair
+                       << "' is not METRES,DEGREES (pairs separated by ';', e.g. 0.2,5;1,2)");
+    LMB_CHECK(std::isfinite(t.max_position_error_m) && t.max_position_error_m > 0 &&
+                  std::isfinite(t.max_rotation_error_deg) && t.max_rotation_error_deg > 0,
+              what << " '" << text << "': '" << pair << "': both thresholds must be finite and > 0");
+    out.push_back(t);
+    start = end + 1;
+  }
+  return out;
 }
 
 bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world,
@@ -181,6 +226,7 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames, const PoseTh
   m.correct.assign(n, 0);
   std::vector<double> pos_localized, rot_localized;
   double ratio_sum = 0.0, match_sum = 0.0, total_sum = 0.0;
+  int64_t correct_20cm_5deg = 0;
   for (size_t i = 0; i < n; ++i) {
     const FrameOutcome& f = frames[i];
     LMB_CHECK(f.num_correspondences >= 0 && f.num_inliers >= 0,
@@ -207,10 +253,12 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames, const PoseTh
       m.correct[i] = 1;
       ++m.num_correct;
     }
+    correct_20cm_5deg += within(pe, 0.20) && within(re, 5.0);
   }
   if (n > 0) {
     const double count = static_cast<double>(n);
     m.recall = static_cast<double>(m.num_correct) / count;
+    m.recall_20cm_5deg = static_cast<double>(correct_20cm_5deg) / count;
     m.mean_inlier_ratio = ratio_sum / count;
     m.mean_match_ms = match_sum / count;
     m.mean_total_ms = total_sum / count;

@@ -1,10 +1,13 @@
-// Evaluation metrics of `lboost eval`: landmark retrieval quality (precision@1, MRR, the
-// Caltech-style miss rate vs false positives per query) and pose quality (errors, recall at
-// 20 cm / 5 deg, a precision-recall curve with its AUC, inlier ratio, recall over RANSAC seeds and
-// budgets). Pure functions of the per-keypoint rankings and per-frame pose outcomes; no I/O.
+// Evaluation metrics of `lboost eval` (definitions of the report's fields, docs/report.md):
+// landmark retrieval quality of the rankings (precision@1, MRR, the Caltech-style miss rate vs
+// false positives per query), the accepted matches (match precision and recall, background
+// rejection) and pose quality (errors, recall within thresholds, default 20 cm / 5 deg, a
+// precision-recall curve with its AUC, inlier ratio, recall over RANSAC seeds and budgets). Pure
+// functions of the per-keypoint rankings and matches and the per-frame pose outcomes; no I/O.
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/rigid3.h"
@@ -63,15 +66,43 @@ struct RetrievalMetrics {
   double miss_rate_at_fppi_1 = 1.0;
   double miss_rate_at_fppi_10 = 1.0;
   double log_average_miss_rate = 1.0;
-  // Background keypoints (no true landmark): how many, and the fraction rejected (empty list).
-  int64_t num_background = 0;
-  double background_rejection_rate = 0.0;  // 0 when there is no background keypoint
 };
 
 // Computes every retrieval metric. Throws lmb::Error when a candidate list repeats a landmark or
 // holds kInvalidLandmarkId. With no keypoint with truth, precision_at_1 = mrr = 0 and the curve
-// is the single point (0, 1).
+// is the single point (0, 1). Background keypoints count in num_keypoints only.
 RetrievalMetrics evaluate_retrieval(const std::vector<KeypointRanking>& rankings);
+
+// ---------------------------------------------------------------------------------------------
+// Accepted matches: what a method keeps after its own rejection (LandmarkBoost's background
+// margin, a ratio test) and gives to the pose estimator, at most one landmark a keypoint.
+
+// A query keypoint's accepted match (kInvalidLandmarkId = rejected) and its true landmark
+// (kInvalidLandmarkId = background).
+struct KeypointMatch {
+  landmark_t accepted = kInvalidLandmarkId;
+  landmark_t truth = kInvalidLandmarkId;
+};
+
+// match_precision: accepted matches that are the keypoint's true landmark / accepted matches (a
+//   background keypoint's accepted match is always wrong); 0 when nothing is accepted.
+// match_recall: keypoints with truth whose accepted match is their true landmark / keypoints with
+//   truth; 0 when no keypoint has truth. Without rejection it equals precision_at_1 of the same
+//   ranking (the accepted match is the top-ranked landmark).
+// background_rejection_rate: background keypoints without an accepted match / background
+//   keypoints; 0 when there is no background keypoint.
+struct MatchMetrics {
+  int64_t num_keypoints = 0;
+  int64_t num_with_truth = 0;
+  int64_t num_background = 0;
+  int64_t num_accepted = 0;
+  int64_t num_accepted_correct = 0;
+  double match_precision = 0.0;
+  double match_recall = 0.0;
+  double background_rejection_rate = 0.0;
+};
+
+MatchMetrics evaluate_matches(const std::vector<KeypointMatch>& matches);
 
 // The miss rate at a reference FPPI r > 0 on a curve from evaluate_retrieval (definition above).
 // Throws lmb::Error on an empty curve or r <= 0.
@@ -97,6 +128,10 @@ struct PoseThresholds {
   double max_rotation_error_deg = 5.0;
   void check() const;  // throws lmb::Error unless both are finite and > 0
 };
+
+// Parses "METRES,DEGREES[;METRES,DEGREES...]" (e.g. "0.2,5;1,2;0.05,1"). Throws lmb::Error naming
+// `what` (e.g. "eval: --pose-thresholds") on anything else, an empty list or a non-positive value.
+std::vector<PoseThresholds> parse_pose_thresholds(const std::string& text, const std::string& what);
 
 // Whether an estimate is within the thresholds of the truth (the rule below, slack included).
 bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world,
@@ -136,6 +171,7 @@ struct PoseMetrics {
   std::vector<double> inlier_ratio;        // per frame (see above)
   std::vector<char> correct;               // per frame: 1 when correct
   double recall = 0.0;                     // num_correct / num_frames (0 when no frame)
+  double recall_20cm_5deg = 0.0;           // the same at 20 cm / 5 deg, whatever the thresholds
   std::vector<PosePrPoint> pr_curve;       // anchor first, then by decreasing threshold
   double auc = 0.0;
   double median_position_error_m = 0.0;

@@ -59,7 +59,11 @@ nlohmann::json method_report(const MethodResult& r) {
   m["miss_rate_at_fppi"] = {{"0.1", number(q.miss_rate_at_fppi_0_1)},
                             {"1", number(q.miss_rate_at_fppi_1)},
                             {"10", number(q.miss_rate_at_fppi_10)}};
-  m["pose_recall_20cm_5deg"] = number(p.recall);
+  m["match_precision"] = number(r.matches.match_precision);
+  m["match_recall"] = number(r.matches.match_recall);
+  m["accepted_matches_per_frame"] =
+      number(p.num_frames > 0 ? static_cast<double>(r.matches.num_accepted) / static_cast<double>(p.num_frames) : 0.0);
+  m["pose_recall_20cm_5deg"] = number(p.recall_20cm_5deg);
   m["pose_auc"] = number(p.auc);
   m["median_position_error_m"] = number(p.median_position_error_m);
   m["median_rotation_error_deg"] = number(p.median_rotation_error_deg);
@@ -67,7 +71,7 @@ nlohmann::json method_report(const MethodResult& r) {
   m["match_ms_per_frame"] = number(p.mean_match_ms);
   m["total_ms_per_frame"] = number(p.mean_total_ms);
   m["log_average_miss_rate"] = number(q.log_average_miss_rate);
-  m["background_rejection_rate"] = number(q.background_rejection_rate);
+  m["background_rejection_rate"] = number(r.matches.background_rejection_rate);
   m["frames_localized"] = p.num_localized;
   m["frames_correct"] = p.num_correct;
 
@@ -87,6 +91,16 @@ nlohmann::json method_report(const MethodResult& r) {
     pr["precision"].push_back(number(pt.precision));
   }
   m["pose_pr_curve"] = pr;
+  if (!r.recall_at_thresholds.empty()) {
+    nlohmann::json at = nlohmann::json::array();
+    for (const ThresholdRecall& t : r.recall_at_thresholds) {
+      at.push_back({{"max_position_error_m", t.thresholds.max_position_error_m},
+                    {"max_rotation_error_deg", t.thresholds.max_rotation_error_deg},
+                    {"frames_correct", t.frames_correct},
+                    {"recall", number(t.recall)}});
+    }
+    m["pose_recall_at_thresholds"] = at;
+  }
   if (!r.sweep.iterations.empty()) m["pose_recall_sweep"] = sweep_report(r.sweep);
 
   nlohmann::json f;
@@ -184,16 +198,19 @@ std::string format_sweep_table(const nlohmann::json& methods) {
 std::string format_results_table(const nlohmann::json& report) {
   std::string out;
   char line[512];
-  std::snprintf(line, sizeof(line), "%-24s %7s %7s %8s %8s %7s %9s %9s %7s %10s %10s\n", "method", "P@1", "MRR",
-                "MR@1FP", "recall", "AUC", "med_pos_m", "med_rot_d", "inlier", "match_ms", "total_ms");
+  std::snprintf(line, sizeof(line), "%-24s %7s %7s %8s %7s %7s %7s %8s %7s %9s %9s %7s %10s %10s\n", "method",
+                "P@1", "MRR", "MR@1FP", "m_prec", "m_rec", "bg_rej", "recall", "AUC", "med_pos_m", "med_rot_d",
+                "inlier", "match_ms", "total_ms");
   out += line;
   const auto methods = report.find("methods");
   if (methods == report.end() || !methods->is_object()) return out;
   for (const auto& [name, m] : methods->items()) {
     const auto mr = m.find("miss_rate_at_fppi");
     const double mr1 = (mr != m.end() && mr->is_object()) ? scalar(*mr, "1") : std::nan("");
-    std::snprintf(line, sizeof(line), "%-24s %7.4f %7.4f %8.4f %8.4f %7.4f %9.3f %9.3f %7.4f %10.3f %10.3f\n",
-                  name.c_str(), scalar(m, "precision_at_1"), scalar(m, "mrr"), mr1,
+    std::snprintf(line, sizeof(line),
+                  "%-24s %7.4f %7.4f %8.4f %7.4f %7.4f %7.4f %8.4f %7.4f %9.3f %9.3f %7.4f %10.3f %10.3f\n",
+                  name.c_str(), scalar(m, "precision_at_1"), scalar(m, "mrr"), mr1, scalar(m, "match_precision"),
+                  scalar(m, "match_recall"), scalar(m, "background_rejection_rate"),
                   scalar(m, "pose_recall_20cm_5deg"), scalar(m, "pose_auc"), scalar(m, "median_position_error_m"),
                   scalar(m, "median_rotation_error_deg"), scalar(m, "mean_inlier_ratio"),
                   scalar(m, "match_ms_per_frame"), scalar(m, "total_ms_per_frame"));

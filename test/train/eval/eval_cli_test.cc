@@ -1,7 +1,9 @@
 // `lboost eval` end to end on the tiny rendered world (the lmb_tiny_world fixture of
-// test/train/export): vocab -> train (few rounds) -> export -> eval, then the report's schema, its
-// dataset counts against the map, metric ranges, and bruteforce_hamming's precision@1 against a
-// brute-force nearest neighbour computed here; and one-line errors for mismatched inputs.
+// test/train/export): vocab -> train (few rounds) -> export -> eval, then the report's schema
+// (against docs/report.md), its dataset counts against the map, metric ranges, bruteforce_hamming's
+// precision@1 and hamming_ratio's accepted matches against references computed here, the metric
+// names shared with `lboost localize`, non-finite options and pose thresholds; and one-line
+// errors for mismatched inputs.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -9,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -42,6 +45,23 @@ RunResult run(const std::string& args, const fs::path& dir) {
   const std::string command = std::string(LMB_LBOOST) + " " + args + " > " + out.string() + " 2> " + err.string();
   const int status = std::system(command.c_str());
   return RunResult{WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
+}
+
+// The field paths of a report: objects' keys joined by '.', method names as <method>, arrays of
+// objects as [], the copied training summary as one field.
+void report_paths(const nlohmann::json& j, const std::string& path, std::set<std::string>& out) {
+  static const std::set<std::string> by_method = {"methods", "settings.index_build_seconds",
+                                                  "settings.method_parameters"};
+  if (j.is_object() && path != "training") {
+    for (const auto& [key, value] : j.items()) {
+      const std::string k = by_method.count(path) ? "<method>" : key;
+      report_paths(value, path.empty() ? k : path + "." + k, out);
+    }
+  } else if (j.is_array() && !j.empty() && j.front().is_object()) {
+    for (const auto& value : j) report_paths(value, path + "[]", out);
+  } else {
+    out.insert(path);
+  }
 }
 
 void expect_one_error_line(const RunResult& r, const std::string& needle) {
@@ -121,7 +141,8 @@ TEST_F(EvalCliTest, ReportSchemaCountsAndRanges) {
   ASSERT_EQ(methods.size(), 7u);
   for (const auto& [name, m] : methods.items()) {
     SCOPED_TRACE(name);
-    for (const char* key : {"precision_at_1", "mrr", "pose_recall_20cm_5deg", "pose_auc", "mean_inlier_ratio"}) {
+    for (const char* key : {"precision_at_1", "mrr", "pose_recall_20cm_5deg", "pose_auc", "mean_inlier_ratio",
+                            "match_precision", "match_recall", "background_rejection_rate"}) {
       const double v = m.at(key).get<double>();
       EXPECT_GE(v, 0.0) << key;
       EXPECT_LE(v, 1.0) << key;
@@ -159,9 +180,16 @@ TEST_F(EvalCliTest, ReportSchemaCountsAndRanges) {
       EXPECT_EQ(sweep.at("min")[b].get<double>(), *std::min_element(row.begin(), row.end()));
       EXPECT_EQ(sweep.at("max")[b].get<double>(), *std::max_element(row.begin(), row.end()));
     }
+    EXPECT_EQ(m.at("pose_recall_at_thresholds").size(), 1u);
+    EXPECT_EQ(m.at("pose_recall_at_thresholds")[0].at("recall"), m.at("pose_recall_20cm_5deg"));
   }
+  // Background rejection is measured on what localization rejects: LandmarkBoost rejects at
+  // margin 0 (the default), the ratio test rejects, plain nearest neighbours never do.
+  EXPECT_GT(methods.at("landmarkboost").at("background_rejection_rate").get<double>(), 0.0);
+  EXPECT_GT(methods.at("hamming_ratio").at("background_rejection_rate").get<double>(), 0.0);
+  EXPECT_EQ(methods.at("bruteforce_hamming").at("background_rejection_rate").get<double>(), 0.0);
+  EXPECT_EQ(methods.at("bruteforce_hamming").at("match_recall"), methods.at("bruteforce_hamming").at("precision_at_1"));
   EXPECT_EQ(report.at("settings").at("method_parameters").at("hamming_ratio").at("ratio").get<double>(), 0.8);
-  EXPECT_EQ(report.at("settings").at("method_parameters").at("faiss_hnsw_ratio").at("hnsw_m").get<int>(), 32);
   // The descriptor baseline localizes the tiny world's query frames (it has little aliasing).
   EXPECT_GT(methods.at("bruteforce_hamming").at("pose_recall_20cm_5deg").get<double>(), 0.5);
   // The training summary is carried over, and the side file ranks every query keypoint.
@@ -212,6 +240,151 @@ TEST_F(EvalCliTest, BruteforceHammingMatchesAnIndependentNearestNeighbour) {
   EXPECT_EQ(report.at("dataset").at("query_keypoints_with_class_truth").get<int64_t>(), total);
   EXPECT_DOUBLE_EQ(report.at("methods").at("bruteforce_hamming").at("precision_at_1").get<double>(),
                    static_cast<double>(correct) / static_cast<double>(total));
+}
+
+// hamming_ratio's accepted matches against Lowe's ratio test computed here over the same
+// observations: the nearest observation (d1) against the nearest of another landmark (d2),
+// accepted when d1 < 0.8 d2; match precision, recall and background rejection follow.
+TEST_F(EvalCliTest, HammingRatioMatchesAnIndependentRatioTest) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  const LandmarkMap map = read_map_h5(map_);
+  const std::shared_ptr<const Model> model = Model::load(dir_ / "model.lbm");
+  std::vector<char> is_class(map.landmarks.size(), 0);
+  for (int32_t c = 0; c < model->num_classes(); ++c) is_class[model->class_landmark(c)] = 1;
+  std::vector<int64_t> train;
+  for (const MapFrame& f : map.frames) {
+    if (f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l >= 0 && is_class[l]) train.push_back(k);
+    }
+  }
+  int64_t with_truth = 0, background = 0, accepted = 0, correct = 0, background_rejected = 0;
+  for (const MapFrame& f : map.frames) {
+    if (!f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      int d1 = 1 << 30;
+      landmark_t l1 = -1;
+      for (int64_t t : train) {
+        const int d = hamming_distance(map.descriptor(k), map.descriptor(t), map.descriptor_bytes);
+        if (d < d1) {
+          d1 = d;
+          l1 = map.keypoint_landmark[t];
+        }
+      }
+      int d2 = 1 << 30;
+      for (int64_t t : train) {
+        if (map.keypoint_landmark[t] == l1) continue;
+        d2 = std::min(d2, hamming_distance(map.descriptor(k), map.descriptor(t), map.descriptor_bytes));
+      }
+      const bool accept = d1 < 0.8 * d2;
+      const landmark_t l = map.keypoint_landmark[k];
+      const landmark_t truth = l >= 0 && is_class[l] ? l : -1;
+      (truth >= 0 ? with_truth : background) += 1;
+      accepted += accept;
+      correct += accept && l1 == truth;
+      background_rejected += truth < 0 && !accept;
+    }
+  }
+  ASSERT_GT(accepted, 0);
+  const nlohmann::json& m = report.at("methods").at("hamming_ratio");
+  EXPECT_DOUBLE_EQ(m.at("match_precision").get<double>(), static_cast<double>(correct) / accepted);
+  EXPECT_DOUBLE_EQ(m.at("match_recall").get<double>(), static_cast<double>(correct) / with_truth);
+  EXPECT_DOUBLE_EQ(m.at("background_rejection_rate").get<double>(),
+                   static_cast<double>(background_rejected) / background);
+}
+
+// --min-margin -inf: no rejection (LandmarkBoost then accepts every keypoint's top landmark, so its
+// match recall is its precision@1), written to the report as the string "-inf"; pose recall at
+// every --pose-thresholds pair, from the per-frame errors.
+TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
+  const RunResult r = run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
+                              " --report " + (dir_ / "report_inf.json").string() +
+                              " --methods landmarkboost,bruteforce_hamming --min-margin -inf"
+                              " --pose-thresholds '0.2,5;1,2;0.05,1' --ransac-sweep-iterations 20,40"
+                              " --ransac-sweep-seeds 2",
+                          dir_);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report_inf.json"));
+  EXPECT_EQ(report.at("settings").at("landmarkboost_min_margin"), "-inf");
+  EXPECT_EQ(report.at("settings").at("method_parameters").at("landmarkboost").at("min_margin"), "-inf");
+  const nlohmann::json& lb = report.at("methods").at("landmarkboost");
+  EXPECT_EQ(lb.at("background_rejection_rate").get<double>(), 0.0);
+  EXPECT_EQ(lb.at("match_recall"), lb.at("precision_at_1"));
+  EXPECT_EQ(lb.at("pose_recall_sweep").at("ransac_iterations"), nlohmann::json({20, 40}));
+  const double limits[3][2] = {{0.2, 5}, {1, 2}, {0.05, 1}};
+  for (const auto& [name, m] : report.at("methods").items()) {
+    SCOPED_TRACE(name);
+    const nlohmann::json& at = m.at("pose_recall_at_thresholds");
+    ASSERT_EQ(at.size(), 3u);
+    const nlohmann::json& pf = m.at("per_frame");
+    for (size_t t = 0; t < 3; ++t) {
+      EXPECT_EQ(at[t].at("max_position_error_m").get<double>(), limits[t][0]);
+      EXPECT_EQ(at[t].at("max_rotation_error_deg").get<double>(), limits[t][1]);
+      int64_t correct = 0;
+      for (size_t f = 0; f < pf.at("position_error_m").size(); ++f) {
+        if (pf.at("position_error_m")[f].is_null()) continue;
+        correct += pf.at("position_error_m")[f].get<double>() <= limits[t][0] * (1 + 1e-9) &&
+                   pf.at("rotation_error_deg")[f].get<double>() <= limits[t][1] * (1 + 1e-9);
+      }
+      EXPECT_EQ(at[t].at("frames_correct").get<int64_t>(), correct);
+    }
+    EXPECT_EQ(m.at("frames_correct"), at[0].at("frames_correct"));  // the first pair is the primary
+  }
+  expect_one_error_line(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
+                                " --report " + (dir_ / "bad_report.json").string() + " --pose-thresholds 0.2",
+                            dir_),
+                        "--pose-thresholds '0.2': '0.2' is not METRES,DEGREES");
+}
+
+// `lboost localize` and `lboost eval` name the accepted matches' metrics alike and agree on them
+// for the same model and options; localize no longer prints a "precision@1" of another definition.
+TEST_F(EvalCliTest, LocalizeAndEvalShareMetricNames) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const RunResult r = run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
+                              " --out " + (dir_ / "poses.json").string() + " --top-k 20",
+                          dir_);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out.find("precision@1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("match recall"), std::string::npos) << r.out;
+  const nlohmann::json summary = nlohmann::json::parse(slurp(dir_ / "poses.json")).at("summary");
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  const nlohmann::json& lb = report.at("methods").at("landmarkboost");
+  for (const char* key : {"match_recall", "match_precision", "background_rejection_rate"}) {
+    EXPECT_DOUBLE_EQ(summary.at(key).get<double>(), lb.at(key).get<double>()) << key;
+  }
+  EXPECT_EQ(summary.at("keypoints_with_class_truth"), report.at("dataset").at("query_keypoints_with_class_truth"));
+  EXPECT_FALSE(summary.contains("precision_at_1"));
+}
+
+// Every field report.json carries is documented in docs/report.md, and every documented field is
+// written (method names, landmark-free keys and the copied training summary aside).
+TEST_F(EvalCliTest, ReportSchemaIsDocumented) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const char* source = std::getenv("LMB_SOURCE_DIR");
+  ASSERT_NE(source, nullptr);
+  const std::string doc = slurp(fs::path(source) / "docs" / "report.md");
+  ASSERT_FALSE(doc.empty());
+  std::set<std::string> documented;
+  std::istringstream lines(doc);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (line.rfind("| `", 0) != 0) continue;
+    const size_t end = line.find('`', 3);
+    if (end != std::string::npos) documented.insert(line.substr(3, end - 3));
+  }
+  std::set<std::string> written;
+  report_paths(nlohmann::json::parse(slurp(dir_ / "report.json")), "", written);
+  for (const std::string& p : written) EXPECT_TRUE(documented.count(p)) << "undocumented report field " << p;
+  for (const std::string& p : documented) EXPECT_TRUE(written.count(p)) << "documented but not written: " << p;
+  // The CLI and the job point to it, not to a design document outside the repository.
+  const RunResult help = run("eval --help", dir_);
+  EXPECT_NE(help.out.find("docs/report.md"), std::string::npos) << help.out;
+  EXPECT_EQ(help.out.find("DESIGN.md"), std::string::npos) << help.out;
+  const std::string job = slurp(fs::path(source) / "jobs" / "eval.sh");
+  EXPECT_NE(job.find("docs/report.md"), std::string::npos);
+  EXPECT_EQ(job.find("DESIGN.md"), std::string::npos);
 }
 
 TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {

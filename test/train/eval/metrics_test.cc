@@ -29,8 +29,6 @@ TEST(EvaluateRetrieval, PrecisionAndMrrOnHandCase) {
   EXPECT_EQ(m.num_with_truth, 4);
   EXPECT_DOUBLE_EQ(m.precision_at_1, 0.25);
   EXPECT_DOUBLE_EQ(m.mrr, (1.0 + 0.5) / 4.0);
-  EXPECT_EQ(m.num_background, 2);
-  EXPECT_DOUBLE_EQ(m.background_rejection_rate, 0.5);
 }
 
 TEST(EvaluateRetrieval, MissRateCurveOnHandCase) {
@@ -70,7 +68,6 @@ TEST(EvaluateRetrieval, PerfectRankingHasNoMissesOrFalsePositivesAtRankOne) {
   EXPECT_DOUBLE_EQ(m.miss_rate_curve[1].miss_rate, 0.0);
   EXPECT_DOUBLE_EQ(m.miss_rate_at_fppi_0_1, 0.0);
   EXPECT_DOUBLE_EQ(m.miss_rate_at_fppi_10, 0.0);
-  EXPECT_EQ(m.num_background, 0);
 }
 
 TEST(EvaluateRetrieval, NoKeypointWithTruth) {
@@ -80,7 +77,37 @@ TEST(EvaluateRetrieval, NoKeypointWithTruth) {
   EXPECT_DOUBLE_EQ(m.mrr, 0.0);
   ASSERT_EQ(m.miss_rate_curve.size(), 1u);
   EXPECT_DOUBLE_EQ(m.miss_rate_at_fppi_1, 1.0);
-  EXPECT_DOUBLE_EQ(m.background_rejection_rate, 0.0);
+}
+
+// Accepted matches: 3 keypoints with truth (right, wrong, rejected), 3 background (one accepted,
+// two rejected).
+TEST(EvaluateMatches, PrecisionRecallAndBackgroundRejection) {
+  const MatchMetrics m = evaluate_matches({{5, 5}, {7, 3}, {kInvalidLandmarkId, 4}, {2, kInvalidLandmarkId},
+                                           {kInvalidLandmarkId, kInvalidLandmarkId},
+                                           {kInvalidLandmarkId, kInvalidLandmarkId}});
+  EXPECT_EQ(m.num_keypoints, 6);
+  EXPECT_EQ(m.num_with_truth, 3);
+  EXPECT_EQ(m.num_background, 3);
+  EXPECT_EQ(m.num_accepted, 3);
+  EXPECT_EQ(m.num_accepted_correct, 1);
+  EXPECT_DOUBLE_EQ(m.match_precision, 1.0 / 3.0);
+  EXPECT_DOUBLE_EQ(m.match_recall, 1.0 / 3.0);
+  EXPECT_DOUBLE_EQ(m.background_rejection_rate, 2.0 / 3.0);
+  const MatchMetrics none = evaluate_matches({});
+  EXPECT_EQ(none.match_precision, 0.0);
+  EXPECT_EQ(none.match_recall, 0.0);
+  EXPECT_EQ(none.background_rejection_rate, 0.0);
+}
+
+TEST(PoseThresholdsTest, ParsesPairsAndRejectsTheRest) {
+  const auto t = parse_pose_thresholds("0.2,5;1,2;0.05,1", "test");
+  ASSERT_EQ(t.size(), 3u);
+  EXPECT_EQ(t[1].max_position_error_m, 1.0);
+  EXPECT_EQ(t[1].max_rotation_error_deg, 2.0);
+  EXPECT_EQ(t[2].max_position_error_m, 0.05);
+  for (const char* bad : {"", "0.2", "0.2,5;", "0.2,x", "-1,5", "0.2,inf", "a,b", "0.2,5,1"}) {
+    EXPECT_THROW(parse_pose_thresholds(bad, "test"), Error) << bad;
+  }
 }
 
 TEST(EvaluateRetrieval, RejectsDuplicateAndInvalidCandidates) {
@@ -178,6 +205,9 @@ TEST(EvaluatePoses, ThresholdsAreConfigurable) {
   EXPECT_EQ(m.num_correct, 5);
   // All localized frames correct: the curve ends at recall 5/6 with precision 1, AUC = 5/6.
   EXPECT_NEAR(m.auc, 5.0 / 6.0, 1e-12);
+  // The 20 cm / 5 deg recall does not follow the thresholds.
+  EXPECT_DOUBLE_EQ(m.recall, 5.0 / 6.0);
+  EXPECT_DOUBLE_EQ(m.recall_20cm_5deg, 0.5);
   EXPECT_TRUE(pose_within(perturbed(5.8, {0.25, 0, 0}), perturbed(0, {0, 0, 0}), loose));
   EXPECT_FALSE(pose_within(perturbed(5.8, {0.25, 0, 0}), perturbed(0, {0, 0, 0}), PoseThresholds{}));
   PoseThresholds bad;
