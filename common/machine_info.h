@@ -1,5 +1,5 @@
-// The machine a figure was measured on, for reports and benchmarks (DESIGN.md "Benchmark
-// protocol": every figure comes with the machine it came from).
+// The machine a figure was measured on, for reports and benchmarks: every figure comes with the
+// machine it came from.
 #pragma once
 
 #include <string>

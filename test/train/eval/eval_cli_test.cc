@@ -385,6 +385,14 @@ TEST_F(EvalCliTest, ReportSchemaIsDocumented) {
   const std::string job = slurp(fs::path(source) / "jobs" / "eval.sh");
   EXPECT_NE(job.find("docs/report.md"), std::string::npos);
   EXPECT_EQ(job.find("DESIGN.md"), std::string::npos);
+  // --min-margin's default 0 rejects (the run above measured it); the help and the docs say so
+  // rather than "no background rejection unless --min-margin".
+  EXPECT_NE(help.out.find("the default 0 rejects"), std::string::npos) << help.out;
+  for (const char* page : {"README.md", "docs/evaluation.md", "docs/report.md"}) {
+    const std::string text = slurp(fs::path(source) / page);
+    EXPECT_EQ(text.find("rejection unless"), std::string::npos) << page;
+    EXPECT_EQ(text.find("DESIGN.md"), std::string::npos) << page;
+  }
 }
 
 TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
