@@ -47,7 +47,7 @@ struct MissRatePoint {
 // not among them. Its false positives: the returned candidates that are not its true landmark.
 // miss_rate(n) = misses / keypoints with truth; fppi(n) = false positives / keypoints with truth.
 // Point n = 0 is (fppi 0, miss rate 1). fppi is non-decreasing and miss_rate non-increasing in n.
-// Background keypoints do not enter this curve (see background_* below).
+// Background keypoints do not enter this curve (background rejection: MatchMetrics below).
 //
 // miss_rate_at(r) for a reference FPPI r > 0: let n be the largest point with fppi(n) <= r.
 //   - If n == N (the curve ends at or below r): miss_rate(N) (more candidates do not exist).
