@@ -32,9 +32,7 @@ cmake -S . -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
   -DCMAKE_C_FLAGS="$flags" -DCMAKE_CXX_FLAGS="$flags" \
   -DLMB_FUZZ=ON -DLMB_BUILD_TESTS=OFF >/dev/null
-extra=()
-for t in "${targets[@]}"; do [ "$t" = checkpoint ] && extra=(make_checkpoint_seed); done
-cmake --build "$build" -j "${LMB_JOBS:-$(nproc)}" --target make_fuzz_seeds "${extra[@]}" \
+cmake --build "$build" -j "${LMB_JOBS:-$(nproc)}" --target make_fuzz_seeds \
   $(printf 'fuzz_%s ' "${targets[@]}")
 
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0:quarantine_size_mb=64}
@@ -44,7 +42,6 @@ export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$root/test/sanitizers/lsan.supp
 seeds="$build/seeds"
 rm -rf "$seeds"
 "$build/test/fuzz/make_fuzz_seeds" "$seeds"
-if [ ${#extra[@]} -gt 0 ]; then "$build/test/fuzz/make_checkpoint_seed" "$seeds/checkpoint"; fi
 
 log="$build/fuzz_runs.tsv"
 [ -f "$log" ] || printf 'date\ttarget\tseconds\texecutions\tcorpus\tresult\n' >"$log"

@@ -1,4 +1,4 @@
-// Fuzz target: training checkpoints (train/dist/checkpoint_h5.h), read when a run resumes. The
+// Fuzz target: training checkpoints (train/checkpoint/checkpoint_h5.h), read when a run resumes. The
 // input bytes are written to a scratch ckpt file and read with read_checkpoint.
 #include <cstdint>
 #include <string_view>
@@ -6,7 +6,7 @@
 #include <H5Cpp.h>
 
 #include "test/fuzz/fuzz_util.h"
-#include "train/dist/checkpoint_h5.h"
+#include "train/checkpoint/checkpoint_h5.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const bool quiet = [] {

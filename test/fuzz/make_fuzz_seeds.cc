@@ -18,7 +18,10 @@
 #include "test/common/io/test_maps.h"
 #include "test/fuzz/fuzz_util.h"
 #include "test/infer/test_models.h"
+#include "train/boost/stump_learner.h"
+#include "train/boost/synthetic_problem.h"
 #include "train/boost/train_config.h"
+#include "train/checkpoint/checkpoint_h5.h"
 
 namespace lmb {
 namespace {
@@ -132,6 +135,28 @@ void make_seeds(const fs::path& out, const fs::path& scratch) {
                       {"query/3.png", Eigen::Vector3d(1e-3, 2.5, 1e3)}},
                      scratch / "gravity.txt");
   put(out / "gravity", "gravity.txt", read_file(scratch / "gravity.txt"));
+  // Checkpoints of a small synthetic problem (8 classes) after 0 and 3 rounds.
+  {
+    SyntheticBoostOptions o;
+    o.num_classes = 8;
+    const SyntheticBoostProblem problem = make_synthetic_boost_problem(o);
+    TrainConfig config;
+    config.boost.num_rounds = 3;
+    config.boost.dims_per_round = 16;
+    SerialStumpLearner learner(problem.features, problem.set, config.boost);
+    for (int32_t rounds : {0, 3}) {
+      while (learner.rounds_done() < rounds) learner.run_round();
+      Checkpoint ck;
+      ck.rounds = rounds;
+      ck.seed = config.boost.seed;
+      ck.config = train_config_toml(config);
+      ck.data = "synthetic:fuzz";
+      ck.state = learner.save_state();
+      const fs::path path = scratch / ("ckpt-rounds" + std::to_string(rounds) + ".h5");
+      write_checkpoint(path, ck);
+      put(out / "checkpoint", path.filename().string(), read_file(path));
+    }
+  }
 }
 
 }  // namespace

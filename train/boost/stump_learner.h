@@ -25,6 +25,7 @@
 
 #include "train/boost/boost_model.h"
 #include "train/boost/boost_options.h"
+#include "train/boost/learner_state.h"
 #include "train/boost/sharing_set.h"
 #include "train/boost/training_set.h"
 #include "train/features/feature_matrix.h"
@@ -288,23 +289,8 @@ class SerialStumpLearner {
   double last_validation_ = -1.0;
 
  public:
-  // Everything that changes during training, for checkpoints (train/dist/checkpoint_h5.h):
-  // restoring it into a learner built on the same features, set and options continues the run
-  // bit for bit. The negative sets L-_c are the entries with z = -1; per-round scratch (fixed-point
-  // weights, class totals, histograms) is recomputed from these at the start of every round.
-  struct State {
-    BoostModel model;                   // stumps so far (rounds done = stumps.size()) and biases
-    std::vector<int64_t> entry_sample;  // entries, sample-major, (sample, code) ascending
-    std::vector<int32_t> entry_code;    // class * 2 + (z < 0)
-    std::vector<double> entry_weight;   // stored weights; true = stored * 2^weight_exponent
-    int32_t weight_exponent = 0;
-    std::vector<int64_t> tracked_samples;  // validation rows first, then the mining pool
-    int64_t num_validation_rows = 0;
-    std::vector<float> tracked_scores;     // tracked_samples.size() x (C + 1), row-major (all parts')
-    std::vector<double> class_offset;      // C + 1: sum of k_c over the rounds
-    std::vector<double> negative_unit;     // C + 1: initial weight of a negative of each class
-    double last_validation = -1.0;
-  };
+  // Everything that changes during training, for checkpoints (train/boost/learner_state.h).
+  using State = LearnerState;
   // Initializes the learner first if no round ran yet. Collective in a distributed layer: the
   // tracked scores are gathered to part 0, whose State is complete; the other parts' States leave
   // tracked_scores empty.

@@ -9,7 +9,7 @@
 //                   sharing_single_starts, sharing_max_iterations, refine_top, screening_step, seed
 //   [regions]       num_regions, seed, min_area, max_area, max_aspect, max_offset
 //   [features]      threads
-//   [checkpoint]    interval, keep (train/dist/checkpoint_h5.h; not compared on resume)
+//   [checkpoint]    interval, keep (train/checkpoint/checkpoint_h5.h; not compared on resume)
 #pragma once
 
 #include <filesystem>

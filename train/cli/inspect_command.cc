@@ -13,7 +13,7 @@
 #include "common/error.h"
 #include "common/io/map_h5.h"
 #include "train/cli/commands.h"
-#include "train/dist/checkpoint_h5.h"
+#include "train/checkpoint/checkpoint_h5.h"
 #include "train/mapping/depth_ground_truth.h"
 #include "train/mapping/descriptor_nn.h"
 

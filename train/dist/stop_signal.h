@@ -6,6 +6,10 @@
 
 namespace lmb {
 
+// `lboost train` exits with this code (EX_TEMPFAIL) after a checkpoint requested by SIGTERM or
+// SIGUSR1: the job scripts requeue the job on it.
+inline constexpr int kRequeueExitCode = 75;
+
 // Installs the handlers (idempotent). Other signals keep their default action.
 void install_stop_signal_handlers();
 // The signal that asked to stop (SIGTERM or SIGUSR1), 0 if none yet.

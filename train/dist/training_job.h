@@ -19,7 +19,7 @@
 #include <string>
 
 #include "common/error.h"
-#include "train/dist/checkpoint_h5.h"
+#include "train/checkpoint/checkpoint_h5.h"
 #include "train/dist/communicator.h"
 #include "train/dist/feature_parallel_learner.h"
 

@@ -1,4 +1,4 @@
-#include "train/dist/checkpoint_h5.h"
+#include "train/checkpoint/checkpoint_h5.h"
 
 #include <signal.h>
 #include <unistd.h>
@@ -83,7 +83,7 @@ std::string config_difference(const std::string& checkpoint_toml, const std::str
 }
 
 void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
-  const SerialStumpLearner::State& st = ck.state;
+  const LearnerState& st = ck.state;
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   std::string tmp_name = ".";  // step by step: GCC 12 warns falsely (-Wrestrict) on "." + string
   tmp_name += path.filename().string();
@@ -183,7 +183,7 @@ Checkpoint read_checkpoint(const fs::path& path) {
     get("/data_source", &bytes);
     ck.data = string_of(bytes);
     get("/model", &bytes);
-    SerialStumpLearner::State& st = ck.state;
+    LearnerState& st = ck.state;
     std::vector<double> last;
     get("/learner/entry_sample", &st.entry_sample);
     get("/learner/entry_code", &st.entry_code);

@@ -1,4 +1,4 @@
-#include "train/dist/checkpoint_h5.h"
+#include "train/checkpoint/checkpoint_h5.h"
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "train/boost/stump_learner.h"
 #include "train/boost/synthetic_problem.h"
 #include "train/boost/train_config.h"
 
@@ -51,7 +52,7 @@ class CheckpointTest : public ::testing::Test {
   TrainConfig config_;
 };
 
-void expect_same_state(const SerialStumpLearner::State& a, const SerialStumpLearner::State& b) {
+void expect_same_state(const LearnerState& a, const LearnerState& b) {
   EXPECT_TRUE(a.model == b.model);
   EXPECT_EQ(a.entry_sample, b.entry_sample);
   EXPECT_EQ(a.entry_code, b.entry_code);

@@ -1,5 +1,7 @@
 // Training checkpoints: HDF5 files (serial library, written by rank 0) holding everything needed
 // to continue a run bit for bit, in RUN_DIR/checkpoints/ckpt-RRRRRRR.h5 (RRRRRRR = rounds done).
+// The format, dataset by dataset, and the resume rules: docs/checkpoint.md. This library
+// (lmb_checkpoint) links HDF5 and the serial learner's types only, never MPI.
 //
 // Layout: root attributes format = "landmarkboost-checkpoint", format_version = 1, rounds,
 // seed (int64 bit pattern of boost.seed), ranks (that wrote it, information only), config_hash
@@ -8,7 +10,7 @@
 // datasets /config (the effective config TOML), /model (the BoostModel, cereal portable binary as
 // in model.bin), /learner/{entry_sample, entry_code, entry_weight, tracked_samples,
 // tracked_scores, class_offset, negative_unit, last_validation} and attributes /learner weight_exponent,
-// num_validation_rows (train/boost/stump_learner.h, SerialStumpLearner::State).
+// num_validation_rows (train/boost/learner_state.h).
 //
 // Writes go to a temporary file beside the target, fsync, rename, fsync of the folder; a crash
 // never leaves a partial ckpt-*.h5. Reading checks format, version, completeness, shapes and the
@@ -22,15 +24,12 @@
 #include <string>
 #include <vector>
 
-#include "train/boost/stump_learner.h"
+#include "train/boost/learner_state.h"
 
 namespace lmb {
 
 inline constexpr const char* kCheckpointFormat = "landmarkboost-checkpoint";
 inline constexpr int kCheckpointVersion = 1;
-// `lboost train` exits with this code (EX_TEMPFAIL) after a checkpoint requested by SIGTERM or
-// SIGUSR1: the job scripts requeue the job on it.
-inline constexpr int kRequeueExitCode = 75;
 
 struct Checkpoint {
   int32_t rounds = 0;       // rounds done
@@ -38,7 +37,7 @@ struct Checkpoint {
   int32_t ranks = 1;        // ranks of the run that wrote it
   std::string config;       // the effective config TOML of the run
   std::string data;         // the training data source (map path or synthetic preset)
-  SerialStumpLearner::State state;
+  LearnerState state;
 };
 
 // Throws lmb::Error naming the file on any I/O failure.
