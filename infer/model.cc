@@ -154,7 +154,7 @@ void ModelData::check(const std::string& where) const {
     LMB_CHECK(std::isfinite(bias[c]), where << ": class " << c << " has a non-finite bias");
   }
   for (size_t m = 0; m < stumps.size(); ++m) {
-    const ModelStump& s = stumps[m];
+    const SharedStump& s = stumps[m];
     const std::string sw = where + ": stump " + std::to_string(m);
     LMB_CHECK(s.dim >= 0 && s.dim < l.num_dims(),
               sw << ": dim " << s.dim << " outside [0, " << l.num_dims() << ")");
@@ -192,7 +192,7 @@ std::string serialize_model_data(const ModelData& data) {
     ar(static_cast<uint64_t>(data.bias.size()));
     for (double b : data.bias) ar(b);
     ar(static_cast<uint64_t>(data.stumps.size()));
-    for (const ModelStump& s : data.stumps) {
+    for (const SharedStump& s : data.stumps) {
       ar(s.dim, s.theta, s.a, s.b, static_cast<uint32_t>(s.classes.size()));
       write_bytes(ar, detail::encode_ascending_ids(s.classes));
     }
@@ -249,7 +249,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what) 
     // A stump takes at least dim + theta + a + b + set count + set size = 33 bytes.
     d.stumps.resize(r.count(33, "stumps"));
     for (size_t m = 0; m < d.stumps.size(); ++m) {
-      ModelStump& s = d.stumps[m];
+      SharedStump& s = d.stumps[m];
       uint32_t n = 0;
       r.value(s.dim);
       r.value(s.theta);
@@ -287,7 +287,7 @@ Model::Model(ModelData data) : data_(std::move(data)) {
   const int32_t C = data_.num_classes;
   const size_t M = data_.stumps.size();
 
-  for (const ModelStump& s : data_.stumps) used_dims_.push_back(s.dim);
+  for (const SharedStump& s : data_.stumps) used_dims_.push_back(s.dim);
   std::sort(used_dims_.begin(), used_dims_.end());
   used_dims_.erase(std::unique(used_dims_.begin(), used_dims_.end()), used_dims_.end());
 
@@ -295,7 +295,7 @@ Model::Model(ModelData data) : data_(std::move(data)) {
   stump_class_begin_.assign(M + 1, 0);
   std::vector<int64_t> class_count(static_cast<size_t>(C) + 1, 0);
   for (size_t m = 0; m < M; ++m) {
-    const ModelStump& s = data_.stumps[m];
+    const SharedStump& s = data_.stumps[m];
     DenseStump& d = dense_stumps_[m];
     d.used = static_cast<int32_t>(std::lower_bound(used_dims_.begin(), used_dims_.end(), s.dim) -
                                   used_dims_.begin());

@@ -34,6 +34,7 @@
 
 #include "common/context_embedding.h"
 #include "common/context_regions.h"
+#include "common/shared_stump.h"
 #include "common/types.h"
 #include "common/vocabulary.h"
 #include "infer/export.h"
@@ -42,15 +43,6 @@ namespace lmb {
 
 constexpr const char* kModelMagic = "LMBMODEL";
 constexpr uint32_t kModelVersion = 1;
-
-// One shared stump of the inference model.
-struct ModelStump {
-  int32_t dim = 0;               // feature dimension (common/context_embedding.h layout)
-  uint8_t theta = 0;             // fires when the bin is > theta; theta in 0..254
-  double a = 0.0;                // step height
-  double b = 0.0;                // value at or below the threshold
-  std::vector<int32_t> classes;  // sharing set S, ascending, non-empty, classes 0..C (C = background)
-};
 
 // The model's contents as plain data: what export builds and the file holds.
 struct ModelData {
@@ -62,7 +54,7 @@ struct ModelData {
   std::vector<landmark_t> class_landmark;        // size C: the map landmark id of each class
   std::vector<Eigen::Vector3d> class_position;   // size C: world frame, map units (metres)
   std::vector<double> bias;                      // size C + 1, folded constants
-  std::vector<ModelStump> stumps;                // in training order
+  std::vector<SharedStump> stumps;               // in training order (non-empty sharing sets)
   // Inverted file: inverted_file[w] lists (ascending) the landmark classes (< C) whose training
   // observations quantize to word w. Size: vocabulary.num_words().
   std::vector<std::vector<int32_t>> inverted_file;

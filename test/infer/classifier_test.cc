@@ -35,7 +35,7 @@ ModelData random_model_data(int32_t C, int32_t M, uint64_t seed) {
   for (int32_t c = 0; c <= C; ++c) d.bias.push_back(rng.uniform(-1, 1));
   const int32_t num_dims = d.layout().num_dims();
   for (int32_t m = 0; m < M; ++m) {
-    ModelStump s;
+    SharedStump s;
     s.dim = static_cast<int32_t>(rng.below(static_cast<uint64_t>(num_dims)));
     s.theta = d.layout().is_context(s.dim) ? static_cast<uint8_t>(rng.below(255)) : 0;
     s.a = rng.uniform(-1, 1);
@@ -68,7 +68,7 @@ std::vector<uint8_t> reference_vector(const Model& m, const FrameKeypoints& fram
 // Reference score: bias + stumps in training order, BoostModel's expression.
 double reference_score(const ModelData& d, const std::vector<uint8_t>& v, int32_t c) {
   double total = d.bias[c];
-  for (const ModelStump& s : d.stumps) {
+  for (const SharedStump& s : d.stumps) {
     if (std::binary_search(s.classes.begin(), s.classes.end(), c)) {
       total += (v[s.dim] > s.theta ? s.a : 0.0) + s.b;
     }
@@ -310,16 +310,16 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
     ModelData data = random_model_data(40, 700, 30 + scale);
     Rng rng(40 + scale);
     if (scale == 1) {
-      for (ModelStump& s : data.stumps) {
+      for (SharedStump& s : data.stumps) {
         const double magnitude = std::pow(10.0, rng.uniform(-9, 6));
         s.a *= magnitude;
         s.b *= magnitude;
       }
       for (double& b : data.bias) b *= 1e6;
     } else if (scale == 2) {
-      for (ModelStump& s : data.stumps) s.a = 1e-3 * std::nearbyint(1000 * s.a);  // ties of q rounding
+      for (SharedStump& s : data.stumps) s.a = 1e-3 * std::nearbyint(1000 * s.a);  // ties of q rounding
       // A huge background-only stump: not screened, so it must not coarsen the step.
-      ModelStump huge = data.stumps.front();
+      SharedStump huge = data.stumps.front();
       huge.a = 1e300;
       huge.classes = {data.num_classes};
       data.stumps.push_back(huge);
@@ -327,7 +327,7 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
       // Outputs and biases on a grid of 1/64, coarser than the screening step: every q_m is
       // exact, so the bound exceeds the exact score by its rounding slack only, and the integer
       // test must keep a lane whose score passes by one ulp.
-      for (ModelStump& s : data.stumps) {
+      for (SharedStump& s : data.stumps) {
         s.a = std::nearbyint(64 * s.a) / 64;
         s.b = std::nearbyint(64 * s.b) / 64;
       }

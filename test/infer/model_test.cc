@@ -111,14 +111,14 @@ TEST(ModelTest, IndicesMatchTheStumps) {
   const ModelData& d = m.data();
   // Used dims: sorted, unique, and exactly the stumps' dims.
   std::vector<int32_t> dims;
-  for (const ModelStump& s : d.stumps) dims.push_back(s.dim);
+  for (const SharedStump& s : d.stumps) dims.push_back(s.dim);
   std::sort(dims.begin(), dims.end());
   dims.erase(std::unique(dims.begin(), dims.end()), dims.end());
   EXPECT_EQ(m.used_dims(), dims);
   // Per-class lists hold each class's stumps in training order.
   for (int32_t c = 0; c <= d.num_classes; ++c) {
     std::vector<int32_t> expected;
-    for (const ModelStump& s : d.stumps) {
+    for (const SharedStump& s : d.stumps) {
       if (std::binary_search(s.classes.begin(), s.classes.end(), c)) expected.push_back(s.dim);
     }
     std::vector<int32_t> got;

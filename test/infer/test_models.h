@@ -67,7 +67,7 @@ inline ModelData make_code_model_data(const std::vector<Eigen::Vector3d>& positi
   std::vector<int32_t> everyone(static_cast<size_t>(C) + 1);
   for (int32_t c = 0; c <= C; ++c) everyone[c] = c;
   for (int j = 0; j < kCodeBits; ++j) {
-    ModelStump one, zero;
+    SharedStump one, zero;
     one.dim = zero.dim = context_dims + j;
     one.theta = zero.theta = 0;
     one.a = 2.0;
@@ -78,7 +78,7 @@ inline ModelData make_code_model_data(const std::vector<Eigen::Vector3d>& positi
     if (!one.classes.empty()) d.stumps.push_back(one);
     if (!zero.classes.empty()) d.stumps.push_back(zero);
     // A context stump shared by everyone (a = 0: the same value above and below).
-    ModelStump ctx;
+    SharedStump ctx;
     ctx.dim = static_cast<int32_t>(rng.below(static_cast<uint64_t>(context_dims)));
     ctx.theta = static_cast<uint8_t>(rng.below(200));
     ctx.a = 0.0;

@@ -13,23 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "common/shared_stump.h"
 #include "common/types.h"
 
 namespace lmb {
-
-struct SharedStump {
-  int32_t dim = -1;              // global feature dimension; -1 = constant-only stump (empty S)
-  uint8_t theta = 0;             // fires when bin > theta, theta in 0..254
-  double a = 0.0;                // step height
-  double b = 0.0;                // value below the threshold
-  std::vector<int32_t> classes;  // sharing set S, sorted ascending
-
-  bool operator==(const SharedStump&) const = default;
-  template <class Archive>
-  void serialize(Archive& ar) {
-    ar(dim, theta, a, b, classes);
-  }
-};
 
 struct BoostModel {
   int32_t num_dims = 0;                    // feature dimension the stumps index

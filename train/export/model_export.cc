@@ -43,14 +43,7 @@ ModelData export_model_data(const BoostModel& boost, const LandmarkMap& map,
     landmark_class[id] = c;
   }
   for (const SharedStump& s : boost.stumps) {
-    if (s.classes.empty()) continue;
-    ModelStump m;
-    m.dim = s.dim;
-    m.theta = s.theta;
-    m.a = s.a;
-    m.b = s.b;
-    m.classes = s.classes;
-    d.stumps.push_back(std::move(m));
+    if (!s.classes.empty()) d.stumps.push_back(s);
   }
 
   // Inverted file from the map frames' observations of the class landmarks.
@@ -80,7 +73,7 @@ ModelData export_model_data(const BoostModel& boost, const LandmarkMap& map,
     stats->num_classes = C;
     stats->num_stumps = static_cast<int32_t>(d.stumps.size());
     std::vector<int32_t> dims;
-    for (const ModelStump& s : d.stumps) {
+    for (const SharedStump& s : d.stumps) {
       dims.push_back(s.dim);
       stats->sharing_entries += static_cast<int64_t>(s.classes.size());
     }

@@ -58,7 +58,7 @@ ModelData make_synthetic_model(const SyntheticModelOptions& o, SyntheticModelSta
   for (int32_t c = 0; c < C; ++c) all[c] = c;
   SyntheticModelStats st;
   for (int32_t m = 0; m < o.num_stumps; ++m) {
-    ModelStump s;
+    SharedStump s;
     if (rng.uniform() < o.context_stump_share) {
       s.dim = static_cast<int32_t>(rng.below(static_cast<uint64_t>(layout.num_context_dims())));
       s.theta = static_cast<uint8_t>(rng.below(64));

@@ -129,7 +129,7 @@ ModelAndFrame make_model_and_frame(const lmb::Camera& camera) {
   d.bias[C] = 14.5;
   const int context_dims = d.regions.size() * d.vocabulary.num_words();
   for (int j = 0; j < 16; ++j) {
-    lmb::ModelStump one, zero;
+    lmb::SharedStump one, zero;
     one.dim = zero.dim = context_dims + j;
     one.a = 2.0;
     one.b = -1.0;
@@ -139,7 +139,7 @@ ModelAndFrame make_model_and_frame(const lmb::Camera& camera) {
     d.stumps.push_back(one);
     d.stumps.push_back(zero);
   }
-  lmb::ModelStump context;
+  lmb::SharedStump context;
   context.dim = 123;
   context.theta = 10;
   context.a = 0.0;

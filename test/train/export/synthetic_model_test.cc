@@ -45,7 +45,7 @@ TEST(SyntheticModelTest, HasThePaperShape) {
   }
   for (int c = 0; c < 1500; ++c) ASSERT_GE(words_of_class[c], 1) << "class " << c;
   int64_t entries = 0;
-  for (const ModelStump& s : d.stumps) entries += static_cast<int64_t>(s.classes.size());
+  for (const SharedStump& s : d.stumps) entries += static_cast<int64_t>(s.classes.size());
   EXPECT_EQ(stats.sharing_entries, entries);
 
   // Deterministic per seed; another seed gives another model.
