@@ -373,8 +373,8 @@ std::vector<Row> rows() {
   r.push_back({"train config (TOML)", "1e37 for an integer", config_with("[boost]\nnum_rounds = 1e37\n"),
                "DIR/train.toml: boost.num_rounds: expected an integer"});
   r.push_back({"train config (TOML)", "integer out of range", config_with("[boost]\nnum_rounds = 99999999999\n"), "DIR/train.toml: boost.num_rounds: 99999999999 is out of range"});
-  r.push_back({"train config (TOML)", "num_rounds = 0", config_with("[boost]\nnum_rounds = 0\n"), "boost options: num_rounds must be > 0, got 0"});
-  r.push_back({"train config (TOML)", "nan for a real", config_with("[boost]\nexclusion_radius = nan\n"), "boost options: exclusion_radius must be a finite distance >= 0 m, got nan"});
+  r.push_back({"train config (TOML)", "num_rounds = 0", config_with("[boost]\nnum_rounds = 0\n"), "boost options: num_rounds must be >= 1, got 0"});
+  r.push_back({"train config (TOML)", "nan for a real", config_with("[boost]\nexclusion_radius = nan\n"), "boost options: exclusion_radius must be finite and >= 0, got nan"});
   r.push_back({"train config (TOML)", "inf region area", config_with("[regions]\nmax_area = inf\n"), "context regions: max_area = inf must be finite and >= min_area (1)"});
   return r;
 }

@@ -19,11 +19,11 @@ int main(int argc, char** argv) {
   app.add_option("--density", o.data.noise_density, "fraction of non-zero context bins");
   app.add_option("--rounds", o.rounds, "timed rounds");
   app.add_option("--dims-per-round", o.boost.dims_per_round, "|F_m|");
-  app.add_option("--thresholds", o.boost.max_thresholds_per_dim, "candidate thresholds per dim");
-  app.add_option("--negatives", o.boost.negatives_per_class, "initial negatives per class");
-  app.add_option("--refine-top", o.boost.refine_top, "candidates given the full sharing search");
-  app.add_option("--screening-step", o.boost.screening_step, "one alternation step in screening (0/1)");
-  app.add_option("--mining-interval", o.boost.mining_interval, "mining interval (rounds)");
+  app.add_option("--thresholds", o.boost.screening.max_thresholds, "candidate thresholds per dim");
+  app.add_option("--negatives", o.boost.negatives.per_class, "initial negatives per class");
+  app.add_option("--refine-top", o.boost.screening.refine_top, "candidates given the full sharing search");
+  app.add_option("--screening-step", o.boost.screening.step, "one alternation step in screening (0/1)");
+  app.add_option("--mining-interval", o.boost.mining.interval, "mining interval (rounds)");
   CLI11_PARSE(app, argc, argv);
   try {
     std::fprintf(stderr, "lmb_boost_bench: machine %s\n", lmb::machine_info().summary().c_str());

@@ -1,51 +1,82 @@
 #include "train/boost/boost_options.h"
 
-#include <cmath>
-
 #include "common/error.h"
 
 namespace lmb {
 
-void TrainingSetOptions::check() const {
-  LMB_CHECK(top_k_landmarks > 0, "training set: top_k_landmarks must be > 0, got " << top_k_landmarks);
-  LMB_CHECK(min_train_observations >= 1,
-            "training set: min_train_observations must be >= 1, got " << min_train_observations);
-  LMB_CHECK(std::isfinite(validation_fraction) && validation_fraction >= 0.0 && validation_fraction < 1.0,
-            "training set: validation_fraction must be in [0, 1), got " << validation_fraction);
-  LMB_CHECK(background_cap >= 0, "training set: background_cap must be >= 0, got " << background_cap);
+const std::vector<Setting<TrainingSetOptions>>& training_set_settings() {
+  using T = TrainingSetOptions;
+  static const std::vector<Setting<T>> settings = {
+      {"top_k_landmarks", [](T& o) -> SettingRef { return &o.top_k_landmarks; }, SettingRange::at_least(1),
+       "classes: the K best landmarks by quality"},
+      {"min_train_observations", [](T& o) -> SettingRef { return &o.min_train_observations; },
+       SettingRange::at_least(1), "a selected landmark keeps at least this many training samples"},
+      {"validation_fraction", [](T& o) -> SettingRef { return &o.validation_fraction; },
+       SettingRange::half_open(0.0, 1.0), "fraction of a landmark's map observations held out for validation"},
+      {"background_cap", [](T& o) -> SettingRef { return &o.background_cap; }, SettingRange::at_least(0),
+       "at most this many background samples; 0 = none"},
+      {"seed", [](T& o) -> SettingRef { return &o.seed; }, SettingRange::any(),
+       "seed of the hold-out and background sampling"},
+  };
+  return settings;
 }
 
+const std::vector<Setting<BoostOptions>>& boost_settings() {
+  using T = BoostOptions;
+  static const std::vector<Setting<T>> settings = {
+      {"num_rounds", [](T& o) -> SettingRef { return &o.num_rounds; }, SettingRange::at_least(1),
+       "M, shared stumps (rounds)"},
+      {"dims_per_round", [](T& o) -> SettingRef { return &o.dims_per_round; }, SettingRange::at_least(1),
+       "|F_m|, candidate dimensions drawn per round"},
+      {"candidate_dims", [](T& o) -> SettingRef { return &o.candidate_dims; }, SettingRange::at_least(0),
+       "F_m is drawn from dims [0, candidate_dims) only; 0 = all"},
+      {"learning_rate", [](T& o) -> SettingRef { return &o.learning_rate; }, SettingRange::open_closed(0.0, 1.0),
+       "shrinkage of every round's stump and constants"},
+      {"seed", [](T& o) -> SettingRef { return &o.seed; }, SettingRange::any(),
+       "seed of the F_m draw, negative sampling and pools"},
+      {"max_thresholds_per_dim", [](T& o) -> SettingRef { return &o.screening.max_thresholds; },
+       SettingRange::closed(0, 255), "candidate thresholds per dimension; 0 = all distinct bins"},
+      {"refine_top", [](T& o) -> SettingRef { return &o.screening.refine_top; }, SettingRange::at_least(0),
+       "screened candidates that get the full sharing-set search; 0 = full search on all"},
+      {"screening_step", [](T& o) -> SettingRef { return &o.screening.step; }, SettingRange::any(),
+       "screening adds one alternation step from each class group"},
+      {"blocked_screening", [](T& o) -> SettingRef { return &o.screening.blocked; }, SettingRange::any(),
+       "screen eight dims per class-major pass (false: one column pass per dim)"},
+      {"sharing_single_starts", [](T& o) -> SettingRef { return &o.sharing.single_starts; },
+       SettingRange::at_least(0), "sharing-set search starts at the best single classes"},
+      {"sharing_max_iterations", [](T& o) -> SettingRef { return &o.sharing.max_iterations; },
+       SettingRange::at_least(1), "sharing-set search alternation steps per start"},
+      {"negatives_per_class", [](T& o) -> SettingRef { return &o.negatives.per_class; }, SettingRange::at_least(0),
+       "initial |L-_c|, bootstrapped through the visual words"},
+      {"max_negatives_per_class", [](T& o) -> SettingRef { return &o.negatives.max_per_class; },
+       SettingRange::at_least(0), "cap of |L-_c| after hard-negative mining"},
+      {"exclusion_radius", [](T& o) -> SettingRef { return &o.negatives.exclusion_radius; },
+       SettingRange::finite_at_least(0.0), "meters: never a negative of a class whose landmark is closer"},
+      {"negative_weight_ratio", [](T& o) -> SettingRef { return &o.negatives.weight_ratio; },
+       SettingRange::finite_at_least(0.0), "a class's negatives weigh this times its positives; 0 = 1 each"},
+      {"background_negatives", [](T& o) -> SettingRef { return &o.negatives.background; },
+       SettingRange::at_least(0), "negatives of the background class; 0 = every landmark training sample"},
+      {"mining_interval", [](T& o) -> SettingRef { return &o.mining.interval; }, SettingRange::at_least(0),
+       "mine hard negatives every K rounds; 0 = never"},
+      {"mining_pool_size", [](T& o) -> SettingRef { return &o.mining.pool_size; }, SettingRange::at_least(0),
+       "training samples whose scores are tracked for mining"},
+      {"mined_per_sample", [](T& o) -> SettingRef { return &o.mining.per_sample; }, SettingRange::at_least(1),
+       "a pool sample joins the negatives of at most this many classes"},
+      {"validation_interval", [](T& o) -> SettingRef { return &o.validation.interval; }, SettingRange::at_least(0),
+       "validation precision@1 every N rounds; 0 = never"},
+      {"max_validation_samples", [](T& o) -> SettingRef { return &o.validation.max_samples; },
+       SettingRange::at_least(0), "held-out samples scored at most"},
+  };
+  return settings;
+}
+
+void TrainingSetOptions::check() const { check_settings("training set", training_set_settings(), *this); }
+
 void BoostOptions::check() const {
-  LMB_CHECK(std::isfinite(negative_weight_ratio) && negative_weight_ratio >= 0.0,
-            "boost options: negative_weight_ratio must be finite and >= 0, got " << negative_weight_ratio);
-  LMB_CHECK(background_negatives >= 0,
-            "boost options: background_negatives must be >= 0 (0 = all), got " << background_negatives);
-  LMB_CHECK(learning_rate > 0.0 && learning_rate <= 1.0,
-            "boost options: learning_rate must be in (0, 1], got " << learning_rate);
-  LMB_CHECK(num_rounds > 0, "boost options: num_rounds must be > 0, got " << num_rounds);
-  LMB_CHECK(dims_per_round > 0, "boost options: dims_per_round must be > 0, got " << dims_per_round);
-  LMB_CHECK(candidate_dims >= 0, "boost options: candidate_dims must be >= 0 (0 = all dims), got " << candidate_dims);
-  LMB_CHECK(max_thresholds_per_dim >= 0 && max_thresholds_per_dim <= 255,
-            "boost options: max_thresholds_per_dim must be in [0, 255], got " << max_thresholds_per_dim);
-  LMB_CHECK(negatives_per_class >= 0,
-            "boost options: negatives_per_class must be >= 0, got " << negatives_per_class);
-  LMB_CHECK(max_negatives_per_class >= negatives_per_class,
-            "boost options: max_negatives_per_class (" << max_negatives_per_class
-                << ") must be >= negatives_per_class (" << negatives_per_class << ")");
-  LMB_CHECK(mining_interval >= 0, "boost options: mining_interval must be >= 0, got " << mining_interval);
-  LMB_CHECK(mining_pool_size >= 0, "boost options: mining_pool_size must be >= 0, got " << mining_pool_size);
-  LMB_CHECK(mined_per_sample >= 1, "boost options: mined_per_sample must be >= 1, got " << mined_per_sample);
-  LMB_CHECK(std::isfinite(exclusion_radius) && exclusion_radius >= 0.0,
-            "boost options: exclusion_radius must be a finite distance >= 0 m, got " << exclusion_radius);
-  LMB_CHECK(validation_interval >= 0,
-            "boost options: validation_interval must be >= 0, got " << validation_interval);
-  LMB_CHECK(max_validation_samples >= 0,
-            "boost options: max_validation_samples must be >= 0, got " << max_validation_samples);
-  LMB_CHECK(sharing_single_starts >= 0,
-            "boost options: sharing_single_starts must be >= 0, got " << sharing_single_starts);
-  LMB_CHECK(refine_top >= 0, "boost options: refine_top must be >= 0, got " << refine_top);
-  LMB_CHECK(sharing_max_iterations >= 1,
-            "boost options: sharing_max_iterations must be >= 1, got " << sharing_max_iterations);
+  check_settings("boost options", boost_settings(), *this);
+  LMB_CHECK(negatives.max_per_class >= negatives.per_class,
+            "boost options: max_negatives_per_class (" << negatives.max_per_class
+                << ") must be >= negatives_per_class (" << negatives.per_class << ")");
 }
 
 void BoostOptions::check(int32_t num_dims) const {

@@ -1,8 +1,15 @@
 // Settings of the JointBoost learner and of the training set built from a landmark map. Every
-// struct has defaults (the paper's configuration where the paper gives one) and a throwing check().
+// struct has defaults (the paper's configuration where the paper gives one). The learner's settings
+// are grouped by the part that reads them; every setting is named once, in the schemas below
+// (train/boost/settings.h), which the config file ([training_set], [boost] in
+// train/boost/train_config.h), the checks and the command line's help share.
 #pragma once
 
 #include <cstdint>
+#include <vector>
+
+#include "train/boost/settings.h"
+#include "train/boost/sharing_set.h"
 
 namespace lmb {
 
@@ -19,58 +26,84 @@ struct TrainingSetOptions {
   void check() const;                 // throws lmb::Error naming the field
 };
 
+// Candidate thresholds and the screening that ranks (dim, threshold) candidates before the full
+// sharing-set search (train/boost/stump_learner.h).
+struct ScreeningOptions {
+  // Candidate thresholds per dimension: the distinct bins of the column except its largest; when
+  // there are more than this, the smallest bin (0 for sparse context dims) plus evenly spaced
+  // quantiles of the remaining distinct bins (weighted by sample count). 0 = all distinct bins.
+  int32_t max_thresholds = 8;
+  // Every (dim, theta) of the round is ranked by the gains of its "rising" and "falling" class
+  // groups (plus, with `step`, one alternation step from each); the refine_top best then get the
+  // full sharing-set search. refine_top = 0: full search on every candidate (exact mode of the
+  // tests). Measured on synthetic data (1,000 and 3,000 classes): refine_top 32 without the step
+  // reaches 99.9% / 100% of the full search's gain.
+  int32_t refine_top = 32;
+  bool step = false;
+  // Screening reads the entries class-major, eight dims (<= 15 thresholds each) per pass, instead
+  // of one sample-major column pass per dim; the same gains bit for bit (stump_learner_test),
+  // ~4x faster at paper scale (jobs/bench_train.sh: "columns" against "blocked"). false: column passes only.
+  bool blocked = true;
+};
+
+// The negative sets L-_c: bootstrapped at the start, grown by hard-negative mining
+// (train/boost/stump_learner.h).
+struct NegativeOptions {
+  int32_t per_class = 40;       // initial |L-_c|, bootstrapped through the visual words
+  int32_t max_per_class = 120;  // cap of |L-_c| after hard-negative mining
+  double exclusion_radius = 0.05;  // meters: never a negative of c if its landmark is closer
+  // Initial weights: a positive entry weighs 1 (or TrainingSet::sample_weight); the negatives of a
+  // class share weight_ratio times its positives' total weight, so that each class's score
+  // estimates a log-likelihood ratio on the same prior and classes rank fairly against each other
+  // (with unit weights a class's constant drifts to log(|L+|/|L-|): the background class, with
+  // thousands of positives, then outscores every landmark). 0 = every negative weighs 1.
+  double weight_ratio = 1.0;
+  // Negatives of the background class: this many landmark training samples (seeded); 0 = all.
+  int32_t background = 0;
+};
+
+// Hard-negative mining from a pool of tracked training samples (train/boost/stump_learner.h).
+struct MiningOptions {
+  int32_t interval = 50;     // mine hard negatives every K rounds; 0 = never
+  int32_t pool_size = 2048;  // train samples whose scores are tracked for mining
+  int32_t per_sample = 1;    // a pool sample joins L-_c of at most this many classes ranked at or
+                             // above its true class (best first)
+};
+
+// Validation precision@1 on held-out samples (train/boost/stump_learner.h).
+struct ValidationOptions {
+  int32_t interval = 1;       // every N rounds; 0 = never
+  int32_t max_samples = 4096; // cap on held-out samples scored (deterministic subset)
+};
+
 struct BoostOptions {
-  int32_t num_rounds = 2000;          // M, number of shared stumps
-  int32_t dims_per_round = 500;       // |F_m|, candidate dimensions drawn per round
+  int32_t num_rounds = 2000;     // M, number of shared stumps
+  int32_t dims_per_round = 500;  // |F_m|, candidate dimensions drawn per round
   // F_m is drawn from dims [0, candidate_dims) only; 0 = all dims. The layout puts the context
   // dims first (common/context_embedding.h), so num_regions * num_words trains on the visual
   // context alone, without descriptor bits (the paper's Table II).
   int32_t candidate_dims = 0;
-  // Candidate thresholds per dimension: the distinct bins of the column except its largest; when
-  // there are more than this, the smallest bin (0 for sparse context dims) plus evenly spaced
-  // quantiles of the remaining distinct bins (weighted by sample count). 0 = all distinct bins.
-  int32_t max_thresholds_per_dim = 8;
-  int32_t negatives_per_class = 40;   // initial |L-_c|, bootstrapped through the visual words
-  int32_t max_negatives_per_class = 120;  // cap of |L-_c| after hard-negative mining
-  int32_t mining_interval = 50;       // mine hard negatives every K rounds; 0 = never
-  int32_t mining_pool_size = 2048;    // train samples whose scores are tracked for mining
-  int32_t mined_per_sample = 1;       // a pool sample joins L-_c of at most this many classes
-                                      // ranked at or above its true class (best first)
-  double exclusion_radius = 0.05;     // meters: never a negative of c if its landmark is closer
-  // Initial weights: a positive entry weighs 1 (or TrainingSet::sample_weight); the negatives of a
-  // class share negative_weight_ratio times its positives' total weight, so that each class's score
-  // estimates a log-likelihood ratio on the same prior and classes rank fairly against each other
-  // (with unit weights a class's constant drifts to log(|L+|/|L-|): the background class, with
-  // thousands of positives, then outscores every landmark). 0 = every negative weighs 1.
-  double negative_weight_ratio = 1.0;
-  // Negatives of the background class: this many landmark training samples (seeded); 0 = all.
-  int32_t background_negatives = 0;
   // Shrinkage: a, b and every k_c of a round are multiplied by this, in (0, 1]. Measured on a
   // 1,000-class rendered map (7.6 training observations a class, 300 rounds): validation P@1
   // 0.748 at 0.5 and 0.802 at 0.25 against 0.60 at 1 (Hamming nearest neighbour: 0.595); 100
   // initial negatives a class instead of 40 gave the same 0.803 at 0.25 with 60% more entries.
   double learning_rate = 0.25;
-  int32_t validation_interval = 1;    // validation precision@1 every N rounds; 0 = never
-  int32_t max_validation_samples = 4096;  // cap on held-out samples scored (deterministic subset)
-  // Sharing-set search: starts of the alternating (alpha, beta) / set refinement, besides the
-  // "rising" and "falling" class groups: the points of the best single classes.
-  int32_t sharing_single_starts = 4;
-  int32_t sharing_max_iterations = 12;
-  // Screening: every (dim, theta) of the round is ranked by the gains of its "rising" and
-  // "falling" class groups (plus, with screening_step, one alternation step from each); the
-  // refine_top best then get the full sharing-set search. refine_top = 0: full search on every
-  // candidate (exact mode of the tests). Measured on synthetic data (1,000 and 3,000 classes):
-  // refine_top 32 without the step reaches 99.9% / 100% of the full search's gain.
-  int32_t refine_top = 32;
-  bool screening_step = false;
-  // Screening reads the entries class-major, eight dims (<= 15 thresholds each) per pass, instead
-  // of one sample-major column pass per dim; the same gains bit for bit (stump_learner_test),
-  // ~4x faster at paper scale (lmb_boost_bench --compare-screening). false: column passes only.
-  bool blocked_screening = true;
-  uint64_t seed = 1;                  // F_m draw, negative sampling, pools
-  void check() const;                 // throws lmb::Error naming the field
+  uint64_t seed = 1;  // F_m draw, negative sampling, pools
+  ScreeningOptions screening;
+  // Sharing-set search (train/boost/sharing_set.h): starts of the alternating (alpha, beta) / set
+  // refinement besides the "rising" and "falling" class groups, and alternation steps per start.
+  SharingSearchOptions sharing;
+  NegativeOptions negatives;
+  MiningOptions mining;
+  ValidationOptions validation;
+
+  void check() const;  // throws lmb::Error naming the field
   // Checks against the data: candidate_dims <= num_dims, |F_m| <= the candidate dims.
   void check(int32_t num_dims) const;
 };
+
+// The schemas: every setting with its config key, range and help.
+const std::vector<Setting<TrainingSetOptions>>& training_set_settings();
+const std::vector<Setting<BoostOptions>>& boost_settings();
 
 }  // namespace lmb

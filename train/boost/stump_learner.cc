@@ -121,7 +121,7 @@ void SerialStumpLearner::fill_buckets(DimLayout* layout) {
 }
 
 SerialStumpLearner::DimLayout SerialStumpLearner::make_layout(const uint8_t* col) const {
-  const int32_t max_t = options_.max_thresholds_per_dim;
+  const int32_t max_t = options_.screening.max_thresholds;
   int64_t counts[256] = {0};
   for (int64_t s = 0; s < features_.num_samples; ++s) ++counts[col[s]];
   std::vector<uint8_t> distinct;
@@ -181,12 +181,12 @@ void SerialStumpLearner::initialize() {
       train.push_back(s);
     }
   }
-  tracked_samples_ = options_.validation_interval > 0
-                         ? hash_subset(validation, options_.max_validation_samples, options_.seed, kValidationTag)
+  tracked_samples_ = options_.validation.interval > 0
+                         ? hash_subset(validation, options_.validation.max_samples, options_.seed, kValidationTag)
                          : std::vector<int64_t>{};
   num_validation_rows_ = static_cast<int64_t>(tracked_samples_.size());
-  if (options_.mining_interval > 0) {
-    const auto pool = hash_subset(train, options_.mining_pool_size, options_.seed, kPoolTag);
+  if (options_.mining.interval > 0) {
+    const auto pool = hash_subset(train, options_.mining.pool_size, options_.seed, kPoolTag);
     tracked_samples_.insert(tracked_samples_.end(), pool.begin(), pool.end());
   }
   split_rows();
@@ -228,7 +228,7 @@ void SerialStumpLearner::flush_pool_rows() {
 void SerialStumpLearner::bootstrap_negatives() {
   const int32_t C = set_.num_classes;
   const int64_t S = set_.num_samples();
-  const double radius = options_.exclusion_radius;
+  const double radius = options_.negatives.exclusion_radius;
   auto initial_weight = [&](int64_t s) { return set_.sample_weight.empty() ? 1.0 : static_cast<double>(set_.sample_weight[s]); };
   auto excluded = [&](int32_t c, int64_t s) {
     if (c >= C || radius <= 0.0) return false;
@@ -270,11 +270,11 @@ void SerialStumpLearner::bootstrap_negatives() {
       positive_total += initial_weight(s);
     }
     lists.clear();
-    int32_t n_neg = options_.negatives_per_class;
+    int32_t n_neg = options_.negatives.per_class;
     if (c == C) {
       lists.push_back(&landmark_train);
-      if (options_.background_negatives > 0) {
-        n_neg = options_.background_negatives;
+      if (options_.negatives.background > 0) {
+        n_neg = options_.negatives.background;
       } else {
         n_neg = static_cast<int32_t>(std::min<size_t>(landmark_train.size(), std::numeric_limits<int32_t>::max()));
       }
@@ -318,8 +318,8 @@ void SerialStumpLearner::bootstrap_negatives() {
     // Balanced classes: the negatives share negative_weight_ratio x the positives' total weight.
     double negative_total = 0.0;
     for (int64_t s : chosen) negative_total += initial_weight(s);
-    if (options_.negative_weight_ratio > 0.0 && negative_total > 0.0 && positive_total > 0.0) {
-      negative_unit_[c] = options_.negative_weight_ratio * positive_total / negative_total;
+    if (options_.negatives.weight_ratio > 0.0 && negative_total > 0.0 && positive_total > 0.0) {
+      negative_unit_[c] = options_.negatives.weight_ratio * positive_total / negative_total;
     }
     for (int64_t s : chosen) {
       samples.push_back(s);
@@ -589,7 +589,7 @@ void SerialStumpLearner::screen_scattered(int32_t T, std::vector<double>* gains)
     }
     GroupSums rise{rwp, ryp, rwm, rym, rq}, fall{fwp, fyp, fwm, fym, fq};
     double best = std::max(rise.gain(), fall.gain());
-    if (options_.screening_step) {
+    if (options_.screening.step) {
       double ar, br, af, bf;
       rise.point(&ar, &br);
       fall.point(&af, &bf);
@@ -816,7 +816,7 @@ std::vector<ScreenedCandidate> SerialStumpLearner::select_for_refinement(std::ve
     if (x.dim != y.dim) return x.dim < y.dim;
     return x.theta < y.theta;
   };
-  const size_t keep = std::min(local.size(), static_cast<size_t>(options_.refine_top));
+  const size_t keep = std::min(local.size(), static_cast<size_t>(options_.screening.refine_top));
   std::partial_sort(local.begin(), local.begin() + static_cast<int64_t>(keep), local.end(), better);
   local.resize(keep);
   return local;
@@ -872,7 +872,7 @@ int SerialStumpLearner::screening_kind(int32_t dim) const {
 int SerialStumpLearner::layout_kind(const DimLayout& layout) const {
   const size_t T = layout.thresholds.size();
   if (T == 0) return 0;
-  return T <= 15 && options_.blocked_screening && !options_.screening_step ? 1 : 2;
+  return T <= 15 && options_.screening.blocked && !options_.screening.step ? 1 : 2;
 }
 
 void SerialStumpLearner::stump_above(int32_t dim, int32_t theta, std::vector<uint8_t>* above) {
@@ -945,13 +945,11 @@ StumpRecord SerialStumpLearner::search_impl(const std::vector<int32_t>& dims, Ro
     for (int32_t i : r.members) rec.classes.push_back(active_[i]);
     return rec;
   };
-  SharingSearchOptions full;
-  full.single_starts = options_.sharing_single_starts;
-  full.max_iterations = options_.sharing_max_iterations;
+  const SharingSearchOptions& full = options_.sharing;
 
   std::vector<int32_t> sorted_dims = dims;
   std::sort(sorted_dims.begin(), sorted_dims.end());
-  if (options_.refine_top == 0) {
+  if (options_.screening.refine_top == 0) {
     for (int32_t d : sorted_dims) {
       const ColumnRef ref = column_ref(d);
       LMB_CHECK(ref.column, "boost: dim " << d << " is neither stored nor lent here");
@@ -1028,7 +1026,7 @@ RoundStats SerialStumpLearner::run_round() {
   RoundStats stats;
   stats.round = rounds_done();
   LMB_CHECK(stats.round < options_.num_rounds, "boost: all " << options_.num_rounds << " rounds are done");
-  if (options_.mining_interval > 0 && stats.round > 0 && stats.round % options_.mining_interval == 0) {
+  if (options_.mining.interval > 0 && stats.round > 0 && stats.round % options_.mining.interval == 0) {
     const auto tm = Clock::now();
     stats.mined = mine_hard_negatives();
     stats.seconds_eval += seconds_since(tm);
@@ -1154,8 +1152,8 @@ RoundStats SerialStumpLearner::run_round() {
   stats.theta = best.theta;
   stats.sharing_size = static_cast<int32_t>(best.classes.size());
   stats.num_entries = static_cast<int64_t>(entry_weight_.size());
-  if (options_.validation_interval > 0 &&
-      ((stats.round + 1) % options_.validation_interval == 0 || stats.round + 1 == options_.num_rounds)) {
+  if (options_.validation.interval > 0 &&
+      ((stats.round + 1) % options_.validation.interval == 0 || stats.round + 1 == options_.num_rounds)) {
     const auto tv = Clock::now();
     evaluate_validation(&stats);
     stats.seconds_eval += seconds_since(tv);
@@ -1260,8 +1258,8 @@ void SerialStumpLearner::evaluate_validation(RoundStats* stats) {
 
 int64_t SerialStumpLearner::mine_hard_negatives() {
   const int32_t C = set_.num_classes;
-  const double radius = options_.exclusion_radius;
-  const int32_t per_sample = options_.mined_per_sample;
+  const double radius = options_.negatives.exclusion_radius;
+  const int32_t per_sample = options_.mining.per_sample;
   std::vector<int64_t> new_samples;
   std::vector<int32_t> new_codes;
   std::vector<double> new_weights;
@@ -1310,7 +1308,7 @@ int64_t SerialStumpLearner::mine_hard_negatives() {
     const int32_t c = offer.cls;
     const float sc = offer.score;
     auto& negs = class_negatives_[c];
-    if (static_cast<int32_t>(negs.size()) >= options_.max_negatives_per_class) continue;
+    if (static_cast<int32_t>(negs.size()) >= options_.negatives.max_per_class) continue;
     auto it = std::lower_bound(negs.begin(), negs.end(), s);
     if (it != negs.end() && *it == s) continue;
     if (c < C && radius > 0.0) {

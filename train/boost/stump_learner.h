@@ -172,7 +172,7 @@ class SerialStumpLearner {
     uint8_t bucket[256];              // bucket of a bin: number of thresholds below it
     float above_fraction = 0.f;       // samples above the smallest threshold
   };
-  // The candidate thresholds of a column of S bins (options_.max_thresholds_per_dim).
+  // The candidate thresholds of a column of S bins (options_.screening.max_thresholds).
   DimLayout make_layout(const uint8_t* col) const;
   // bucket[] from the thresholds.
   static void fill_buckets(DimLayout* layout);

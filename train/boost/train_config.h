@@ -2,21 +2,21 @@
 // file, then flags) is written into the run directory as config.toml; the same text is what a
 // checkpoint can hash to refuse a changed config.
 //
-//   [training_set]  top_k_landmarks, min_train_observations, validation_fraction, background_cap, seed
-//   [boost]         num_rounds, dims_per_round, candidate_dims, max_thresholds_per_dim, negatives_per_class,
-//                   max_negatives_per_class, mining_interval, mining_pool_size, mined_per_sample,
-//                   exclusion_radius, validation_interval, max_validation_samples,
-//                   sharing_single_starts, sharing_max_iterations, refine_top, screening_step, seed
-//   [regions]       num_regions, seed, min_area, max_area, max_aspect, max_offset
-//   [features]      threads
-//   [checkpoint]    interval, keep (train/checkpoint/checkpoint_h5.h; not compared on resume)
+// Tables: [training_set] (TrainingSetOptions), [boost] (BoostOptions), [regions]
+// (ContextRegionOptions), [features] threads, [checkpoint] interval, keep
+// (train/checkpoint/checkpoint_h5.h; not compared on resume). Every key is named once, in the
+// schema (train_config_schema(), built from the options' own schemas in
+// train/boost/boost_options.h), which reads, writes, checks and describes the config.
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
+#include <vector>
 
 #include "common/context_regions.h"
 #include "train/boost/boost_options.h"
+#include "train/boost/settings.h"
 
 namespace lmb {
 
@@ -29,6 +29,20 @@ struct TrainConfig {
   int32_t checkpoint_keep = 3;        // newest checkpoints kept
   void check() const;  // every part's check(); throws lmb::Error naming the field
 };
+
+// One key of the config file, [table] key.
+struct ConfigKey {
+  std::string table;
+  std::string key;
+  std::function<SettingRef(TrainConfig&)> ref;
+  SettingRange range;  // checked by TrainConfig::check (the [regions] keys by ContextRegionOptions::check)
+  std::string help;
+  std::string name() const { return table + "." + key; }
+};
+// Every key of the config file.
+const std::vector<ConfigKey>& train_config_schema();
+// "<help> (default <value>)" of the key "table.key". Throws lmb::Error for an unknown key.
+std::string describe_config_key(const std::string& name);
 
 // Overrides the fields present in a TOML document. Throws lmb::Error naming `what`, the table and
 // key on a parse error, an unknown table or key, or a value of the wrong type or range.

@@ -316,14 +316,16 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--out", args->out, "run folder: config.toml, log.txt, metrics.jsonl, model.bin")->required();
   cmd->add_option("--config", args->config, "TOML config ([training_set], [boost], [regions], [features])")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--rounds", args->rounds, "boost.num_rounds");
-  cmd->add_option("--dims-per-round", args->dims_per_round, "boost.dims_per_round (|F_m|, at most the feature dimension)");
-  cmd->add_option("--top-k", args->top_k, "training_set.top_k_landmarks");
-  cmd->add_option("--seed", args->seed, "boost.seed and training_set.seed");
-  cmd->add_option("--threads", args->threads, "features.threads (feature building only)");
-  cmd->add_option("--checkpoint-interval", args->checkpoint_interval,
-                  "checkpoint.interval: rounds between checkpoints (0 = only on SIGTERM/SIGUSR1 and at the end)");
-  cmd->add_option("--checkpoint-keep", args->checkpoint_keep, "checkpoint.keep: newest checkpoints kept");
+  // The flags' help: the config key they set, its help and default (train/boost/train_config.h).
+  auto key = [](const char* name) { return std::string(name) + ": " + describe_config_key(name); };
+  cmd->add_option("--rounds", args->rounds, key("boost.num_rounds"));
+  cmd->add_option("--dims-per-round", args->dims_per_round, key("boost.dims_per_round") + ", at most the feature dimension");
+  cmd->add_option("--top-k", args->top_k, key("training_set.top_k_landmarks"));
+  cmd->add_option("--seed", args->seed, "boost.seed and training_set.seed (default " +
+                                            std::to_string(TrainConfig().boost.seed) + ")");
+  cmd->add_option("--threads", args->threads, key("features.threads"));
+  cmd->add_option("--checkpoint-interval", args->checkpoint_interval, key("checkpoint.interval"));
+  cmd->add_option("--checkpoint-keep", args->checkpoint_keep, key("checkpoint.keep"));
   cmd->callback([args] { run_train(*args); });
 }
 

@@ -166,10 +166,10 @@ TEST(StumpLearner, ChosenStumpEqualsExhaustiveSearch) {
     BoostOptions o;
     o.num_rounds = 12;
     o.dims_per_round = p.features.num_dims;
-    o.max_thresholds_per_dim = 0;  // all thresholds
-    o.refine_top = 0;              // full search everywhere
-    o.negatives_per_class = 8;
-    o.mining_interval = 4;
+    o.screening.max_thresholds = 0;  // all thresholds
+    o.screening.refine_top = 0;              // full search everywhere
+    o.negatives.per_class = 8;
+    o.mining.interval = 4;
     o.learning_rate = 1.0;  // the model then stores the fitted a, b themselves (shrinkage scales them)
     SerialStumpLearner learner(p.features, p.set, o);
     learner.initialize();
@@ -177,7 +177,7 @@ TEST(StumpLearner, ChosenStumpEqualsExhaustiveSearch) {
     for (int32_t d = 0; d < p.features.num_dims; ++d) all_dims[d] = d;
     double worst = 0.0;
     for (int r = 0; r < o.num_rounds; ++r) {
-      if (r > 0 && r % o.mining_interval == 0) {
+      if (r > 0 && r % o.mining.interval == 0) {
         // Mining changes the entries at the start of the round: run it, compare from the next.
         learner.run_round();
         continue;
@@ -212,9 +212,9 @@ TEST(StumpLearner, FastSharingReachesGreedyCostReduction) {
     BoostOptions o;
     o.num_rounds = 20;
     o.dims_per_round = 16;
-    o.refine_top = refine_top;
-    o.max_thresholds_per_dim = max_thresholds;
-    o.mining_interval = 0;
+    o.screening.refine_top = refine_top;
+    o.screening.max_thresholds = max_thresholds;
+    o.mining.interval = 0;
     o.learning_rate = 1.0;  // the cost reduction is measured with the stored (unshrunk) stump
     SerialStumpLearner learner(p.features, p.set, o);
     learner.initialize();
@@ -242,7 +242,7 @@ TEST(StumpLearner, FastSharingReachesGreedyCostReduction) {
     const double mean_ratio = ratio_sum / o.num_rounds;
     std::printf("64 classes, refine_top %d (%d thresholds/dim max): fast / greedy cost reduction = %.4f "
                 "(mean of per-round ratios), %.4f (totals)\n",
-                refine_top, o.max_thresholds_per_dim, mean_ratio, fast_total / greedy_total);
+                refine_top, o.screening.max_thresholds, mean_ratio, fast_total / greedy_total);
     // The learner's default (8 candidate thresholds) must reach 99% of the greedy search over
     // every threshold; with 4 thresholds the threshold set, not the sharing search, costs ~4%.
     if (max_thresholds >= 8) {
@@ -296,7 +296,7 @@ TEST(StumpLearner, LearnsContextSeparableClassesAndCostDecreases) {
   BoostOptions o;
   o.num_rounds = 250;
   o.dims_per_round = 100;
-  o.mining_interval = 25;
+  o.mining.interval = 25;
   const LearnedRun run = train_synthetic(p, o);
   ASSERT_EQ(run.rounds.size(), 250u);
   int64_t mined = 0;
@@ -338,7 +338,7 @@ TEST(StumpLearner, DeterministicBytes) {
   BoostOptions o;
   o.num_rounds = 30;
   o.dims_per_round = 60;
-  o.mining_interval = 10;
+  o.mining.interval = 10;
   const LearnedRun a = train_synthetic(p, o);
   const LearnedRun b = train_synthetic(p, o);
   EXPECT_EQ(a.model_bytes, b.model_bytes);
@@ -359,14 +359,14 @@ TEST(StumpLearner, BlockedScreeningEqualsColumnPasses) {
     BoostOptions o;
     o.num_rounds = 25;
     o.dims_per_round = 61;
-    o.mining_interval = 10;
-    o.max_thresholds_per_dim = thresholds;
+    o.mining.interval = 10;
+    o.screening.max_thresholds = thresholds;
     // The screening gains of every (dim, theta), after a few rounds (unequal weights).
     {
       BoostOptions first = o;
       first.num_rounds = 12;
       SerialStumpLearner blocked_learner(p.features, p.set, first);
-      first.blocked_screening = false;
+      first.screening.blocked = false;
       SerialStumpLearner column_learner(p.features, p.set, first);
       for (int r = 0; r < 11; ++r) {
         blocked_learner.run_round();
@@ -383,7 +383,7 @@ TEST(StumpLearner, BlockedScreeningEqualsColumnPasses) {
       }
     }
     const LearnedRun blocked = train_synthetic(p, o);
-    o.blocked_screening = false;
+    o.screening.blocked = false;
     const LearnedRun columns = train_synthetic(p, o);
     EXPECT_EQ(blocked.model_bytes, columns.model_bytes) << thresholds << " thresholds";
     ASSERT_EQ(blocked.rounds.size(), columns.rounds.size());
@@ -411,9 +411,9 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
   BoostOptions o;
   o.num_rounds = 60;
   o.dims_per_round = 50;
-  o.negatives_per_class = 10;
-  o.mining_interval = 10;
-  o.max_negatives_per_class = 30;
+  o.negatives.per_class = 10;
+  o.mining.interval = 10;
+  o.negatives.max_per_class = 30;
   SerialStumpLearner learner(p.features, p.set, o);
   learner.initialize();
   const int32_t C = p.set.num_classes;
@@ -448,7 +448,7 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
   for (int32_t c = 0; c <= C; ++c) {
     EXPECT_GT(negatives[c], 0) << "class " << c;
     if (c < C) {
-      EXPECT_LE(negatives[c], o.negatives_per_class);
+      EXPECT_LE(negatives[c], o.negatives.per_class);
     }
     // Class balance (negative_weight_ratio 1): a class's negatives weigh as much as its positives.
     EXPECT_NEAR(negative_weight[c], positive_weight[c], 1e-9 * positive_weight[c]) << "class " << c;
@@ -468,7 +468,7 @@ TEST(StumpLearner, BootstrapAndMiningRespectWordsAndExclusionRadius) {
   }
   int grown = 0;
   for (int32_t c = 0; c < C; ++c) {
-    EXPECT_LE(after[c], o.max_negatives_per_class);
+    EXPECT_LE(after[c], o.negatives.max_per_class);
     grown += after[c] > negatives[c];
   }
   EXPECT_GT(grown, 0);
@@ -482,9 +482,9 @@ TEST(StumpLearner, TrackedScoresEqualTheModelsScores) {
   BoostOptions o;
   o.num_rounds = 37;
   o.dims_per_round = 50;
-  o.negatives_per_class = 10;
-  o.mining_interval = 10;
-  o.mining_pool_size = 150;
+  o.negatives.per_class = 10;
+  o.mining.interval = 10;
+  o.mining.pool_size = 150;
   SerialStumpLearner learner(p.features, p.set, o);
   const int32_t C1 = p.set.num_classes_with_background();
   std::vector<uint8_t> v(static_cast<size_t>(p.features.num_dims));
@@ -565,10 +565,10 @@ TEST(StumpLearner, ClassBalanceKeepsAManyPositiveBackgroundFromWinningEverything
   o.num_rounds = 120;
   o.dims_per_round = 100;
   o.learning_rate = 1.0;  // converges within the test's 120 rounds
-  o.negatives_per_class = 40;
+  o.negatives.per_class = 40;
   BoostOptions unit = o;
-  unit.negative_weight_ratio = 0.0;
-  unit.background_negatives = o.negatives_per_class;
+  unit.negatives.weight_ratio = 0.0;
+  unit.negatives.background = o.negatives.per_class;
   SerialStumpLearner balanced(p.features, p.set, o), unbalanced(p.features, p.set, unit);
   balanced.train();
   unbalanced.train();
@@ -668,8 +668,8 @@ TEST(StumpLearner, CandidateDimsKeepsStumpsOnTheContextDims) {
   BoostOptions o;
   o.num_rounds = 30;
   o.dims_per_round = 100;
-  o.mining_interval = 0;
-  o.validation_interval = 0;
+  o.mining.interval = 0;
+  o.validation.interval = 0;
   const auto stump_dims = [&](const BoostOptions& options) {
     SerialStumpLearner learner(p.features, p.set, options);
     learner.train([](const RoundStats&) {});

@@ -1,5 +1,8 @@
 #include "train/boost/train_config.h"
 
+#include <cmath>
+#include <set>
+
 #include <gtest/gtest.h>
 
 #include "common/error.h"
@@ -14,8 +17,8 @@ TEST(TrainConfig, FileOverridesDefaultsAndRoundTrips) {
       "[training_set]\ntop_k_landmarks = 900\n[regions]\nnum_regions = 64\n[features]\nthreads = 2\n",
       "cfg.toml", &c);
   EXPECT_EQ(c.boost.num_rounds, 300);
-  EXPECT_DOUBLE_EQ(c.boost.exclusion_radius, 0.5);
-  EXPECT_TRUE(c.boost.screening_step);
+  EXPECT_DOUBLE_EQ(c.boost.negatives.exclusion_radius, 0.5);
+  EXPECT_TRUE(c.boost.screening.step);
   EXPECT_EQ(c.boost.dims_per_round, BoostOptions().dims_per_round);
   EXPECT_EQ(c.training_set.top_k_landmarks, 900);
   EXPECT_EQ(c.regions.num_regions, 64);
@@ -49,6 +52,65 @@ TEST(TrainConfig, RejectsUnknownKeysWrongTypesAndSyntax) {
   TrainConfig zero;
   apply_train_config_toml("[boost]\nnum_rounds = 0\n", "cfg.toml", &zero);
   EXPECT_THROW(zero.check(), Error);
+}
+
+TEST(TrainConfig, SchemaNamesEveryKeyOnceAndWritesEachOne) {
+  std::set<std::string> names;
+  for (const ConfigKey& k : train_config_schema()) EXPECT_TRUE(names.insert(k.name()).second) << k.name();
+  // The written config holds exactly the schema's keys: one "key = value" line each.
+  const std::string text = train_config_toml(TrainConfig{});
+  size_t lines = 0;
+  for (size_t at = 0; (at = text.find(" = ", at)) != std::string::npos; at += 3) ++lines;
+  EXPECT_EQ(lines, names.size());
+  EXPECT_EQ(describe_config_key("boost.num_rounds"), "M, shared stumps (rounds) (default 2000)");
+  EXPECT_EQ(describe_config_key("boost.blocked_screening"),
+            "screen eight dims per class-major pass (false: one column pass per dim) (default true)");
+  EXPECT_THROW(describe_config_key("boost.nothing"), Error);
+}
+
+TEST(TrainConfig, EveryRangeIsCheckedAtItsEnds) {
+  // For every bounded key: its ends as the range says (inside: accepted, outside: refused with the
+  // key's name), from the defaults; [regions] keys are checked by ContextRegionOptions::check.
+  int checked = 0;
+  for (const ConfigKey& k : train_config_schema()) {
+    if (k.range.unbounded()) continue;
+    auto message = [&](double value) {
+      TrainConfig c;
+      std::visit([&](auto* v) { *v = static_cast<std::remove_pointer_t<decltype(v)>>(value); }, k.ref(c));
+      try {
+        c.check();
+      } catch (const Error& e) {
+        return std::string(e.what());
+      }
+      return std::string("no error");
+    };
+    const bool integer = [&] {
+      TrainConfig c;
+      return !std::holds_alternative<double*>(k.ref(c));
+    }();
+    const double step = integer ? 1.0 : 1e-9;
+    if (std::isfinite(k.range.lo)) {
+      const double outside = k.range.lo_open ? k.range.lo : k.range.lo - step;
+      const double inside = k.range.lo_open ? k.range.lo + step : k.range.lo;
+      EXPECT_NE(message(outside).find(k.key), std::string::npos) << k.name() << " = " << outside;
+      if (k.name() != "boost.max_negatives_per_class") {  // also bounded by negatives_per_class
+        EXPECT_EQ(message(inside), "no error") << k.name() << " = " << inside;
+      }
+      ++checked;
+    }
+    if (std::isfinite(k.range.hi)) {
+      const double outside = k.range.hi_open ? k.range.hi : k.range.hi + step;
+      EXPECT_NE(message(outside).find(k.key), std::string::npos) << k.name() << " = " << outside;
+      EXPECT_EQ(message(k.range.hi_open ? k.range.hi - step : k.range.hi), "no error") << k.name();
+    }
+    if (!integer) {
+      EXPECT_NE(message(std::nan("")).find(k.key), std::string::npos) << k.name() << " = NaN";
+      if (k.range.hi_open) {
+        EXPECT_NE(message(INFINITY).find(k.key), std::string::npos) << k.name() << " = inf";
+      }
+    }
+  }
+  EXPECT_GE(checked, 20);
 }
 
 }  // namespace

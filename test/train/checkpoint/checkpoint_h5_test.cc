@@ -29,7 +29,7 @@ class CheckpointTest : public ::testing::Test {
     problem_ = make_synthetic_boost_problem(o);
     config_.boost.num_rounds = 12;
     config_.boost.dims_per_round = 64;
-    config_.boost.mining_interval = 4;
+    config_.boost.mining.interval = 4;
   }
   void TearDown() override { fs::remove_all(dir_); }
 

@@ -42,10 +42,10 @@ Problem make_problem(int32_t rounds, int32_t refine_top) {
   BoostOptions& b = p.config.boost;
   b.num_rounds = rounds;
   b.dims_per_round = 96;
-  b.mining_interval = 7;  // several mining steps, one right after the resume point of some draws
-  b.mining_pool_size = 400;
-  b.negatives_per_class = 10;
-  b.refine_top = refine_top;
+  b.mining.interval = 7;  // several mining steps, one right after the resume point of some draws
+  b.mining.pool_size = 400;
+  b.negatives.per_class = 10;
+  b.screening.refine_top = refine_top;
   b.seed = 11;
   return p;
 }

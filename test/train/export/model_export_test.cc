@@ -112,7 +112,7 @@ Trained train_small(uint64_t seed, int rounds) {
   BoostOptions bo;
   bo.num_rounds = rounds;
   bo.dims_per_round = 100;
-  bo.validation_interval = 0;
+  bo.validation.interval = 0;
   SerialStumpLearner learner(t.features, t.set, bo);
   learner.train();
   t.boost = learner.model();
@@ -258,7 +258,7 @@ TEST(ModelExportTest, TinyWorldQueryFrameWithin5cm1deg) {
   BoostOptions bo;
   bo.num_rounds = std::getenv("LMB_TINY_ROUNDS") ? std::atoi(std::getenv("LMB_TINY_ROUNDS")) : 120;
   bo.dims_per_round = 300;
-  bo.validation_interval = 0;
+  bo.validation.interval = 0;
   SerialStumpLearner learner(features, set, bo);
   learner.train();
   const auto model = std::make_shared<const Model>(
