@@ -48,29 +48,25 @@ BoostBenchResult run_boost_bench(const BoostBenchOptions& options) {
   learner.initialize();
   r.setup_seconds = since(t0);
   const double cpu0 = cpu_seconds();
-  double total = 0, hist = 0, search = 0, update = 0, eval = 0, share = 0;
+  RoundTotals t;
   learner.train([&](const RoundStats& s) {
-    total += s.seconds;
-    hist += s.seconds_histogram;
-    search += s.seconds_search;
-    update += s.seconds_update;
-    eval += s.seconds_eval;
-    share += s.sharing_size;
+    t.add(s);
     r.last_cost = s.cost;
     r.num_entries = s.num_entries;
   });
+  const double total = t.seconds;
   r.cpu_seconds_per_round = (cpu_seconds() - cpu0) / options.rounds;
   r.num_samples = problem.set.num_samples();
   r.num_classes = problem.set.num_classes;
   r.num_dims = problem.features.num_dims;
   r.seconds_per_round = total / options.rounds;
   if (total > 0) {
-    r.histogram_fraction = hist / total;
-    r.search_fraction = search / total;
-    r.update_fraction = update / total;
-    r.eval_fraction = eval / total;
+    r.histogram_fraction = t.histogram / total;
+    r.search_fraction = t.search / total;
+    r.update_fraction = t.update / total;
+    r.eval_fraction = t.eval / total;
   }
-  r.mean_sharing_size = share / options.rounds;
+  r.mean_sharing_size = t.sharing_size / options.rounds;
   r.peak_rss_mb = peak_rss_mb();
   r.feature_mb = static_cast<double>(problem.features.data.size()) / (1024.0 * 1024.0);
   return r;

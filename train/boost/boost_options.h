@@ -27,7 +27,8 @@ struct TrainingSetOptions {
 };
 
 // Candidate thresholds and the screening that ranks (dim, threshold) candidates before the full
-// sharing-set search (train/boost/stump_learner.h).
+// sharing-set search (train/boost/feature_columns.h, train/boost/column_screener.h,
+// train/boost/stump_search.h).
 struct ScreeningOptions {
   // Candidate thresholds per dimension: the distinct bins of the column except its largest; when
   // there are more than this, the smallest bin (0 for sparse context dims) plus evenly spaced
@@ -41,13 +42,13 @@ struct ScreeningOptions {
   int32_t refine_top = 32;
   bool step = false;
   // Screening reads the entries class-major, eight dims (<= 15 thresholds each) per pass, instead
-  // of one sample-major column pass per dim; the same gains bit for bit (stump_learner_test),
+  // of one sample-major column pass per dim; the same gains bit for bit (column_screener_test),
   // ~4x faster at paper scale (jobs/bench_train.sh: "columns" against "blocked"). false: column passes only.
   bool blocked = true;
 };
 
 // The negative sets L-_c: bootstrapped at the start, grown by hard-negative mining
-// (train/boost/stump_learner.h).
+// (train/boost/negative_miner.h).
 struct NegativeOptions {
   int32_t per_class = 40;       // initial |L-_c|, bootstrapped through the visual words
   int32_t max_per_class = 120;  // cap of |L-_c| after hard-negative mining
@@ -62,7 +63,7 @@ struct NegativeOptions {
   int32_t background = 0;
 };
 
-// Hard-negative mining from a pool of tracked training samples (train/boost/stump_learner.h).
+// Hard-negative mining from a pool of tracked training samples (train/boost/negative_miner.h).
 struct MiningOptions {
   int32_t interval = 50;     // mine hard negatives every K rounds; 0 = never
   int32_t pool_size = 2048;  // train samples whose scores are tracked for mining
@@ -70,7 +71,7 @@ struct MiningOptions {
                              // above its true class (best first)
 };
 
-// Validation precision@1 on held-out samples (train/boost/stump_learner.h).
+// Validation precision@1 on held-out samples (train/boost/tracked_rows.h).
 struct ValidationOptions {
   int32_t interval = 1;       // every N rounds; 0 = never
   int32_t max_samples = 4096; // cap on held-out samples scored (deterministic subset)

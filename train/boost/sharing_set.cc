@@ -3,38 +3,31 @@
 #include <algorithm>
 #include <cmath>
 
+#include "train/boost/screening_gain.h"
+
 namespace lmb {
 
 namespace {
 
-inline double ratio_term(int64_t y, int64_t w) {
-  if (w <= 0) return 0.0;
-  const double yd = static_cast<double>(y);
-  return yd * yd / static_cast<double>(w);
-}
+using screening::StepPoint;
 
 struct Sums {
   int64_t wp = 0, yp = 0, wm = 0, ym = 0;
   double q = 0.0;
 };
 
-// The fitted point of a set: alpha = Yp/Wp, beta = Ym/Wm (the other value when one side is empty).
 inline void fit_point(const Sums& s, double* alpha, double* beta) {
-  const bool has_p = s.wp > 0, has_m = s.wm > 0;
-  const double a = has_p ? static_cast<double>(s.yp) / static_cast<double>(s.wp) : 0.0;
-  const double b = has_m ? static_cast<double>(s.ym) / static_cast<double>(s.wm) : 0.0;
-  *alpha = has_p ? a : b;
-  *beta = has_m ? b : a;
+  screening::fit_point(static_cast<double>(s.wp), static_cast<double>(s.yp), static_cast<double>(s.wm),
+                       static_cast<double>(s.ym), alpha, beta);
 }
 
 // members[i] = g_i(alpha, beta) > 0; returns the sums of the members.
 Sums select(const SharingInput& in, double alpha, double beta, uint8_t* members) {
   Sums s;
-  const double a2 = 2.0 * alpha, aa = alpha * alpha, b2 = 2.0 * beta, bb = beta * beta;
+  const StepPoint point(alpha, beta);
   for (int32_t i = 0; i < in.num_classes; ++i) {
-    const double g = a2 * static_cast<double>(in.yp[i]) - aa * static_cast<double>(in.wp[i]) +
-                     b2 * static_cast<double>(in.ym[i]) - bb * static_cast<double>(in.wm[i]) - in.q[i];
-    const bool take = g > 0.0;
+    const bool take = point.joins(static_cast<double>(in.wp[i]), static_cast<double>(in.yp[i]),
+                                  static_cast<double>(in.wm[i]), static_cast<double>(in.ym[i]), in.q[i]);
     members[i] = take;
     const int64_t mask = -static_cast<int64_t>(take);
     s.wp += in.wp[i] & mask;
@@ -49,108 +42,19 @@ Sums select(const SharingInput& in, double alpha, double beta, uint8_t* members)
 }  // namespace
 
 double sharing_gain(int64_t wp, int64_t yp, int64_t wm, int64_t ym, double sum_q) {
-  return ratio_term(yp, wp) + ratio_term(ym, wm) - sum_q;
+  return screening::set_gain(static_cast<double>(wp), static_cast<double>(yp), static_cast<double>(wm),
+                             static_cast<double>(ym), sum_q);
 }
 
 double screen_sharing_gain(const SharingInput& in) {
-  const int32_t m = in.num_classes;
-  Sums r, f;
-  for (int32_t i = 0; i < m; ++i) {
-    if (in.wp[i] <= 0 || in.wm[i] <= 0) continue;
-    const double lhs = static_cast<double>(in.yp[i]) * static_cast<double>(in.wm[i]);
-    const double rhs = static_cast<double>(in.ym[i]) * static_cast<double>(in.wp[i]);
-    Sums& s = lhs > rhs ? r : f;
-    if (lhs == rhs) continue;
-    s.wp += in.wp[i];
-    s.yp += in.yp[i];
-    s.wm += in.wm[i];
-    s.ym += in.ym[i];
-    s.q += in.q[i];
-  }
-  double best = std::max(sharing_gain(r.wp, r.yp, r.wm, r.ym, r.q), sharing_gain(f.wp, f.yp, f.wm, f.ym, f.q));
-  double ar, br, af, bf;
-  fit_point(r, &ar, &br);
-  fit_point(f, &af, &bf);
-  const double ar2 = 2.0 * ar, arr = ar * ar, br2 = 2.0 * br, brr = br * br;
-  const double af2 = 2.0 * af, aff = af * af, bf2 = 2.0 * bf, bff = bf * bf;
-  Sums sr, sf;
-  for (int32_t i = 0; i < m; ++i) {
-    const double wp = static_cast<double>(in.wp[i]), yp = static_cast<double>(in.yp[i]);
-    const double wm = static_cast<double>(in.wm[i]), ym = static_cast<double>(in.ym[i]);
-    const double gr = ar2 * yp - arr * wp + br2 * ym - brr * wm - in.q[i];
-    const double gf = af2 * yp - aff * wp + bf2 * ym - bff * wm - in.q[i];
-    const int64_t mr = -static_cast<int64_t>(gr > 0.0), mf = -static_cast<int64_t>(gf > 0.0);
-    sr.wp += in.wp[i] & mr;
-    sr.yp += in.yp[i] & mr;
-    sr.wm += in.wm[i] & mr;
-    sr.ym += in.ym[i] & mr;
-    sr.q += gr > 0.0 ? in.q[i] : 0.0;
-    sf.wp += in.wp[i] & mf;
-    sf.yp += in.yp[i] & mf;
-    sf.wm += in.wm[i] & mf;
-    sf.ym += in.ym[i] & mf;
-    sf.q += gf > 0.0 ? in.q[i] : 0.0;
-  }
-  best = std::max(best, sharing_gain(sr.wp, sr.yp, sr.wm, sr.ym, sr.q));
-  best = std::max(best, sharing_gain(sf.wp, sf.yp, sf.wm, sf.ym, sf.q));
-  return best;
-}
-
-namespace {
-struct SumsD {
-  double wp = 0, yp = 0, wm = 0, ym = 0, q = 0;
-  double gain() const {
-    return (wp > 0 ? yp * yp / wp : 0.0) + (wm > 0 ? ym * ym / wm : 0.0) - q;
-  }
-  void point(double* alpha, double* beta) const {
-    const double a = wp > 0 ? yp / wp : 0.0, b = wm > 0 ? ym / wm : 0.0;
-    *alpha = wp > 0 ? a : b;
-    *beta = wm > 0 ? b : a;
-  }
-};
-}  // namespace
-
-double screen_sharing_gain(int32_t m, const double* wp, const double* yp, const double* wm, const double* ym,
-                           const double* q) {
-  SumsD r, f;
-  for (int32_t i = 0; i < m; ++i) {
-    const double lhs = yp[i] * wm[i], rhs = ym[i] * wp[i];
-    // Classes with an empty side have lhs == rhs == 0 and join neither group.
-    const bool up = lhs > rhs, down = lhs < rhs;
-    r.wp += up ? wp[i] : 0.0;
-    r.yp += up ? yp[i] : 0.0;
-    r.wm += up ? wm[i] : 0.0;
-    r.ym += up ? ym[i] : 0.0;
-    r.q += up ? q[i] : 0.0;
-    f.wp += down ? wp[i] : 0.0;
-    f.yp += down ? yp[i] : 0.0;
-    f.wm += down ? wm[i] : 0.0;
-    f.ym += down ? ym[i] : 0.0;
-    f.q += down ? q[i] : 0.0;
-  }
-  double best = std::max(r.gain(), f.gain());
-  double ar, br, af, bf;
-  r.point(&ar, &br);
-  f.point(&af, &bf);
-  const double ar2 = 2.0 * ar, arr = ar * ar, br2 = 2.0 * br, brr = br * br;
-  const double af2 = 2.0 * af, aff = af * af, bf2 = 2.0 * bf, bff = bf * bf;
-  SumsD sr, sf;
-  for (int32_t i = 0; i < m; ++i) {
-    const double gr = ar2 * yp[i] - arr * wp[i] + br2 * ym[i] - brr * wm[i] - q[i];
-    const double gf = af2 * yp[i] - aff * wp[i] + bf2 * ym[i] - bff * wm[i] - q[i];
-    const bool tr = gr > 0.0, tf = gf > 0.0;
-    sr.wp += tr ? wp[i] : 0.0;
-    sr.yp += tr ? yp[i] : 0.0;
-    sr.wm += tr ? wm[i] : 0.0;
-    sr.ym += tr ? ym[i] : 0.0;
-    sr.q += tr ? q[i] : 0.0;
-    sf.wp += tf ? wp[i] : 0.0;
-    sf.yp += tf ? yp[i] : 0.0;
-    sf.wm += tf ? wm[i] : 0.0;
-    sf.ym += tf ? ym[i] : 0.0;
-    sf.q += tf ? q[i] : 0.0;
-  }
-  return std::max({best, sr.gain(), sf.gain()});
+  return screening::screening_gain(
+      [&](const auto& add) {
+        for (int32_t i = 0; i < in.num_classes; ++i) {
+          add(static_cast<double>(in.wp[i]), static_cast<double>(in.yp[i]), static_cast<double>(in.wm[i]),
+              static_cast<double>(in.ym[i]), in.q[i]);
+        }
+      },
+      true);
 }
 
 SharingResult find_sharing_set(const SharingInput& in, const SharingSearchOptions& options,
@@ -195,11 +99,9 @@ SharingResult find_sharing_set(const SharingInput& in, const SharingSearchOption
     for (int dir = 0; dir < 2; ++dir) {
       Sums s;
       for (int32_t i = 0; i < m; ++i) {
-        if (in.wp[i] <= 0 || in.wm[i] <= 0) continue;
-        // alpha_i > beta_i  <=>  yp_i * wm_i > ym_i * wp_i.
-        const double lhs = static_cast<double>(in.yp[i]) * static_cast<double>(in.wm[i]);
-        const double rhs = static_cast<double>(in.ym[i]) * static_cast<double>(in.wp[i]);
-        if (dir == 0 ? lhs > rhs : lhs < rhs) {
+        const double wp = static_cast<double>(in.wp[i]), yp = static_cast<double>(in.yp[i]);
+        const double wm = static_cast<double>(in.wm[i]), ym = static_cast<double>(in.ym[i]);
+        if (dir == 0 ? screening::rising(wp, yp, wm, ym) : screening::falling(wp, yp, wm, ym)) {
           s.wp += in.wp[i];
           s.yp += in.yp[i];
           s.wm += in.wm[i];

@@ -53,12 +53,9 @@ double sharing_gain(int64_t wp, int64_t yp, int64_t wm, int64_t ym, double sum_q
 SharingResult find_sharing_set(const SharingInput& input, const SharingSearchOptions& options,
                                std::vector<uint8_t>* scratch = nullptr);
 
-// Cheap screening estimate of the best gain: the rising and falling groups and one alternation
-// step from each (two fused passes over the classes). A lower bound of what find_sharing_set
-// with group starts returns; used to rank (dim, theta) candidates before the full search.
+// Cheap screening estimate of the best gain (train/boost/screening_gain.h): the rising and
+// falling groups and one alternation step from each. A lower bound of what find_sharing_set with
+// group starts returns; the learner ranks (dim, theta) candidates by it before the full search.
 double screen_sharing_gain(const SharingInput& input);
-// The same on double copies of the sums (m entries each); summation in index order.
-double screen_sharing_gain(int32_t m, const double* wp, const double* yp, const double* wm, const double* ym,
-                           const double* q);
 
 }  // namespace lmb

@@ -1,7 +1,7 @@
-// The MPI seam of distributed training: a small communicator over an MPI_Comm that carries only
-// what the feature-parallel learner and the training job exchange (byte gathers, broadcasts, scalar
-// reductions), counts the payload bytes it moves, and degrades to a one-rank no-op when MPI is not
-// running. Only lmb_dist links MPI; the serial learner (train/boost) never sees it.
+// The MPI seam of distributed training: the learner's Collectives (train/boost/collectives.h) over
+// an MPI_Comm, plus what the training job needs besides (string broadcast, barrier, abort). It
+// counts the payload bytes it moves and degrades to a one-rank no-op when MPI is not running. Only
+// lmb_dist links MPI; the learners (train/boost, train/dist/feature_parallel_learner.h) never see it.
 //
 // Threading: one thread per rank calls these (MPI_THREAD_SINGLE).
 #pragma once
@@ -12,6 +12,8 @@
 #include <vector>
 
 #include <mpi.h>
+
+#include "train/boost/collectives.h"
 
 namespace lmb {
 
@@ -33,7 +35,7 @@ class MpiSession {
   bool active_ = false;
 };
 
-class Communicator {
+class Communicator : public Collectives {
  public:
   // One rank, no MPI (a serial run or a test's reference).
   Communicator() = default;
@@ -42,26 +44,25 @@ class Communicator {
   // MPI_COMM_WORLD when `session` is active, else one rank.
   static Communicator world(const MpiSession& session);
 
-  int rank() const { return rank_; }
-  int size() const { return size_; }
-  bool distributed() const { return size_ > 1; }
+  int rank() const override { return rank_; }
+  int size() const override { return size_; }
 
   // Every rank's bytes, concatenated in rank order; offsets (size() + 1) delimit them.
-  std::vector<uint8_t> allgather_bytes(const std::vector<uint8_t>& local, std::vector<int64_t>* offsets);
+  std::vector<uint8_t> allgather_bytes(const std::vector<uint8_t>& local, std::vector<int64_t>* offsets) override;
   // Root's `data` to every rank (resized on the receivers).
-  void broadcast_bytes(std::vector<uint8_t>* data, int root);
+  void broadcast_bytes(std::vector<uint8_t>* data, int root) override;
   void broadcast_string(std::string* text, int root);
   // Every rank's bytes to `root`, which hands them to `take(rank, bytes)` in rank order (one rank's
   // bytes in memory at a time); `take` is not called on the other ranks. Any size (sent in chunks
   // below MPI's int count).
   void gather_bytes(const uint8_t* local, int64_t size, int root,
-                    const std::function<void(int, const uint8_t*, int64_t)>& take);
+                    const std::function<void(int, const uint8_t*, int64_t)>& take) override;
   // Point to point: blocking, any size, matched by `tag` (>= 0). Deadlock-free when every rank
   // walks the same list of transfers in the same order.
-  void send_bytes(const uint8_t* data, int64_t size, int dest, int tag);
-  std::vector<uint8_t> recv_bytes(int source, int tag);
-  int64_t allreduce_max(int64_t local);
-  int64_t allreduce_sum(int64_t local);
+  void send_bytes(const uint8_t* data, int64_t size, int dest, int tag) override;
+  std::vector<uint8_t> recv_bytes(int source, int tag) override;
+  int64_t allreduce_max(int64_t local) override;
+  int64_t allreduce_sum(int64_t local) override;
   void barrier();
   // Ends every rank of the job (MPI_Abort) with `code`; returns only when not distributed.
   void abort(int code);

@@ -46,16 +46,10 @@ std::string run_dist_bench(Communicator& comm, const BoostBenchOptions& options)
   j["setup_seconds"] = since(t0);
   comm.barrier();
   const int64_t sent0 = comm.bytes_sent(), received0 = comm.bytes_received();
-  double hist = 0, search = 0, update = 0, eval = 0, share = 0;
+  RoundTotals t;
   t0 = Clock::now();
   const double cpu0 = cpu_seconds();
-  learner.train([&](const RoundStats& s) {
-    hist += s.seconds_histogram;
-    search += s.seconds_search;
-    update += s.seconds_update;
-    eval += s.seconds_eval;
-    share += s.sharing_size;
-  });
+  learner.train([&](const RoundStats& s) { t.add(s); });
   const double cpu = cpu_seconds() - cpu0;
   comm.barrier();
   const double wall = since(t0);
@@ -72,9 +66,9 @@ std::string run_dist_bench(Communicator& comm, const BoostBenchOptions& options)
   // idle cores (the ranks wait for each other every round).
   j["cpu_seconds_per_round_max_rank"] = static_cast<double>(comm.allreduce_max(static_cast<int64_t>(cpu * 1e6))) / 1e6 / n;
   j["cpu_seconds_per_round_sum_ranks"] = static_cast<double>(comm.allreduce_sum(static_cast<int64_t>(cpu * 1e6))) / 1e6 / n;
-  j["rank0_seconds_per_round"] = {{"histogram", hist / n}, {"search", search / n}, {"update", update / n},
-                                  {"eval_and_mining", eval / n}};
-  j["mean_sharing_size"] = share / n;
+  j["rank0_seconds_per_round"] = {{"histogram", t.histogram / n}, {"search", t.search / n},
+                                  {"update", t.update / n}, {"eval_and_mining", t.eval / n}};
+  j["mean_sharing_size"] = t.sharing_size / n;
   const std::string model = serialize_boost_model(learner.model());
   j["model_crc32"] = crc32(reinterpret_cast<const uint8_t*>(model.data()), model.size());  // same for any R
   // Per rank: the max over ranks of bytes and memory, and rank 0's own.

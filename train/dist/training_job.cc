@@ -74,7 +74,7 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
   auto checkpoint = [&] {
     const auto t0 = Clock::now();
     // Collective: every rank's tracked rows go to rank 0, which writes.
-    SerialStumpLearner::State state = learner.save_state();
+    LearnerState state = learner.save_state();
     agree(comm, [&] {
       Checkpoint ck;
       ck.rounds = learner.rounds_done();

@@ -105,7 +105,7 @@ TEST_P(FeatureParallel, ModelIsBitIdenticalToSerial) {
   EXPECT_EQ(learner.validation_precision(), serial.validation_precision());
   // The tracked rows (validation and mining pool scores) are split across ranks: each holds about
   // its share, and gathered on rank 0 they equal the serial learner's, float for float.
-  const SerialStumpLearner::State state = learner.save_state(), reference_state = serial.save_state();
+  const LearnerState state = learner.save_state(), reference_state = serial.save_state();
   if (comm.rank() == 0) {
     ASSERT_EQ(state.tracked_scores.size(), reference_state.tracked_scores.size());
     EXPECT_TRUE(std::memcmp(state.tracked_scores.data(), reference_state.tracked_scores.data(),
