@@ -4,7 +4,8 @@
 #   LMB_FUZZ_PARALLEL=N runs N targets at a time (default 1); LMB_FUZZ_TIMEOUT=s is the time after
 #   which one input counts as a hang (default 10 s; raise it on a machine that is busy).
 # Builds with clang into ${LMB_FUZZ_BUILD_DIR:-build-fuzz} (only the fuzz targets and what they
-# link), writes seed corpora with the project's own writers (make_fuzz_seeds), then runs each
+# link; configured without MPI, which no parser needs), writes seed corpora with the project's own
+# writers (make_fuzz_seeds), then runs each
 # target for the given time on a corpus kept in <build>/corpus/<target> (it grows across runs).
 # Inputs are at most 1 MB (-max_len); no allocation may exceed 256 MB (-malloc_limit_mb) and the
 # whole process 512 MB (-rss_limit_mb: it includes ASan's shadow memory and quarantine, ~130 MB
@@ -31,7 +32,7 @@ if command -v ninja >/dev/null 2>&1 && [ ! -f "$build/CMakeCache.txt" ]; then ge
 cmake -S . -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
   -DCMAKE_C_FLAGS="$flags" -DCMAKE_CXX_FLAGS="$flags" \
-  -DLMB_FUZZ=ON -DLMB_BUILD_TESTS=OFF >/dev/null
+  -DLMB_FUZZ=ON -DLMB_BUILD_TESTS=OFF -DLMB_MPI=OFF >/dev/null
 cmake --build "$build" -j "${LMB_JOBS:-$(nproc)}" --target make_fuzz_seeds \
   $(printf 'fuzz_%s ' "${targets[@]}")
 
