@@ -80,6 +80,11 @@ void run_colmap(const ColmapImportOptions& options) {
                   e.mean_resultant_length);
     }
   }
+  if (!s.gravity_lines_unused.empty()) {
+    std::printf("import: %s: %zu lines name no image of the model (not registered?), e.g. %s: skipped\n",
+                options.gravity_file.string().c_str(), s.gravity_lines_unused.size(),
+                s.gravity_lines_unused.front().c_str());
+  }
   std::printf("import: %s model, %d images (%d map, %d query), %s; wrote %s\n", s.binary ? "binary" : "text",
               s.images, s.map_frames, s.query_frames, s.has_gravity ? "gravity.txt written" : "no gravity file",
               options.out_dir.string().c_str());
@@ -137,7 +142,9 @@ void add_import_command(CLI::App& app) {
                 "Map/query split over the images sorted by name: every:N, first:F, map-list:FILE (FILE names "
                 "the map images), query-list:FILE (FILE names the query images); list:FILE = map-list:FILE")
       ->capture_default_str();
-  c->add_option("--gravity-file", (*paths)[3], "Per-image gravity (IMAGE_NAME gx gy gz, camera frame, down)");
+  c->add_option("--gravity-file", (*paths)[3],
+                "Per-image gravity (IMAGE_NAME gx gy gz, camera frame, down): a line for every image of the "
+                "model; lines of other images are skipped");
   c->add_option("--up", colmap->up,
                 "Or: the model's world up axis (+x, -x, +y, -y, +z, -z) for gravity.txt; 'auto' estimates it "
                 "from the cameras (minus their mean image down direction) and reports the nearest axis");

@@ -87,8 +87,24 @@ ColmapImportStats import_colmap(const ColmapImportOptions& options) {
   const ColmapModel model = read_colmap_model(options.sparse_dir, &format);
   LMB_CHECK(!model.images.empty(), options.sparse_dir.string() << ": the sparse model has no image");
   check_collection_images(model, options.image_dir);
+  // The gravity file must cover every image of the model; lines of other images (photos the
+  // reconstruction did not register) are skipped and counted.
   std::map<std::string, Eigen::Vector3d> gravity;
-  if (!options.gravity_file.empty()) gravity = read_gravity_file(options.gravity_file, model);
+  std::vector<std::string> gravity_unused;
+  if (!options.gravity_file.empty()) {
+    gravity = read_gravity_file(options.gravity_file);
+    std::map<std::string, Eigen::Vector3d> used;
+    for (const ColmapImage& im : model.images) {
+      const auto it = gravity.find(im.name);
+      LMB_CHECK(it != gravity.end(), options.gravity_file.string() << ": no gravity for image " << im.name
+                                                                   << " (image id " << im.image_id << ")");
+      used.insert(*it);
+    }
+    for (const auto& [name, g] : gravity) {
+      if (!used.count(name)) gravity_unused.push_back(name);
+    }
+    gravity = std::move(used);
+  }
 
   std::vector<const ColmapImage*> order;
   for (const ColmapImage& im : model.images) order.push_back(&im);
@@ -104,6 +120,7 @@ ColmapImportStats import_colmap(const ColmapImportOptions& options) {
   ColmapImportStats stats;
   stats.binary = format == ColmapFormat::kBinary;
   stats.depths = observed_point_depths(model);
+  stats.gravity_lines_unused = gravity_unused;
   std::optional<Eigen::Vector3d> up;
   if (options.up == "auto") {
     std::vector<Rigid3d> poses;

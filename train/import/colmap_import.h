@@ -69,10 +69,13 @@ struct ColmapImportStats {
   bool has_gravity = false;
   std::optional<UpEstimate> up_estimate;  // with --up auto
   std::optional<DepthStats> depths;       // when the model has points with tracks
+  // Names of the --gravity-file's lines that are no image of the model (e.g. photos the
+  // reconstruction did not register), sorted; they are skipped.
+  std::vector<std::string> gravity_lines_unused;
 };
 
 // Throws lmb::Error (one line naming file, record and reason) for malformed models, missing or
-// unreadable images, gravity files that do not match the model, or an unusable split.
+// unreadable images, a gravity file without a line for an image of the model, or an unusable split.
 ColmapImportStats import_colmap(const ColmapImportOptions& options);
 
 }  // namespace lmb

@@ -110,6 +110,32 @@ TEST_F(ColmapImportTest, GravityFileIsRenamedWithTheSplit) {
   const auto g = read_gravity_file(o.out_dir / "gravity.txt", r);
   EXPECT_TRUE(g.at("map/day1/img_3.jpg").isApprox(Eigen::Vector3d(0, 1, 4.7).normalized()));
   EXPECT_TRUE(g.at("query/day1/img_0.jpg").isApprox(Eigen::Vector3d(0, 1, 5.0).normalized()));
+  EXPECT_TRUE(s.gravity_lines_unused.empty());
+}
+
+TEST_F(ColmapImportTest, GravityLinesOfUnregisteredPhotosAreSkippedMissingOnesAreAnError) {
+  // A gravity file written for every photo of a folder, of which the reconstruction registered
+  // only some: the other lines are skipped and named; an image of the model without a line stays
+  // an error.
+  write_colmap_text(model_, root_ / "sparse");
+  std::map<std::string, Eigen::Vector3d> gravity;
+  for (const ColmapImage& im : model_.images) gravity[im.name] = Eigen::Vector3d(0, 1, 0.1 * im.image_id);
+  gravity["day1/not_registered.jpg"] = Eigen::Vector3d(1, 0, 0);
+  gravity["day0/also_not.jpg"] = Eigen::Vector3d(1, 0, 0);
+  write_gravity_file(gravity, root_ / "g.txt");
+  ColmapImportOptions o = options();
+  o.gravity_file = root_ / "g.txt";
+  const ColmapImportStats s = import_colmap(o);
+  EXPECT_EQ(s.gravity_lines_unused, (std::vector<std::string>{"day0/also_not.jpg", "day1/not_registered.jpg"}));
+  const ColmapModel r = read_colmap_text(o.out_dir / "sparse");
+  const auto g = read_gravity_file(o.out_dir / "gravity.txt", r);  // exactly the model's images
+  EXPECT_EQ(g.size(), model_.images.size());
+
+  gravity.erase(model_.images.back().name);
+  write_gravity_file(gravity, root_ / "g.txt");
+  o.overwrite = true;
+  EXPECT_EQ(error(o), (root_ / "g.txt").string() + ": no gravity for image " + model_.images.back().name +
+                          " (image id " + std::to_string(model_.images.back().image_id) + ")");
 }
 
 TEST_F(ColmapImportTest, BadInputsFailWithOneClearLine) {
