@@ -5,8 +5,11 @@
     result = localizer.localize(camera, features.keypoints, features.descriptors, gravity)
 
 Colour images are RGB(A) unless channels="BGR" (OpenCV's order, e.g. from cv2.imread). The mapper
-reads image files as grey with OpenCV (cv::imread(..., IMREAD_GRAYSCALE)); to get its pixels exactly,
-pass the grey image.
+reads image files as grey with OpenCV (cv::imread(..., IMREAD_GRAYSCALE)); read_image(path) does the
+same, so its features are the mapper's exactly (other decoders, e.g. PIL's for JPEG, give slightly
+different pixels, hence a few different keypoints).
+
+    features = landmarkboost.cv.detect_features(landmarkboost.cv.read_image("photo.jpg"))
 """
 from typing import NamedTuple
 
@@ -32,4 +35,10 @@ def detect_features(image, channels="RGB", **options):
     return Features(*_cv.detect_features(np.asarray(image), channels, **options))
 
 
-__all__ = ["Features", "detect_features"]
+def read_image(path):
+    """The image file as an 8-bit grey (h, w) numpy array, decoded as `lboost map` decodes it
+    (OpenCV, grey). Raises landmarkboost.Error naming the file when it cannot be read."""
+    return _cv.read_image(str(path))
+
+
+__all__ = ["Features", "detect_features", "read_image"]

@@ -1,11 +1,14 @@
 // landmarkboost._cv: the inference library's OpenCV front-end (infer/cv/feature_detection.h) on
 // numpy images: keypoints and descriptors detected exactly as the mapper detects map images. A
 // separate extension because it links OpenCV, which landmarkboost._core must not pull into apps.
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -84,4 +87,26 @@ PYBIND11_MODULE(_cv, m) {
       py::arg("brisk_threshold") = DetectorOptions().brisk_threshold,
       py::arg("brisk_octaves") = DetectorOptions().brisk_octaves,
       "(keypoints (n, 4) float32, descriptors (n, bytes) uint8, responses (n,) float32) of an 8-bit image.");
+
+  m.def(
+      "read_image",
+      [](const std::string& path) {
+        // Checked first: OpenCV would print a warning of its own for a file it cannot open.
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(path, ec) || !std::ifstream(path).good()) {
+          throw Error(path + ": cannot read the image: no such file, or not a readable file");
+        }
+        cv::Mat image;
+        {
+          py::gil_scoped_release release;
+          // As `lboost map` reads its images (train/mapping/mapper.cc): OpenCV's decoder, grey.
+          image = cv::imread(path, cv::IMREAD_GRAYSCALE);
+        }
+        if (image.empty()) throw Error(path + ": cannot read the image: not a format OpenCV decodes");
+        if (!image.isContinuous()) image = image.clone();
+        const py::ssize_t rows = image.rows, cols = image.cols;
+        std::vector<uint8_t> pixels(image.data, image.data + rows * cols);
+        return take(std::move(pixels), {rows, cols});
+      },
+      py::arg("path"), "The image file as an 8-bit grey (h, w) array, decoded as the mapper decodes it.");
 }

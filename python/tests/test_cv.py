@@ -53,3 +53,26 @@ def test_colour_orders_options_and_errors():
         cv.detect_features(rgb, max_keypoints=0)
     with pytest.raises(lb.Error, match="unknown detector 'SIFT'"):
         cv.detect_features(rgb, detector="SIFT")
+
+
+def test_read_image_decodes_as_the_mapper(tiny, tmp_path):
+    m = lb.io.read_map(tiny.map)
+    f = m.query_frames[0]
+    path = tiny.collection / "images" / m.frames[f].name
+    image = cv.read_image(path)
+    assert image.dtype == np.uint8 and image.shape == (m.cameras[0].height, m.cameras[0].width)
+    assert np.array_equal(image, np.asarray(Image.open(path).convert("L")))  # PNG: one decoding
+    assert np.array_equal(cv.detect_features(image).descriptors, m.frame_descriptors(f))
+    # A colour JPEG: grey as OpenCV's imread(..., IMREAD_GRAYSCALE), i.e. its decoder and its grey
+    # weights; close to PIL's (whose JPEG decoding differs by a few grey levels at edges).
+    rgb = np.dstack([image, image[::-1], 255 - image])
+    Image.fromarray(rgb).save(tmp_path / "c.jpg", quality=90)
+    grey = cv.read_image(tmp_path / "c.jpg")
+    pil = np.asarray(Image.open(tmp_path / "c.jpg").convert("L")).astype(int)
+    assert grey.shape == pil.shape and np.abs(grey.astype(int) - pil).max() <= 12
+    assert np.abs(grey.astype(int) - pil).mean() < 1
+    with pytest.raises(lb.Error, match=f"{tmp_path / 'none.png'}: cannot read the image: no such file"):
+        cv.read_image(tmp_path / "none.png")
+    (tmp_path / "text.png").write_text("not an image")
+    with pytest.raises(lb.Error, match="text.png: cannot read the image: not a format OpenCV decodes"):
+        cv.read_image(tmp_path / "text.png")

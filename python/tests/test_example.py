@@ -1,17 +1,28 @@
-"""python/examples/localize_queries.py on the tiny world: the frames `lboost localize` localizes."""
+"""The example scripts on the tiny world: python/examples/localize_queries.py (a map's query frames)
+and python/examples/localize_image.py (one image file), against `lboost localize`."""
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+from PIL import Image
 
-def test_example_localizes_the_tiny_worlds_query_frames(tiny):
-    source = Path(os.environ.get("LMB_SOURCE_DIR", Path(__file__).parents[2]))
-    script = source / "python" / "examples" / "localize_queries.py"
-    out = subprocess.run([sys.executable, str(script), "--model", str(tiny.model), "--map", str(tiny.map),
-                          "--threads", "2"], capture_output=True, text=True, check=True).stdout
-    lines = out.strip().split("\n")
+import landmarkboost as lb
+
+EXAMPLES = Path(os.environ.get("LMB_SOURCE_DIR", Path(__file__).parents[2])) / "python" / "examples"
+
+
+def run_example(script, *args):
+    return subprocess.run([sys.executable, str(EXAMPLES / script), *map(str, args)], capture_output=True,
+                          text=True)
+
+
+def test_localize_queries_localizes_the_tiny_worlds_query_frames(tiny):
+    r = run_example("localize_queries.py", "--model", tiny.model, "--map", tiny.map, "--threads", 2)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().split("\n")
     expected = json.loads(tiny.poses.read_text())
     frames = expected["frames"]
     assert len(lines) == len(frames) + 1
@@ -21,3 +32,52 @@ def test_example_localizes_the_tiny_worlds_query_frames(tiny):
             assert f"error {frame['position_error_m']:.3f} m {frame['rotation_error_deg']:.2f} deg" in line, line
     summary = expected["summary"]
     assert lines[-1].startswith(f"localized {summary['localized']}/{summary['frames']} query frames"), lines[-1]
+
+
+def test_localize_image_localizes_a_query_image_file_as_lboost_localize(tiny):
+    """The image file's BRISK features are the map's (test_cv), so the pose is `lboost localize`'s."""
+    m = lb.io.read_map(tiny.map)
+    expected = {f["name"]: f for f in json.loads(tiny.poses.read_text())["frames"]}
+    checked = 0
+    for f in m.query_frames:
+        frame = m.frames[f]
+        e = expected[frame.name]
+        if not e["success"]:
+            continue
+        image = tiny.collection / "images" / frame.name
+        r = run_example("localize_image.py", "--model", tiny.model, "--map", tiny.map, "--image", image,
+                        "--gravity", *frame.gravity_in_cam)
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert f"{image}: {frame.num_keypoints} keypoints" in r.stdout, r.stdout
+        assert f"{image}: localized with {e['num_inliers']} inliers" in r.stdout, r.stdout
+        p = e["cam_from_world"]
+        pose = lb.Rigid3d([p["qw"], p["qx"], p["qy"], p["qz"]], [p["tx"], p["ty"], p["tz"]])
+        centre = r.stdout.split("camera centre in the map [")[1].split("]")[0].split()
+        assert np.allclose([float(v) for v in centre], pose.center(), atol=1e-4), r.stdout
+        checked += 1
+        if checked == 2:
+            break
+    assert checked == 2
+
+
+def test_localize_image_refuses_and_fails_clearly(tiny, tmp_path):
+    m = lb.io.read_map(tiny.map)
+    camera = m.cameras[0]
+    # A featureless image of the camera's size: not localized, exit code 1.
+    blank = tmp_path / "blank.png"
+    Image.fromarray(np.full((camera.height, camera.width), 128, np.uint8)).save(blank)
+    r = run_example("localize_image.py", "--model", tiny.model, "--map", tiny.map, "--image", blank,
+                    "--gravity", 0, 1, 0)
+    assert r.returncode == 1 and f"{blank}: not localized" in r.stdout, r.stdout + r.stderr
+    # An image of another size than the camera's: one line naming both.
+    small = tmp_path / "small.png"
+    Image.fromarray(np.zeros((10, 20), np.uint8)).save(small)
+    r = run_example("localize_image.py", "--model", tiny.model, "--map", tiny.map, "--image", small,
+                    "--gravity", 0, 1, 0)
+    assert r.returncode == 1
+    assert r.stderr.strip() == f"{small}: 20x10 pixels, the camera is {camera.width}x{camera.height}"
+    # A missing file: one line naming it.
+    r = run_example("localize_image.py", "--model", tiny.model, "--map", tiny.map, "--image", tmp_path / "no.png",
+                    "--gravity", 0, 1, 0)
+    assert r.returncode == 1
+    assert r.stderr.strip().startswith(f"{tmp_path / 'no.png'}: cannot read the image"), r.stderr
