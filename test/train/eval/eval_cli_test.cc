@@ -356,6 +356,17 @@ TEST_F(EvalCliTest, LocalizeAndEvalShareMetricNames) {
   }
   EXPECT_EQ(summary.at("keypoints_with_class_truth"), report.at("dataset").at("query_keypoints_with_class_truth"));
   EXPECT_FALSE(summary.contains("precision_at_1"));
+  EXPECT_GT(summary.at("background_rejection_rate").get<double>(), 0.0);  // the default margin 0 rejects
+  // Without rejection the accepted match is the top-ranked landmark: localize's match recall is
+  // then eval's precision@1, and -inf is written as a string.
+  const RunResult inf = run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
+                                " --out " + (dir_ / "poses_inf.json").string() + " --top-k 20 --min-margin -inf",
+                            dir_);
+  ASSERT_EQ(inf.exit_code, 0) << inf.err;
+  const nlohmann::json poses_inf = nlohmann::json::parse(slurp(dir_ / "poses_inf.json"));
+  EXPECT_EQ(poses_inf.at("options").at("min_margin"), "-inf");
+  EXPECT_DOUBLE_EQ(poses_inf.at("summary").at("match_recall").get<double>(), lb.at("precision_at_1").get<double>());
+  EXPECT_EQ(poses_inf.at("summary").at("background_rejection_rate").get<double>(), 0.0);
 }
 
 // Every field report.json carries is documented in docs/report.md, and every documented field is
