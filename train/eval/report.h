@@ -59,8 +59,9 @@ void write_report(const std::filesystem::path& path, const nlohmann::json& repor
 
 // A fixed-width table, one row per method: P@1, MRR, MR@FPPI=1, match precision and recall,
 // background rejection, pose recall, AUC, median errors, inlier ratio, match and total ms per
-// frame; then, when the report has pose_recall_sweep, the pose recall over the seeds (mean [min,
-// max]) at each RANSAC budget.
+// frame; then, when --pose-thresholds is not just the default pair, the pose recall at each pair;
+// then, when the report has pose_recall_sweep, the pose recall over the seeds (mean [min, max]) at
+// each RANSAC budget. docs/report.md explains every column.
 std::string format_results_table(const nlohmann::json& report);
 
 }  // namespace lmb

@@ -332,6 +332,10 @@ TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
     }
     EXPECT_EQ(m.at("frames_correct"), at[0].at("frames_correct"));  // the first pair is the primary
   }
+  // The printed table has a column a pair; the default run's table has none.
+  EXPECT_NE(r.out.find("pose recall at each --pose-thresholds pair"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0.05 m, 1 deg"), std::string::npos) << r.out;
+  EXPECT_EQ(eval_.out.find("pose recall at each --pose-thresholds pair"), std::string::npos) << eval_.out;
   expect_one_error_line(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
                                 " --report " + (dir_ / "bad_report.json").string() + " --pose-thresholds 0.2",
                             dir_),
@@ -389,6 +393,22 @@ TEST_F(EvalCliTest, ReportSchemaIsDocumented) {
   report_paths(nlohmann::json::parse(slurp(dir_ / "report.json")), "", written);
   for (const std::string& p : written) EXPECT_TRUE(documented.count(p)) << "undocumented report field " << p;
   for (const std::string& p : documented) EXPECT_TRUE(written.count(p)) << "documented but not written: " << p;
+  // Every column of the printed results table is explained in the text report's section.
+  const size_t section = doc.find("## The text report");
+  ASSERT_NE(section, std::string::npos);
+  const std::string text_doc = doc.substr(section, doc.find("\n## ", section + 1) - section);
+  std::istringstream out(eval_.out);
+  std::string header;
+  while (std::getline(out, header) && header.rfind("method ", 0) != 0) {
+  }
+  std::istringstream columns(header);
+  std::string column;
+  int num_columns = 0;
+  while (columns >> column) {
+    ++num_columns;
+    EXPECT_NE(text_doc.find("| " + column + " |"), std::string::npos) << "undocumented column " << column;
+  }
+  EXPECT_EQ(num_columns, 14) << header;
   // The CLI and the job point to it, not to a design document outside the repository.
   const RunResult help = run("eval --help", dir_);
   EXPECT_NE(help.out.find("docs/report.md"), std::string::npos) << help.out;

@@ -78,6 +78,24 @@ TEST(BuildReport, DesignFieldsAndCurves) {
   std::filesystem::remove(path);
 }
 
+// The table's thresholds section: one column a --pose-thresholds pair, only when they are not
+// just the default pair.
+TEST(BuildReport, TableShowsRecallAtEachThresholdPair) {
+  MethodResult r = sample_method("landmarkboost");
+  r.recall_at_thresholds = {ThresholdRecall{PoseThresholds{}, 1, 0.5}};
+  const std::string plain = format_results_table(build_report(DatasetCounts{}, {r}));
+  EXPECT_EQ(plain.find("--pose-thresholds"), std::string::npos) << plain;
+  EXPECT_NE(plain.find("rec20/5"), std::string::npos) << plain;
+  r.recall_at_thresholds.push_back(ThresholdRecall{PoseThresholds{1.0, 2.0}, 2, 1.0});
+  const std::string table = format_results_table(build_report(DatasetCounts{}, {r}));
+  const size_t section = table.find("pose recall at each --pose-thresholds pair");
+  ASSERT_NE(section, std::string::npos) << table;
+  EXPECT_NE(table.find("0.2 m, 5 deg", section), std::string::npos) << table;
+  EXPECT_NE(table.find("1 m, 2 deg", section), std::string::npos) << table;
+  EXPECT_NE(table.find("landmarkboost                       0.5000            1.0000", section), std::string::npos)
+      << table;
+}
+
 TEST(BuildReport, RejectsBadMethods) {
   EXPECT_THROW(build_report({}, {sample_method("a"), sample_method("a")}), Error);
   EXPECT_THROW(build_report({}, {sample_method("")}), Error);
