@@ -56,14 +56,28 @@ std::vector<uint8_t> make_container(std::string_view magic, uint32_t version,
 
 std::string open_container(const uint8_t* data, size_t size, std::string_view magic,
                            uint32_t version, const std::string& what) {
+  return open_container(data, size, magic, version, version, what, nullptr);
+}
+
+std::string open_container(const uint8_t* data, size_t size, std::string_view magic,
+                           uint32_t min_version, uint32_t max_version, const std::string& what,
+                           uint32_t* version) {
   LMB_CHECK(size >= kContainerHeaderBytes,
             what << ": file too short (" << size << " bytes) for a " << magic << " header");
   LMB_CHECK(std::memcmp(data, magic.data(), 8) == 0,
             what << ": not a " << magic << " file (wrong magic)");
   const uint32_t file_version = static_cast<uint32_t>(get_le(data + 8, 4));
-  LMB_CHECK(file_version == version, what << ": format version " << file_version
-                                          << " is not supported (this build reads version "
-                                          << version << ")");
+  if (min_version == max_version) {
+    LMB_CHECK(file_version == min_version, what << ": format version " << file_version
+                                                << " is not supported (this build reads version "
+                                                << min_version << ")");
+  } else {
+    LMB_CHECK(file_version >= min_version && file_version <= max_version,
+              what << ": format version " << file_version
+                   << " is not supported (this build reads versions " << min_version << " to "
+                   << max_version << ")");
+  }
+  if (version != nullptr) *version = file_version;
   const uint64_t length = get_le(data + 12, 8);
   LMB_CHECK(length == size - kContainerHeaderBytes,
             what << ": truncated or padded: header says " << length << " payload bytes, file has "
@@ -118,10 +132,16 @@ void write_container_file(const std::filesystem::path& path, std::string_view ma
 
 std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
                                 uint32_t version) {
+  return read_container_file(path, magic, version, version, nullptr);
+}
+
+std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
+                                uint32_t min_version, uint32_t max_version, uint32_t* version) {
   std::ifstream in(path, std::ios::binary);
   LMB_CHECK(in.good(), path.string() << ": cannot open file");
   std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return open_container(bytes.data(), bytes.size(), magic, version, path.string());
+  return open_container(bytes.data(), bytes.size(), magic, min_version, max_version, path.string(),
+                        version);
 }
 
 }  // namespace lmb

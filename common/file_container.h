@@ -30,12 +30,19 @@ std::vector<uint8_t> make_container(std::string_view magic, uint32_t version,
 // Throws lmb::Error: too short, wrong magic, version not `version`, length mismatch, CRC mismatch.
 std::string open_container(const uint8_t* data, size_t size, std::string_view magic,
                            uint32_t version, const std::string& what);
+// The same for a reader of the versions min_version..max_version; *version (when not null)
+// receives the file's.
+std::string open_container(const uint8_t* data, size_t size, std::string_view magic,
+                           uint32_t min_version, uint32_t max_version, const std::string& what,
+                           uint32_t* version);
 
 // Writes atomically: a temporary file beside `path`, fsync, rename.
 void write_container_file(const std::filesystem::path& path, std::string_view magic,
                           uint32_t version, const std::string& payload);
 std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
                                 uint32_t version);
+std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
+                                uint32_t min_version, uint32_t max_version, uint32_t* version);
 
 // Atomic file write used by every writer in the project: temp file in the same folder, fsync,
 // rename over `path`, fsync of the folder.

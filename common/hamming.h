@@ -25,6 +25,9 @@ inline int hamming_distance(const uint8_t* a, const uint8_t* b, int num_bytes) {
 // otherwise: ~1 ns per 64-byte pair against ~10 ns through libgcc's popcount call.
 void hamming_rows(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes, uint16_t* out);
 
+// The smallest Hamming distance of q to the n rows (as hamming_rows; 8 * num_bytes + 1 when n is 0).
+int hamming_min(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes);
+
 // Bit `bit` of a descriptor (LSB-first within each byte, as OpenCV packs BRISK/ORB).
 inline int descriptor_bit(const uint8_t* desc, int bit) { return (desc[bit >> 3] >> (bit & 7)) & 1; }
 
