@@ -513,8 +513,19 @@ void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) 
   detail::accumulate_lanes(m.data().bias[C], m.class_stump_index().data() + begin[C], begin[C + 1] - begin[C],
                            stumps.data(), fire, background_.data() + static_cast<size_t>(b) * kBatch);
   if (goal_.size() < background_.size()) goal_.resize(background_.size());
-  detail::screen_goals(m, background_.data() + static_cast<size_t>(b) * kBatch, options_.min_margin,
-                       options_.min_score, goal_.data() + static_cast<size_t>(b) * kBatch);
+  const double* background = background_.data() + static_cast<size_t>(b) * kBatch;
+  double min_score = options_.min_score;
+  double lowered[kBatch];
+  if (m.has_fusion()) {
+    // A fused score is H plus a term of at most fusion_max(): the bound of H need only reach the
+    // goals lowered by that much (one screening step more covers the roundings of the sums).
+    const double lift = m.fusion_max() + m.screen_step();
+    for (int32_t j = 0; j < kBatch; ++j) lowered[j] = background[j] - lift;
+    if (min_score != -std::numeric_limits<double>::infinity()) min_score -= lift;
+    background = lowered;
+  }
+  detail::screen_goals(m, background, options_.min_margin, min_score,
+                       goal_.data() + static_cast<size_t>(b) * kBatch);
 }
 
 namespace {
@@ -614,9 +625,28 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
                              kept_out_.data() + static_cast<size_t>(waiting) * kBatch);
   }
   detail::accumulate_groups(groups_.data(), static_cast<int32_t>(groups_.size()), stumps.data(), fire);
+  const bool fusion = m.has_fusion();
+  const double fusion_max = m.fusion_max();
   for (int32_t i = 0; i < num; ++i) {
     const int32_t c = kept[i].cls;
-    const double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
+    double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
+    if (fusion) {
+      // H + fusion_max() bounds the fused score from above (rounding is monotone): the descriptor
+      // distance is computed only in lanes where that bound passes offer()'s tests.
+      double lifted[kBatch];
+      for (int32_t j = 0; j < kBatch; ++j) lifted[j] = out[j] + fusion_max;
+      if (!any_lane_passes(lifted, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {
+        continue;
+      }
+      for (int32_t j = 0; j < count; ++j) {
+        const double s = lifted[j];
+        if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
+          out[j] += m.fusion_term(c, descriptors_ + static_cast<int64_t>(ids[j]) * m.descriptor_bytes());
+        } else {
+          out[j] = -std::numeric_limits<double>::infinity();
+        }
+      }
+    }
     if (!any_lane_passes(out, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {
       continue;
     }
@@ -671,6 +701,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
 
   const size_t U = m.used_dims().size();
   const int32_t bytes = m.descriptor_bytes();
+  descriptors_ = descriptors;
   pending_.clear();
   // When the keypoints' plans (their word's, or all used dims) cover most of the used dims, every
   // keypoint's values of all used dims at once, region by region (compute_dims_columns), in the

@@ -29,6 +29,12 @@
 // word's first classes are nearly all kept (a background that rarely wins), the rest of the word
 // is scored without screening.
 //
+// Descriptor-distance fusion (a model with Model::has_fusion()): a landmark class's score is its
+// stump sum plus Model::fusion_term of the keypoint's descriptor (Hamming distance to the class's
+// exemplars), added once after the exact sum; the screening bounds and the ranking tests take
+// fusion_max() in its place first, so the distances are computed only where a class could pass.
+// dense_scores() and class_score() stay the stump sums (add Model::fusion_term for the fused one).
+//
 // Ranking and rejection: the landmark classes (never the background) whose score exceeds the
 // background's score by more than min_margin and is at least min_score, best first (ties: smaller
 // class), at most top_k of them. A keypoint whose best class is the background gets no match.
@@ -118,7 +124,8 @@ class LMB_INFER_EXPORT Classifier {
   void index_frame(const FrameKeypoints& frame, const std::string& where = "frame");
   // Values of all used dims of keypoint k (model.used_dims().size() entries).
   void compute_used_values(int32_t k, const uint8_t* descriptor, uint8_t* values) const;
-  // Dense scores of all C + 1 classes from the used values. scores: C + 1 entries.
+  // Dense scores of all C + 1 classes from the used values (the stump sums, without the fusion
+  // term). scores: C + 1 entries.
   void dense_scores(const uint8_t* values, double* scores) const;
   // Score of one class from the used values (per-class stump list).
   double class_score(const uint8_t* values, int32_t cls) const;
@@ -172,6 +179,7 @@ class LMB_INFER_EXPORT Classifier {
   std::vector<double> cutoff_score_;           // per lane: cutoff_[j].score
   std::vector<int32_t> order_, word_begin_;    // keypoints grouped by word
   std::vector<std::pair<int32_t, ClassMatch>> pending_;
+  const uint8_t* descriptors_ = nullptr;       // the frame's, during classify()
   int64_t classes_screened_ = 0, classes_scored_ = 0;
 };
 

@@ -9,6 +9,7 @@
 
 #include "common/error.h"
 #include "common/file_container.h"
+#include "common/hamming.h"
 
 namespace lmb {
 
@@ -170,6 +171,31 @@ void ModelData::check(const std::string& where) const {
     check_ascending(inverted_file[w], 0, num_classes - 1,
                     where + ": inverted file word " + std::to_string(w));
   }
+  if (fusion.enabled()) {
+    const std::string fw = where + ": descriptor fusion";
+    LMB_CHECK(fusion.exemplar_begin.size() == C + 1,
+              fw << ": exemplar_begin has " << fusion.exemplar_begin.size() << " entries, expected " << C + 1);
+    LMB_CHECK(fusion.exemplar_begin[0] == 0, fw << ": exemplar_begin[0] = " << fusion.exemplar_begin[0]);
+    for (size_t c = 0; c < C; ++c) {
+      LMB_CHECK(fusion.exemplar_begin[c + 1] > fusion.exemplar_begin[c],
+                fw << ": class " << c << " has no exemplar (offsets not increasing)");
+    }
+    const uint64_t rows = static_cast<uint64_t>(fusion.exemplar_begin[C]);
+    LMB_CHECK(fusion.exemplars.size() / static_cast<uint64_t>(descriptor_bytes) == rows &&
+                  fusion.exemplars.size() % static_cast<uint64_t>(descriptor_bytes) == 0,
+              fw << ": " << fusion.exemplars.size() << " exemplar bytes for " << rows << " rows of "
+                 << descriptor_bytes << " bytes");
+    const size_t distances = 8 * static_cast<size_t>(descriptor_bytes) + 1;
+    LMB_CHECK(fusion.distance_score.size() == distances,
+              fw << ": distance_score has " << fusion.distance_score.size() << " entries, expected " << distances);
+    for (size_t d = 0; d < distances; ++d) {
+      LMB_CHECK(std::isfinite(fusion.distance_score[d]), fw << ": distance_score[" << d << "] is not finite");
+    }
+  }
+}
+
+uint32_t model_file_version(const ModelData& data) {
+  return data.fusion.enabled() ? kModelVersion : kModelVersionWithoutFusion;
 }
 
 std::string serialize_model_data(const ModelData& data) {
@@ -201,11 +227,22 @@ std::string serialize_model_data(const ModelData& data) {
       ar(static_cast<uint32_t>(list.size()));
       write_bytes(ar, detail::encode_ascending_ids(list));
     }
+    if (data.fusion.enabled()) {
+      const DescriptorFusion& f = data.fusion;
+      ar(static_cast<uint64_t>(f.exemplar_begin.size()));
+      for (int64_t b : f.exemplar_begin) ar(b);
+      ar(static_cast<uint64_t>(f.exemplars.size()));
+      ar(cereal::binary_data(f.exemplars.data(), f.exemplars.size()));
+      ar(static_cast<uint64_t>(f.distance_score.size()));
+      for (double v : f.distance_score) ar(v);
+    }
   }
   return os.str();
 }
 
-ModelData parse_model_data(const std::string& payload, const std::string& what) {
+ModelData parse_model_data(const std::string& payload, const std::string& what, uint32_t version) {
+  LMB_CHECK(version == kModelVersion || version == kModelVersionWithoutFusion,
+            what << ": model format version " << version << " is not supported");
   ModelData d;
   try {
     BoundedReader r(payload, what);
@@ -271,6 +308,18 @@ ModelData parse_model_data(const std::string& payload, const std::string& what) 
       d.inverted_file[w] = detail::decode_ascending_ids(
           r.byte_string("inverted file"), n, d.num_classes - 1,
           what + ": inverted file word " + std::to_string(w));
+    }
+    if (version == kModelVersion) {
+      DescriptorFusion& f = d.fusion;
+      f.exemplar_begin.resize(r.count(sizeof(int64_t), "fusion exemplar offsets"));
+      LMB_CHECK(f.exemplar_begin.size() == static_cast<size_t>(d.num_classes) + 1,
+                what << ": descriptor fusion: " << f.exemplar_begin.size() << " exemplar offsets, expected "
+                     << d.num_classes + 1);
+      for (int64_t& b : f.exemplar_begin) r.value(b);
+      const std::string rows = r.byte_string("fusion exemplars");
+      f.exemplars.assign(rows.begin(), rows.end());
+      f.distance_score.resize(r.count(sizeof(double), "fusion distance scores"));
+      for (double& v : f.distance_score) r.value(v);
     }
     LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left()
                                         << " unexpected bytes after the model");
@@ -347,7 +396,19 @@ Model::Model(ModelData data) : data_(std::move(data)) {
                                                   word_used_dims_.end()));
   }
   used_plan_ = DimPlan(data_.regions, layout_, used_dims_);
+  if (data_.fusion.enabled()) {
+    fusion_max_ = *std::max_element(data_.fusion.distance_score.begin(), data_.fusion.distance_score.end());
+  }
   build_screen();
+}
+
+double Model::fusion_term(int32_t cls, const uint8_t* descriptor) const {
+  if (!data_.fusion.enabled()) return 0.0;
+  const DescriptorFusion& f = data_.fusion;
+  const int32_t bytes = data_.descriptor_bytes;
+  const int64_t first = f.exemplar_begin[cls];
+  const int d = hamming_min(descriptor, f.exemplars.data() + first * bytes, f.exemplar_begin[cls + 1] - first, bytes);
+  return f.distance_score[d];
 }
 
 // Why offset_c + step * x bounds the exact score F of class c from above, x = t at the end, or
@@ -471,23 +532,27 @@ void Model::build_screen() {
 }
 
 std::shared_ptr<const Model> Model::load(const std::filesystem::path& path) {
-  const std::string payload = read_container_file(path, kModelMagic, kModelVersion);
-  return std::make_shared<const Model>(parse_model_data(payload, path.string()));
+  uint32_t version = 0;
+  const std::string payload =
+      read_container_file(path, kModelMagic, kModelVersionWithoutFusion, kModelVersion, &version);
+  return std::make_shared<const Model>(parse_model_data(payload, path.string(), version));
 }
 
 std::shared_ptr<const Model> Model::from_bytes(const uint8_t* data, size_t size,
                                                const std::string& what) {
   LMB_CHECK(data != nullptr || size == 0, what << ": null buffer");
-  const std::string payload = open_container(data, size, kModelMagic, kModelVersion, what);
-  return std::make_shared<const Model>(parse_model_data(payload, what));
+  uint32_t version = 0;
+  const std::string payload =
+      open_container(data, size, kModelMagic, kModelVersionWithoutFusion, kModelVersion, what, &version);
+  return std::make_shared<const Model>(parse_model_data(payload, what, version));
 }
 
 void Model::save(const std::filesystem::path& path) const {
-  write_container_file(path, kModelMagic, kModelVersion, serialize_model_data(data_));
+  write_container_file(path, kModelMagic, model_file_version(data_), serialize_model_data(data_));
 }
 
 std::vector<uint8_t> Model::to_bytes() const {
-  return make_container(kModelMagic, kModelVersion, serialize_model_data(data_));
+  return make_container(kModelMagic, model_file_version(data_), serialize_model_data(data_));
 }
 
 }  // namespace lmb

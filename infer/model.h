@@ -17,7 +17,10 @@
 //   uint64 M stumps, each: int32 dim, uint8 theta, double a, double b, uint32 |S|, sharing set
 //     as a byte string (uint64 size + bytes) of LEB128 varint gaps between ascending class ids;
 //   int32 W words; W inverted lists, each: uint32 count + byte string of varint gaps (ascending
-//     landmark classes whose training observations quantize to the word).
+//     landmark classes whose training observations quantize to the word);
+//   version 2 only, the descriptor-distance fusion: uint64 C + 1, (C + 1) x int64 exemplar
+//     offsets; byte string of the exemplar rows; uint64 8 * descriptor_bytes + 1, that many
+//     doubles (distance_score).
 // Every count is checked against the bytes left in the payload before anything is allocated.
 //
 // Threading: a Model is immutable after construction; all methods are const and may be called
@@ -42,7 +45,28 @@
 namespace lmb {
 
 constexpr const char* kModelMagic = "LMBMODEL";
-constexpr uint32_t kModelVersion = 1;
+// Version 2 appends the descriptor-distance fusion (DescriptorFusion); a model without it is
+// written as version 1, byte for byte as before. Both versions are read.
+constexpr uint32_t kModelVersion = 2;
+constexpr uint32_t kModelVersionWithoutFusion = 1;
+
+// Descriptor-distance fusion (optional; fitted by train/export/descriptor_fusion.h): a landmark
+// class's score becomes
+//   score(v, c) = H(v, c) + distance_score[d_c],
+// H the stump sum above and d_c the smallest Hamming distance between the keypoint's descriptor and
+// class c's exemplars (its map observations' descriptors). The background's score stays H.
+struct DescriptorFusion {
+  // Class c's exemplars are rows [exemplar_begin[c], exemplar_begin[c + 1]) of `exemplars`, each
+  // descriptor_bytes bytes; C + 1 non-decreasing offsets starting at 0, every class with at least
+  // one row. Empty = no fusion.
+  std::vector<int64_t> exemplar_begin;
+  std::vector<uint8_t> exemplars;
+  // The score added at Hamming distance d = 0 .. 8 * descriptor_bytes (that many + 1 entries),
+  // finite.
+  std::vector<double> distance_score;
+
+  bool enabled() const { return !exemplar_begin.empty(); }
+};
 
 // The model's contents as plain data: what export builds and the file holds.
 struct ModelData {
@@ -58,6 +82,7 @@ struct ModelData {
   // Inverted file: inverted_file[w] lists (ascending) the landmark classes (< C) whose training
   // observations quantize to word w. Size: vocabulary.num_words().
   std::vector<std::vector<int32_t>> inverted_file;
+  DescriptorFusion fusion;  // optional (version 2 files)
 
   EmbeddingLayout layout() const {
     EmbeddingLayout l;
@@ -72,9 +97,12 @@ struct ModelData {
 
 // The payload (cereal portable binary, see the file comment) and its inverse. parse throws
 // lmb::Error naming `what` for truncated or corrupt bytes, a count larger than the bytes left,
-// or contents that fail ModelData::check.
+// or contents that fail ModelData::check. The payload's version is model_file_version(data):
+// kModelVersion with a fusion, kModelVersionWithoutFusion without; parse reads either.
 LMB_INFER_EXPORT std::string serialize_model_data(const ModelData& data);
-LMB_INFER_EXPORT ModelData parse_model_data(const std::string& payload, const std::string& what);
+LMB_INFER_EXPORT ModelData parse_model_data(const std::string& payload, const std::string& what,
+                                            uint32_t version = kModelVersion);
+LMB_INFER_EXPORT uint32_t model_file_version(const ModelData& data);
 
 // Immutable model with the indices scoring needs.
 class LMB_INFER_EXPORT Model {
@@ -140,6 +168,13 @@ class LMB_INFER_EXPORT Model {
   const std::vector<int32_t>& word_used_begin() const { return word_used_begin_; }
   const std::vector<int32_t>& word_used() const { return word_used_; }
   const std::vector<int32_t>& word_used_dims() const { return word_used_dims_; }
+
+  // Descriptor-distance fusion (DescriptorFusion): whether the model has one, the term of class c
+  // (< C) for a descriptor of descriptor_bytes() bytes (0 without fusion), and the largest term
+  // any descriptor can get (0 without fusion; the screening adds it to every bound).
+  bool has_fusion() const { return data_.fusion.enabled(); }
+  double fusion_term(int32_t cls, const uint8_t* descriptor) const;
+  double fusion_max() const { return fusion_max_; }
   // Word w's used dims prepared for FrameContext::compute_dims.
   const DimPlan& word_plan(int32_t w) const { return word_plans_[w]; }
 
@@ -204,6 +239,7 @@ class LMB_INFER_EXPORT Model {
   std::vector<int32_t> word_used_dims_;
   DimPlan used_plan_;
   std::vector<DimPlan> word_plans_;
+  double fusion_max_ = 0.0;
   double screen_step_ = 1.0;
   std::vector<int16_t> screen_q_;
   std::vector<double> screen_offset_;

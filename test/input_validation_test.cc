@@ -78,13 +78,13 @@ std::string patched_model_file(const std::function<void(ModelData&)>& edit, doub
   if (at == std::string::npos || p.find(mark, at + 1) != std::string::npos) throw std::logic_error("mark not unique");
   std::memcpy(p.data() + at, &value, 8);
   if (dim_value) std::memcpy(p.data() + at - 5, &*dim_value, 4);
-  return as_string(make_container(kModelMagic, kModelVersion, p));
+  return as_string(make_container(kModelMagic, kModelVersionWithoutFusion, p));
 }
 // A valid payload with `edit` applied to its bytes.
 std::string edited_model_file(const std::function<void(std::string&)>& edit) {
   std::string p = serialize_model_data(good_model_data());
   edit(p);
-  return as_string(make_container(kModelMagic, kModelVersion, p));
+  return as_string(make_container(kModelMagic, kModelVersionWithoutFusion, p));
 }
 std::string good_vocab_file() {
   return as_string(make_container(kVocabularyMagic, kVocabularyVersion, test::test_vocabulary().to_payload()));
@@ -214,7 +214,7 @@ std::vector<Row> rows() {
   r.push_back({"model.lbm", "missing file", [](const fs::path& dir) { Model::load(dir / "model.lbm"); }, "DIR/model.lbm: cannot open file"});
   r.push_back({"model.lbm", "empty file", model_with([] { return std::string(); }), "DIR/model.lbm: file too short (0 bytes) for a LMBMODEL header"});
   r.push_back({"model.lbm", "a vocabulary file instead", model_with(good_vocab_file), "DIR/model.lbm: not a LMBMODEL file (wrong magic)"});
-  r.push_back({"model.lbm", "format version 2", model_with([] { return with_byte(good_model_file(), 8, 2); }), "DIR/model.lbm: format version 2 is not supported (this build reads version 1)"});
+  r.push_back({"model.lbm", "format version 3", model_with([] { return with_byte(good_model_file(), 8, 3); }), "DIR/model.lbm: format version 3 is not supported (this build reads versions 1 to 2)"});
   r.push_back({"model.lbm", "truncated (last byte cut)", model_with([] {
                  std::string s = good_model_file();
                  s.pop_back();
@@ -227,13 +227,13 @@ std::vector<Row> rows() {
                }), "DIR/model.lbm: CRC mismatch (file is corrupt)"});
   r.push_back({"model.lbm", "payload cut behind a valid header", model_with([] {
                  const std::string p = serialize_model_data(good_model_data());
-                 return as_string(make_container(kModelMagic, kModelVersion, p.substr(0, p.size() / 2)));
+                 return as_string(make_container(kModelMagic, kModelVersionWithoutFusion, p.substr(0, p.size() / 2)));
                }), "DIR/model.lbm: stumps: corrupt count 46 exceeds the 682 bytes left"});
   r.push_back({"model.lbm", "a count of 2^60 (detector name)", model_with([] {
                  std::string p = serialize_model_data(good_model_data());
                  const uint64_t huge = uint64_t{1} << 60;
                  std::memcpy(p.data() + 1, &huge, 8);
-                 return as_string(make_container(kModelMagic, kModelVersion, p));
+                 return as_string(make_container(kModelMagic, kModelVersionWithoutFusion, p));
                }), "DIR/model.lbm: detector: corrupt count 1152921504606846976 exceeds the 2015 bytes left"});
   r.push_back({"model.lbm", "NaN landmark position", model_with([nan] {
                  return patched_model_file([](ModelData& d) { d.class_position[1].y() = kMark; }, nan);

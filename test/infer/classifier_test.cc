@@ -76,6 +76,51 @@ double reference_score(const ModelData& d, const std::vector<uint8_t>& v, int32_
   return total;
 }
 
+// Reference fusion term: the table at the smallest distance to the class's exemplars, by a plain
+// loop (0 without fusion).
+double reference_fusion(const ModelData& d, const uint8_t* desc, int32_t c) {
+  if (!d.fusion.enabled() || c >= d.num_classes) return 0.0;
+  int best = 1 << 30;
+  for (int64_t r = d.fusion.exemplar_begin[c]; r < d.fusion.exemplar_begin[c + 1]; ++r) {
+    best = std::min(best, hamming_distance(desc, d.fusion.exemplars.data() + r * d.descriptor_bytes, d.descriptor_bytes));
+  }
+  return d.fusion.distance_score[best];
+}
+
+// A random fusion: 1..4 exemplars a class, some of them copies of the frame's descriptors with a
+// few bits flipped (so that small distances occur), a table falling from about +3 to -2.
+void add_random_fusion(ModelData* d, const test::TestFrame& frame, uint64_t seed) {
+  Rng rng(seed);
+  const int32_t bytes = d->descriptor_bytes;
+  const int64_t n = static_cast<int64_t>(frame.keypoints.size());
+  DescriptorFusion& f = d->fusion;
+  f.exemplar_begin = {0};
+  for (int32_t c = 0; c < d->num_classes; ++c) {
+    const int rows = 1 + static_cast<int>(rng.below(4));
+    for (int r = 0; r < rows; ++r) {
+      std::vector<uint8_t> e(static_cast<size_t>(bytes));
+      if (rng.uniform() < 0.6) {
+        const uint8_t* src = frame.descriptors.data() + static_cast<int64_t>(rng.below(static_cast<uint64_t>(n))) * bytes;
+        std::copy(src, src + bytes, e.begin());
+        const int flips = static_cast<int>(rng.below(12));
+        for (int i = 0; i < flips; ++i) {
+          const int bit = static_cast<int>(rng.below(static_cast<uint64_t>(8 * bytes)));
+          e[bit / 8] ^= static_cast<uint8_t>(1 << (bit % 8));
+        }
+      } else {
+        for (auto& b : e) b = static_cast<uint8_t>(rng.below(256));
+      }
+      f.exemplars.insert(f.exemplars.end(), e.begin(), e.end());
+    }
+    f.exemplar_begin.push_back(f.exemplar_begin.back() + rows);
+  }
+  double v = 3.0;
+  for (int32_t dist = 0; dist <= 8 * bytes; ++dist) {
+    f.distance_score.push_back(v);
+    v -= rng.uniform(0.0, 10.0 / (8 * bytes));
+  }
+}
+
 FrameKeypoints frame_of(const test::TestFrame& f, const Vocabulary& vocab, std::vector<uint8_t>* words) {
   words->resize(f.keypoints.size());
   vocab.quantize(f.descriptors.data(), static_cast<int64_t>(f.keypoints.size()), words->data());
@@ -125,7 +170,8 @@ int expect_classify_matches_reference(const std::shared_ptr<const Model>& model,
   EXPECT_EQ(got.num_keypoints(), frame.size());
   int matched = 0;
   for (int32_t k = 0; k < frame.size(); ++k) {
-    const std::vector<uint8_t> v = reference_vector(*model, frame, k, tf.descriptors.data() + k * d.descriptor_bytes);
+    const uint8_t* desc = tf.descriptors.data() + k * d.descriptor_bytes;
+    const std::vector<uint8_t> v = reference_vector(*model, frame, k, desc);
     const double bg = reference_score(d, v, d.num_classes);
     std::vector<std::pair<double, int32_t>> expected;  // (-score, class)
     for (int32_t c = 0; c < d.num_classes; ++c) {
@@ -133,7 +179,7 @@ int expect_classify_matches_reference(const std::shared_ptr<const Model>& model,
         const auto& list = d.inverted_file[frame.word[k]];
         if (!std::binary_search(list.begin(), list.end(), c)) continue;
       }
-      const double s = reference_score(d, v, c);
+      const double s = reference_score(d, v, c) + reference_fusion(d, desc, c);
       if (s - bg > o.min_margin) expected.emplace_back(-s, c);
     }
     std::sort(expected.begin(), expected.end());
@@ -441,6 +487,62 @@ TEST(Screening, ClassifyEqualsTheUnscreenedPath) {
       }
     }
     EXPECT_GT(expect_classify_matches_reference(model, world.frame, ClassifierOptions{}), 0);
+  }
+}
+
+// The descriptor-distance fusion: classify() ranks by stump sum + the table at the nearest
+// exemplar's distance (the reference's plain loops), with and without screening (the same matches),
+// dense and through the inverted file; the term itself equals the reference.
+TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
+  for (double shift : {16.0, -16.0}) {
+    const test::TestWorld world = test::make_test_world(200, 150, 150, 9);
+    ModelData data = random_model_data(200, 300, 33);
+    data.bias[200] += shift;
+    add_random_fusion(&data, world.frame, 34);
+    const auto model = std::make_shared<const Model>(std::move(data));
+    ASSERT_TRUE(model->has_fusion());
+    const ModelData& d = model->data();
+    EXPECT_EQ(model->fusion_max(), *std::max_element(d.fusion.distance_score.begin(), d.fusion.distance_score.end()));
+    for (size_t k = 0; k < world.frame.keypoints.size(); ++k) {
+      const uint8_t* desc = world.frame.descriptors.data() + k * d.descriptor_bytes;
+      for (int32_t c = 0; c < d.num_classes; c += 7) {
+        ASSERT_EQ(model->fusion_term(c, desc), reference_fusion(d, desc, c));
+      }
+    }
+    std::vector<uint8_t> words;
+    const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
+    int near = 0;  // matches whose term is large: the fusion decided something
+    for (int top_k : {1, 5}) {
+      for (double margin : {0.0, -std::numeric_limits<double>::infinity()}) {
+        for (bool inverted : {false, true}) {
+          ClassifierOptions o;
+          o.top_k = top_k;
+          o.min_margin = margin;
+          o.use_inverted_file = inverted;
+          if (top_k > 1) {
+            EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0);
+          }
+          Classifier screened(model, o);
+          o.screening = false;
+          Classifier plain(model, o);
+          const KeypointMatches a = screened.classify(frame, world.frame.descriptors.data());
+          const KeypointMatches b = plain.classify(frame, world.frame.descriptors.data());
+          ASSERT_EQ(a.begin, b.begin);
+          for (size_t i = 0; i < a.matches.size(); ++i) {
+            EXPECT_EQ(a.matches[i].cls, b.matches[i].cls);
+            EXPECT_EQ(a.matches[i].score, b.matches[i].score);
+          }
+          for (int32_t k = 0; k < a.num_keypoints(); ++k) {
+            if (a.count(k) == 0) continue;
+            near += model->fusion_term(a.of(k)[0].cls, world.frame.descriptors.data() + k * d.descriptor_bytes) > 1.0;
+          }
+          if (margin == 0.0 && shift > 0) {  // the lifted bounds still skip classes
+            EXPECT_LT(screened.classes_scored(), screened.classes_screened()) << "top_k " << top_k;
+          }
+        }
+      }
+    }
+    EXPECT_GT(near, 0);
   }
 }
 

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <new>
 #include <string>
 
@@ -13,6 +14,7 @@
 
 #include "common/error.h"
 #include "common/file_container.h"
+#include "common/random.h"
 #include "test/infer/test_models.h"
 
 // GCC flags free() on memory from the replaced operator new below; they are a matching pair.
@@ -95,6 +97,85 @@ TEST(ModelTest, RoundTripKeepsEverything) {
   EXPECT_EQ(back->to_bytes(), bytes);
 }
 
+// A code model with a descriptor-distance fusion: class c's exemplars are 1 + c % 3 rows.
+ModelData code_model_with_fusion(int n) {
+  ModelData d = make_code_model_data(some_positions(n));
+  Rng rng(8);
+  d.fusion.exemplar_begin = {0};
+  for (int32_t c = 0; c < d.num_classes; ++c) {
+    for (int r = 0; r <= c % 3; ++r) {
+      for (int b = 0; b < d.descriptor_bytes; ++b) d.fusion.exemplars.push_back(static_cast<uint8_t>(rng.below(256)));
+    }
+    d.fusion.exemplar_begin.push_back(d.fusion.exemplar_begin.back() + 1 + c % 3);
+  }
+  for (int dist = 0; dist <= 8 * d.descriptor_bytes; ++dist) d.fusion.distance_score.push_back(2.0 - 0.07 * dist);
+  return d;
+}
+
+TEST(ModelTest, FusionRoundTripAndFileVersions) {
+  const ModelData d = code_model_with_fusion(6);
+  const Model m(d);
+  EXPECT_TRUE(m.has_fusion());
+  EXPECT_EQ(m.fusion_max(), 2.0);
+  const std::vector<uint8_t> bytes = m.to_bytes();
+  EXPECT_EQ(bytes[8], kModelVersion);  // version 2: the fusion follows the inverted file
+  const auto back = Model::from_bytes(bytes.data(), bytes.size());
+  EXPECT_EQ(back->data().fusion.exemplar_begin, d.fusion.exemplar_begin);
+  EXPECT_EQ(back->data().fusion.exemplars, d.fusion.exemplars);
+  EXPECT_EQ(back->data().fusion.distance_score, d.fusion.distance_score);
+  EXPECT_EQ(back->to_bytes(), bytes);
+  // Without a fusion the file is version 1 and its payload the same bytes as with the fusion
+  // left out: a model of the unchanged method is written as before.
+  ModelData plain = d;
+  plain.fusion = DescriptorFusion{};
+  const std::vector<uint8_t> plain_bytes = Model(plain).to_bytes();
+  EXPECT_EQ(plain_bytes[8], kModelVersionWithoutFusion);
+  EXPECT_FALSE(Model::from_bytes(plain_bytes.data(), plain_bytes.size())->has_fusion());
+  const std::string with = serialize_model_data(d), without = serialize_model_data(plain);
+  ASSERT_LT(without.size(), with.size());
+  EXPECT_EQ(with.substr(0, without.size()), without);
+  // A version-1 header on a fusion payload (or the reverse) is rejected by the parser.
+  EXPECT_THROW(parse_model_data(with, "t", kModelVersionWithoutFusion), Error);
+  EXPECT_THROW(parse_model_data(without, "t", kModelVersion), Error);
+  // Truncated anywhere in the fusion section: an error, never a crash.
+  for (size_t size = without.size(); size < with.size(); ++size) {
+    EXPECT_THROW(parse_model_data(with.substr(0, size), "t", kModelVersion), Error) << "cut at " << size;
+  }
+  // The term: the table at the nearest exemplar's distance.
+  const uint8_t* e = d.fusion.exemplars.data() + d.fusion.exemplar_begin[4] * d.descriptor_bytes;
+  EXPECT_EQ(m.fusion_term(4, e), 2.0);
+  EXPECT_EQ(Model(plain).fusion_term(4, e), 0.0);
+}
+
+TEST(ModelTest, CheckRejectsInconsistentFusion) {
+  const ModelData d = code_model_with_fusion(4);
+  {
+    ModelData x = d;
+    x.fusion.exemplar_begin.pop_back();
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.fusion.exemplar_begin[2] = x.fusion.exemplar_begin[1];  // class 1 without an exemplar
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.fusion.exemplars.pop_back();
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.fusion.distance_score.pop_back();
+    EXPECT_THROW(Model{x}, Error);
+  }
+  {
+    ModelData x = d;
+    x.fusion.distance_score[3] = std::numeric_limits<double>::infinity();
+    EXPECT_THROW(Model{x}, Error);
+  }
+}
+
 TEST(ModelTest, SaveAndLoadFile) {
   const auto dir = std::filesystem::temp_directory_path() / "lmb_model_test";
   std::filesystem::create_directories(dir);
@@ -149,7 +230,7 @@ TEST(ModelTest, RejectsWrongMagicVersionAndCrc) {
   bad[0] = 'X';
   EXPECT_NE(expect_rejected(bad).find("magic"), std::string::npos);
   bad = good;
-  bad[8] = 2;  // version 2
+  bad[8] = 3;  // version 3
   EXPECT_NE(expect_rejected(bad).find("version"), std::string::npos);
   bad = good;
   bad[kContainerHeaderBytes + 10] ^= 0x40;
@@ -171,7 +252,7 @@ TEST(ModelTest, RejectsTruncationAtEveryOffset) {
   const std::string payload = serialize_model_data(make_code_model_data(some_positions(5)));
   largest_allocation = 0;
   for (size_t size = 0; size < payload.size(); ++size) {
-    const std::vector<uint8_t> rewrapped = make_container(kModelMagic, kModelVersion, payload.substr(0, size));
+    const std::vector<uint8_t> rewrapped = make_container(kModelMagic, kModelVersionWithoutFusion, payload.substr(0, size));
     const std::string message = expect_rejected(rewrapped);
     EXPECT_FALSE(message.empty()) << "payload cut at " << size;
   }
@@ -190,7 +271,7 @@ TEST(ModelTest, RejectsLargeCountsBeforeAllocating) {
       std::memcpy(bad.data() + offset, &value, 8);
       largest_allocation = 0;
       try {
-        parse_model_data(bad, "corrupt.lbm");
+        parse_model_data(bad, "corrupt.lbm", kModelVersionWithoutFusion);
       } catch (const Error&) {
         ++rejected;
       }
