@@ -41,7 +41,8 @@ TOML
   rm -rf "$d/run"
   "$lboost" train --map "$out/map.h5" --vocab "$d/vocab.lbv" --out "$d/run" --config "$d/config.toml" \
     --threads "$threads"
-  "$lboost" export --run "$d/run" --map "$out/map.h5" --vocab "$d/vocab.lbv" --out "$d/model.lbm"
+  # --fusion off: the descriptor-distance term would bring the descriptor back in.
+  "$lboost" export --run "$d/run" --map "$out/map.h5" --vocab "$d/vocab.lbv" --out "$d/model.lbm" --fusion off
   "$lboost" eval --model "$d/model.lbm" --map "$out/map.h5" --run "$d/run" --methods landmarkboost \
     --report "$d/report.json"
 done

@@ -1,5 +1,7 @@
 // `lboost export`: a training run's model + the map, vocabulary and regions it was trained with ->
-// model.lbm, the one file the inference library needs (infer/model.h).
+// model.lbm, the one file the inference library needs (infer/model.h). With --fusion on (the
+// default) it also fits the descriptor-distance fusion (train/export/descriptor_fusion.h) on the
+// run's held-out map observations and stores it with the class exemplars.
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -13,8 +15,11 @@
 #include "infer/model.h"
 #include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
+#include "train/boost/training_set.h"
 #include "train/cli/commands.h"
+#include "train/export/descriptor_fusion.h"
 #include "train/export/model_export.h"
+#include "train/features/build_features.h"
 
 namespace lmb::cli {
 
@@ -29,6 +34,8 @@ struct ExportArgs {
   int regions = -1;            // -1: from the run's config.toml (or the default without --run)
   int64_t region_seed = -1;
   ExportOptions options;
+  std::string fusion = "on";
+  DescriptorFusionOptions fusion_options;
 };
 
 // The trained model of a run dir: <run>/model.bin (the trainer's BoostModel file, magic
@@ -62,8 +69,31 @@ void run_export(const ExportArgs& a) {
   const LandmarkMap map = read_map_h5(a.map);
   const Vocabulary vocabulary = Vocabulary::load(a.vocab);
   const ContextRegions regions(region_options(a));
+  LMB_CHECK(a.fusion == "on" || a.fusion == "off", "export: --fusion must be on or off, got '" << a.fusion << "'");
   ExportStats stats;
-  const Model model(export_model_data(boost, map, vocabulary, regions, a.options, &stats));
+  ModelData data = export_model_data(boost, map, vocabulary, regions, a.options, &stats);
+  if (a.fusion == "on") {
+    // The held-out observations are those of the run's training set: rebuilt from its config.
+    LMB_CHECK(!a.run_dir.empty(), "export: --fusion on needs --run (the training set of its config.toml); "
+                                  "give --fusion off with --boost-model");
+    const TrainConfig config = read_train_config(std::filesystem::path(a.run_dir) / "config.toml");
+    const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary);
+    const TrainingSet set = build_training_set(map, std::vector<int32_t>(words8.begin(), words8.end()),
+                                               config.training_set);
+    const Model plain(data);
+    DescriptorFusionStats fs;
+    data.fusion = fit_descriptor_fusion(plain, map, set, a.fusion_options, &fs);
+    std::string curve;
+    for (size_t i = 0; i < fs.weight_p1.size(); ++i) {
+      curve += fmt::format("{}{}:{:.3f}", i ? " " : "", a.fusion_options.weights[i], fs.weight_p1[i]);
+    }
+    spdlog::info("export: descriptor fusion weight {} ({} exemplars; g from {} training observations); held-out "
+                 "P@1 {:.4f} with it, {:.4f} stump sums alone, {:.4f} nearest exemplar alone ({} samples)",
+                 fs.weight, fs.exemplars, fs.distance_samples, fs.fit_p1_with, fs.fit_p1_without, fs.fit_p1_hamming,
+                 fs.fit_samples);
+    spdlog::info("export: held-out P@1 by weight: {}", curve);
+  }
+  const Model model(std::move(data));
   model.save(a.out);
   spdlog::info(
       "export: {} classes, {} stumps reading {} dims, {} sharing entries, inverted file {} entries "
@@ -88,6 +118,10 @@ void add_export_command(CLI::App& app) {
   cmd->add_option("--region-seed", args->region_seed, "Seed of the training regions (default: the run's config)");
   cmd->add_option("--min-word-observations", args->options.min_word_observations,
                   "Observations of a (landmark, word) pair for an inverted-file entry")
+      ->capture_default_str();
+  cmd->add_option("--fusion", args->fusion,
+                  "Descriptor-distance fusion fitted on the run's held-out map observations: on | off "
+                  "(off: the stump sums alone, the model file as before)")
       ->capture_default_str();
   cmd->callback([args] { run_export(*args); });
 }

@@ -1,0 +1,226 @@
+// Descriptor-distance fusion fitting: deterministic, its exemplars are every non-query observation
+// of each class, its table is non-increasing, and its held-out precision@1 for every candidate
+// weight equals a brute-force reference (dense stump sums of every class + the table at the
+// nearest other exemplar, ranked with the classifier's tie rule).
+#include "train/export/descriptor_fusion.h"
+
+#include <algorithm>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+#include "common/hamming.h"
+#include "common/random.h"
+#include "infer/classifier.h"
+#include "train/boost/stump_learner.h"
+#include "train/export/model_export.h"
+#include "train/features/build_features.h"
+
+namespace lmb {
+namespace {
+
+constexpr int kBytes = 16;
+
+// 12 frames x 120 keypoints, 36 landmarks with a base descriptor each (a few bits flipped per
+// observation), observed in most frames; landmarks 0..5 share two base descriptors (twins, which
+// only the stumps can tell apart); the rest background. Frame 11 is a query frame.
+LandmarkMap synthetic_map(uint64_t seed) {
+  Rng rng(seed);
+  LandmarkMap map;
+  map.descriptor_bytes = kBytes;
+  Camera cam;
+  cam.model = CameraModel::kPinhole;
+  cam.width = 640;
+  cam.height = 480;
+  cam.params = {500, 500, 320, 240};
+  map.cameras = {cam};
+  const int num_landmarks = 36;
+  std::vector<std::vector<uint8_t>> base(num_landmarks, std::vector<uint8_t>(kBytes));
+  for (auto& d : base) {
+    for (auto& b : d) b = static_cast<uint8_t>(rng.below(256));
+  }
+  for (int l = 1; l < 6; ++l) base[l] = base[l % 2];
+  map.landmarks.resize(num_landmarks);
+  for (auto& l : map.landmarks) {
+    l.position = Eigen::Vector3d(rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(3, 6));
+    l.quality = 1.f;
+  }
+  for (int f = 0; f < 12; ++f) {
+    MapFrame frame;
+    frame.name = (f == 11 ? "query/" : "map/") + std::to_string(f);
+    frame.is_query = f == 11;
+    frame.gravity_in_cam = Eigen::Vector3d(0.1 * (f % 3), 1.0, 0.2).normalized();
+    frame.first_keypoint = static_cast<int64_t>(map.keypoints.size());
+    frame.num_keypoints = 120;
+    map.frames.push_back(frame);
+    for (int k = 0; k < 120; ++k) {
+      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)), static_cast<float>(rng.uniform(0, 479)),
+                                       static_cast<float>(rng.uniform(10, 40)), -1.f});
+      std::vector<uint8_t> desc(kBytes);
+      landmark_t id = kInvalidLandmarkId;
+      if (k < num_landmarks && rng.uniform() < 0.8) {
+        id = k;
+        desc = base[k];
+        for (int flip = 0; flip < 10; ++flip) {
+          const int bit = static_cast<int>(rng.below(8 * kBytes));
+          desc[bit / 8] ^= static_cast<uint8_t>(1 << (bit % 8));
+        }
+        (f == 11 ? map.landmarks[id].num_query_observations : map.landmarks[id].num_map_observations)++;
+      } else {
+        for (auto& b : desc) b = static_cast<uint8_t>(rng.below(256));
+      }
+      map.keypoint_landmark.push_back(id);
+      map.descriptors.insert(map.descriptors.end(), desc.begin(), desc.end());
+    }
+  }
+  return map;
+}
+
+struct Fixture {
+  LandmarkMap map;
+  Vocabulary vocabulary;
+  ContextRegions regions;
+  TrainingSet set;
+  std::shared_ptr<const Model> model;  // without fusion
+};
+
+Fixture make_fixture(uint64_t seed, int rounds) {
+  Fixture t;
+  t.map = synthetic_map(seed);
+  VocabularyTrainOptions vo;
+  vo.num_words = 8;
+  t.vocabulary = train_vocabulary(t.map.descriptors.data(), static_cast<int64_t>(t.map.keypoints.size()), kBytes, vo);
+  ContextRegionOptions ro;
+  ro.num_regions = 40;
+  ro.seed = seed;
+  t.regions = ContextRegions(ro);
+  const std::vector<uint8_t> words = keypoint_words(t.map, t.vocabulary);
+  TrainingSetOptions so;
+  so.top_k_landmarks = 30;
+  so.validation_fraction = 0.25;
+  so.background_cap = 400;
+  t.set = build_training_set(t.map, std::vector<int32_t>(words.begin(), words.end()), so);
+  const FeatureMatrix features = build_training_features(t.map, t.regions, t.vocabulary, t.set.sample_keypoint, {});
+  BoostOptions bo;
+  bo.num_rounds = rounds;
+  bo.dims_per_round = 100;
+  bo.validation_interval = 0;
+  SerialStumpLearner learner(features, t.set, bo);
+  learner.train();
+  t.model = std::make_shared<const Model>(export_model_data(learner.model(), t.map, t.vocabulary, t.regions));
+  return t;
+}
+
+TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
+  const Fixture t = make_fixture(5, 12);
+  DescriptorFusionOptions o;
+  DescriptorFusionStats stats, again_stats;
+  const DescriptorFusion fusion = fit_descriptor_fusion(*t.model, t.map, t.set, o, &stats);
+  const DescriptorFusion again = fit_descriptor_fusion(*t.model, t.map, t.set, o, &again_stats);
+  EXPECT_EQ(fusion.exemplar_begin, again.exemplar_begin);
+  EXPECT_EQ(fusion.exemplars, again.exemplars);
+  EXPECT_EQ(fusion.distance_score, again.distance_score);
+  EXPECT_EQ(stats.weight_p1, again_stats.weight_p1);
+
+  // Exemplars: every non-query observation of each class, by ascending keypoint.
+  const int32_t C = t.model->num_classes();
+  ASSERT_EQ(fusion.exemplar_begin.size(), static_cast<size_t>(C) + 1);
+  std::vector<std::vector<int64_t>> obs(static_cast<size_t>(C));
+  std::vector<int32_t> class_of(t.map.landmarks.size(), -1);
+  for (int32_t c = 0; c < C; ++c) class_of[t.model->class_landmark(c)] = c;
+  for (const MapFrame& f : t.map.frames) {
+    if (f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = t.map.keypoint_landmark[k];
+      if (l != kInvalidLandmarkId && class_of[l] >= 0) obs[class_of[l]].push_back(k);
+    }
+  }
+  for (int32_t c = 0; c < C; ++c) {
+    ASSERT_EQ(fusion.exemplar_begin[c + 1] - fusion.exemplar_begin[c], static_cast<int64_t>(obs[c].size()));
+    for (size_t i = 0; i < obs[c].size(); ++i) {
+      EXPECT_TRUE(std::equal(t.map.descriptor(obs[c][i]), t.map.descriptor(obs[c][i]) + kBytes,
+                             fusion.exemplars.data() + (fusion.exemplar_begin[c] + static_cast<int64_t>(i)) * kBytes));
+    }
+  }
+  // The table: weight x a non-increasing ratio; small distances favour the class.
+  ASSERT_EQ(fusion.distance_score.size(), static_cast<size_t>(8 * kBytes + 1));
+  for (size_t d = 1; d < fusion.distance_score.size(); ++d) {
+    EXPECT_LE(fusion.distance_score[d], fusion.distance_score[d - 1]);
+  }
+  EXPECT_GT(stats.weight, 0.0);
+  EXPECT_GT(fusion.distance_score.front(), 0.0);
+  EXPECT_LT(fusion.distance_score.back(), 0.0);
+
+  // Brute force: every held-out observation, dense scores of every class, the smallest distance
+  // to the class's other observations; P@1 for each candidate weight.
+  Classifier classifier(t.model);
+  const std::vector<uint8_t> words = keypoint_words(t.map, t.model->vocabulary());
+  const std::vector<frame_t> frame_of = keypoint_frames(t.map);
+  std::vector<uint8_t> values(t.model->used_dims().size());
+  std::vector<double> scores(static_cast<size_t>(C) + 1);
+  std::vector<std::vector<double>> h;
+  std::vector<std::vector<int>> dist;
+  std::vector<int32_t> truth;
+  for (int64_t s = 0; s < t.set.num_samples(); ++s) {
+    if (!t.set.sample_is_validation[s] || t.set.sample_class[s] >= C) continue;
+    const int64_t k = t.set.sample_keypoint[s];
+    const frame_t f = frame_of[k];
+    classifier.index_frame(map_frame_keypoints(t.map, f, words));
+    classifier.compute_used_values(static_cast<int32_t>(k - t.map.frames[f].first_keypoint), t.map.descriptor(k),
+                                   values.data());
+    classifier.dense_scores(values.data(), scores.data());
+    h.emplace_back(scores.begin(), scores.begin() + C);
+    std::vector<int> d(static_cast<size_t>(C), 8 * kBytes);
+    for (int32_t c = 0; c < C; ++c) {
+      for (int64_t o2 : obs[c]) {
+        if (o2 != k) d[c] = std::min(d[c], hamming_distance(t.map.descriptor(k), t.map.descriptor(o2), kBytes));
+      }
+    }
+    dist.push_back(d);
+    truth.push_back(t.set.sample_class[s]);
+  }
+  ASSERT_GT(truth.size(), 20u);
+  EXPECT_EQ(stats.fit_samples, static_cast<int64_t>(truth.size()));
+  ASSERT_EQ(stats.weight_p1.size(), o.weights.size());
+  ASSERT_EQ(stats.distance_ratio.size(), fusion.distance_score.size());
+  for (size_t d = 0; d < fusion.distance_score.size(); ++d) {
+    EXPECT_EQ(fusion.distance_score[d], stats.weight * stats.distance_ratio[d]);
+  }
+  for (size_t i = 0; i < o.weights.size(); ++i) {
+    int hits = 0;
+    for (size_t j = 0; j < truth.size(); ++j) {
+      double best = -std::numeric_limits<double>::infinity();
+      int32_t best_c = -1;
+      for (int32_t c = 0; c < C; ++c) {
+        const double f = h[j][c] + o.weights[i] * stats.distance_ratio[dist[j][c]];
+        if (f > best) {
+          best = f;
+          best_c = c;
+        }
+      }
+      hits += best_c == truth[j];
+    }
+    EXPECT_EQ(stats.weight_p1[i], static_cast<double>(hits) / static_cast<double>(truth.size())) << "weight " << o.weights[i];
+  }
+  // The descriptors separate all but the twins: the fused ranking beats the stump sums alone.
+  EXPECT_GT(stats.fit_p1_with, stats.fit_p1_without);
+}
+
+TEST(DescriptorFusion, RejectsAnotherRunsModelAndBadOptions) {
+  const Fixture t = make_fixture(6, 4);
+  TrainingSet other = t.set;
+  std::swap(other.class_landmark[0], other.class_landmark[1]);
+  EXPECT_THROW(fit_descriptor_fusion(*t.model, t.map, other, {}), Error);
+  DescriptorFusionOptions o;
+  o.weights = {0.5, 0.25};
+  EXPECT_THROW(fit_descriptor_fusion(*t.model, t.map, t.set, o), Error);
+  o = {};
+  o.bin_width = 0;
+  EXPECT_THROW(fit_descriptor_fusion(*t.model, t.map, t.set, o), Error);
+}
+
+}  // namespace
+}  // namespace lmb
