@@ -53,7 +53,7 @@ constexpr uint32_t kModelVersionWithoutFusion = 1;
 // Descriptor-distance fusion (optional; fitted by train/export/descriptor_fusion.h): a landmark
 // class's score becomes
 //   score(v, c) = H(v, c) + distance_score[d_c],
-// H the stump sum above and d_c the smallest Hamming distance between the keypoint's descriptor and
+// H the stump sum and d_c the smallest Hamming distance between the keypoint's descriptor and
 // class c's exemplars (its map observations' descriptors). The background's score stays H.
 struct DescriptorFusion {
   // Class c's exemplars are rows [exemplar_begin[c], exemplar_begin[c + 1]) of `exemplars`, each
