@@ -107,7 +107,7 @@ Fixture make_fixture(uint64_t seed, int rounds) {
   BoostOptions bo;
   bo.num_rounds = rounds;
   bo.dims_per_round = 100;
-  bo.validation_interval = 0;
+  bo.validation.interval = 0;
   SerialStumpLearner learner(features, t.set, bo);
   learner.train();
   t.model = std::make_shared<const Model>(export_model_data(learner.model(), t.map, t.vocabulary, t.regions));
