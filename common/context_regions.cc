@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "common/bounded_reader.h"
 #include "common/error.h"
 #include "common/random.h"
 
@@ -27,6 +28,21 @@ void ContextRegionOptions::check() const {
 namespace {
 
 float snap(double v) { return static_cast<float>(std::round(v / kRegionGrid) * kRegionGrid); }
+
+void validate_rects(const std::vector<RegionRect>& rects, const std::string& where) {
+  LMB_CHECK(!rects.empty(), where << ": no regions");
+  LMB_CHECK(rects.size() <= static_cast<size_t>(kMaxContextRegions),
+            where << ": " << rects.size() << " regions exceed " << kMaxContextRegions);
+  for (size_t r = 0; r < rects.size(); ++r) {
+    const RegionRect& q = rects[r];
+    LMB_CHECK(std::isfinite(q.x0) && std::isfinite(q.x1) && std::isfinite(q.y0) &&
+                  std::isfinite(q.y1),
+              where << ": region " << r << " has a non-finite corner");
+    LMB_CHECK(q.x1 > q.x0 && q.y1 > q.y0,
+              where << ": region " << r << " is empty ([" << q.x0 << ", " << q.x1 << ") x ["
+                    << q.y0 << ", " << q.y1 << "))");
+  }
+}
 
 }  // namespace
 
@@ -64,31 +80,42 @@ ContextRegions::ContextRegions(std::vector<RegionRect> rects, ContextRegionOptio
   validate("context regions");
 }
 
-void ContextRegions::check_loaded_count(int32_t n) {
-  LMB_CHECK(n >= 1 && n <= kMaxContextRegions,
-            "context regions: stored region count " << n << " is outside 1.."
-                                                    << kMaxContextRegions);
-}
-
-void ContextRegions::validate(const std::string& where) const {
-  LMB_CHECK(!rects_.empty(), where << ": no regions");
-  LMB_CHECK(rects_.size() <= static_cast<size_t>(kMaxContextRegions),
-            where << ": " << rects_.size() << " regions exceed " << kMaxContextRegions);
-  for (size_t r = 0; r < rects_.size(); ++r) {
-    const RegionRect& q = rects_[r];
-    LMB_CHECK(std::isfinite(q.x0) && std::isfinite(q.x1) && std::isfinite(q.y0) &&
-                  std::isfinite(q.y1),
-              where << ": region " << r << " has a non-finite corner");
-    LMB_CHECK(q.x1 > q.x0 && q.y1 > q.y0,
-              where << ": region " << r << " is empty ([" << q.x0 << ", " << q.x1 << ") x ["
-                    << q.y0 << ", " << q.y1 << "))");
-  }
-}
+void ContextRegions::validate(const std::string& where) const { validate_rects(rects_, where); }
 
 bool ContextRegions::operator==(const ContextRegions& other) const {
   return rects_.size() == other.rects_.size() &&
          (rects_.empty() ||
           std::memcmp(rects_.data(), other.rects_.data(), rects_.size() * sizeof(RegionRect)) == 0);
+}
+
+void write_context_regions(cereal::PortableBinaryOutputArchive& ar, const ContextRegions& regions) {
+  const ContextRegionOptions& o = regions.options();
+  ar(o.num_regions, o.seed, o.min_area, o.max_area, o.max_aspect, o.max_offset);
+  ar(static_cast<uint64_t>(regions.size()));
+  for (const RegionRect& r : regions.rects()) ar(r.x0, r.y0, r.x1, r.y1);
+}
+
+ContextRegions read_context_regions(BoundedReader& reader) {
+  ContextRegionOptions o;
+  reader.value(o.num_regions);
+  reader.value(o.seed);
+  reader.value(o.min_area);
+  reader.value(o.max_area);
+  reader.value(o.max_aspect);
+  reader.value(o.max_offset);
+  const uint64_t n = reader.count(4 * sizeof(float), "regions");
+  LMB_CHECK(n >= 1 && n <= static_cast<uint64_t>(kMaxContextRegions),
+            reader.what() << ": regions: count " << n << " outside 1.." << kMaxContextRegions);
+  std::vector<RegionRect> rects(n);
+  for (RegionRect& q : rects) {
+    reader.value(q.x0);
+    reader.value(q.y0);
+    reader.value(q.x1);
+    reader.value(q.y1);
+  }
+  // Validated here first, so that the error names the file (the constructor's would not).
+  validate_rects(rects, reader.what() + ": regions");
+  return ContextRegions(std::move(rects), o);
 }
 
 }  // namespace lmb

@@ -19,7 +19,13 @@
 #include <string>
 #include <vector>
 
+namespace cereal {
+class PortableBinaryOutputArchive;
+}
+
 namespace lmb {
+
+class BoundedReader;  // common/bounded_reader.h
 
 // Corner resolution of generated regions, in keypoint scales.
 constexpr double kRegionGrid = 1.0 / 1024.0;
@@ -50,10 +56,6 @@ struct RegionRect {
   float y1 = 0.f;
 
   double area() const { return (static_cast<double>(x1) - x0) * (static_cast<double>(y1) - y0); }
-  template <class Archive>
-  void serialize(Archive& ar) {
-    ar(x0, y0, x1, y1);
-  }
 };
 
 class ContextRegions {
@@ -74,34 +76,20 @@ class ContextRegions {
   // Throws lmb::Error (prefixed by `where`) for an invalid set; called after deserialization.
   void validate(const std::string& where) const;
 
-  // cereal: options, then the count, then the rectangles. Loading checks the count against
-  // kMaxContextRegions before allocating and validates the rectangles.
-  template <class Archive>
-  void save(Archive& ar) const {
-    ar(options_.num_regions, options_.seed, options_.min_area, options_.max_area,
-       options_.max_aspect, options_.max_offset);
-    const int32_t n = size();
-    ar(n);
-    for (const RegionRect& r : rects_) ar(r);
-  }
-  template <class Archive>
-  void load(Archive& ar) {
-    ar(options_.num_regions, options_.seed, options_.min_area, options_.max_area,
-       options_.max_aspect, options_.max_offset);
-    int32_t n = 0;
-    ar(n);
-    check_loaded_count(n);
-    rects_.assign(static_cast<size_t>(n), RegionRect{});
-    for (RegionRect& r : rects_) ar(r);
-    validate("context regions");
-  }
-
   bool operator==(const ContextRegions& other) const;
 
  private:
-  static void check_loaded_count(int32_t n);
   ContextRegionOptions options_;
   std::vector<RegionRect> rects_;
 };
+
+// The one serialization of a region set (model.lbm, model.bin, checkpoints), cereal portable binary:
+// the options (int32 num_regions, uint64 seed, double min_area, max_area, max_aspect, max_offset),
+// a uint64 count, then count x (float x0, y0, x1, y1).
+void write_context_regions(cereal::PortableBinaryOutputArchive& ar, const ContextRegions& regions);
+// Reads it back. Throws lmb::Error "<reader.what()>: regions: <reason>" for a count outside
+// 1..kMaxContextRegions (checked before allocating) or an invalid rectangle; a read past the end
+// throws cereal::Exception.
+ContextRegions read_context_regions(BoundedReader& reader);
 
 }  // namespace lmb

@@ -1,12 +1,7 @@
 #include "common/file_container.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <array>
-#include <cerrno>
 #include <cstring>
-#include <fstream>
 
 #include "common/error.h"
 
@@ -88,42 +83,6 @@ std::string open_container(const uint8_t* data, size_t size, std::string_view ma
   return std::string(reinterpret_cast<const char*>(data + kContainerHeaderBytes), length);
 }
 
-void write_file_atomically(const std::filesystem::path& path, const void* data, size_t size) {
-  const std::filesystem::path tmp = path.string() + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  LMB_CHECK(fd >= 0, tmp.string() << ": cannot create file: " << std::strerror(errno));
-  const auto* p = static_cast<const uint8_t*>(data);
-  size_t left = size;
-  while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      LMB_FAIL(path.string() << ": write failed: " << std::strerror(err));
-    }
-    p += n;
-    left -= static_cast<size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    LMB_FAIL(path.string() << ": fsync/close failed: " << std::strerror(err));
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    LMB_FAIL(path.string() << ": rename failed: " << std::strerror(err));
-  }
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
-  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
-  }
-}
-
 void write_container_file(const std::filesystem::path& path, std::string_view magic,
                           uint32_t version, const std::string& payload) {
   const std::vector<uint8_t> bytes = make_container(magic, version, payload);
@@ -137,11 +96,9 @@ std::string read_container_file(const std::filesystem::path& path, std::string_v
 
 std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
                                 uint32_t min_version, uint32_t max_version, uint32_t* version) {
-  std::ifstream in(path, std::ios::binary);
-  LMB_CHECK(in.good(), path.string() << ": cannot open file");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return open_container(bytes.data(), bytes.size(), magic, min_version, max_version, path.string(),
-                        version);
+  const std::string bytes = read_file(path);
+  return open_container(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), magic, min_version,
+                        max_version, path.string(), version);
 }
 
 }  // namespace lmb

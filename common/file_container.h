@@ -16,6 +16,8 @@
 #include <string_view>
 #include <vector>
 
+#include "common/file_io.h"
+
 namespace lmb {
 
 constexpr size_t kContainerHeaderBytes = 24;
@@ -36,16 +38,15 @@ std::string open_container(const uint8_t* data, size_t size, std::string_view ma
                            uint32_t min_version, uint32_t max_version, const std::string& what,
                            uint32_t* version);
 
-// Writes atomically: a temporary file beside `path`, fsync, rename.
+// Writes atomically (common/file_io.h AtomicFile). Throws lmb::Error naming the path and the
+// system's reason.
 void write_container_file(const std::filesystem::path& path, std::string_view magic,
                           uint32_t version, const std::string& payload);
+// Reads and validates (open_container). Throws lmb::Error naming the path: missing, a folder,
+// unreadable, or any open_container error.
 std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
                                 uint32_t version);
 std::string read_container_file(const std::filesystem::path& path, std::string_view magic,
                                 uint32_t min_version, uint32_t max_version, uint32_t* version);
-
-// Atomic file write used by every writer in the project: temp file in the same folder, fsync,
-// rename over `path`, fsync of the folder.
-void write_file_atomically(const std::filesystem::path& path, const void* data, size_t size);
 
 }  // namespace lmb

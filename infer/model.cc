@@ -7,6 +7,7 @@
 
 #include <cereal/archives/portable_binary.hpp>
 
+#include "common/bounded_reader.h"
 #include "common/error.h"
 #include "common/file_container.h"
 #include "common/hamming.h"
@@ -68,52 +69,6 @@ std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t cou
 namespace {
 
 constexpr size_t kMaxDetectorNameBytes = 256;
-
-// A cereal portable binary reader that bounds every count by the bytes left before anything is
-// allocated (cereal itself trusts size fields).
-class BoundedReader {
- public:
-  BoundedReader(const std::string& bytes, const std::string& what)
-      : is_(bytes), ar_(is_), total_(bytes.size()), what_(what) {}
-
-  template <class T>
-  void value(T& x) {
-    ar_(x);
-  }
-  uint64_t bytes_left() {
-    const auto pos = is_.tellg();
-    LMB_CHECK(pos >= 0, what_ << ": truncated model payload");
-    return total_ - static_cast<uint64_t>(pos);
-  }
-  // Reads a uint64 count of elements taking at least `min_element_bytes` bytes each and checks it.
-  uint64_t count(uint64_t min_element_bytes, const char* field) {
-    uint64_t n = 0;
-    ar_(n);
-    const uint64_t left = bytes_left();
-    LMB_CHECK(n <= left / min_element_bytes,
-              what_ << ": " << field << ": corrupt count " << n << " exceeds the " << left
-                    << " bytes left");
-    return n;
-  }
-  std::string byte_string(const char* field, uint64_t max_size = UINT64_MAX) {
-    const uint64_t n = count(1, field);
-    LMB_CHECK(n <= max_size, what_ << ": " << field << ": " << n << " bytes exceed " << max_size);
-    std::string s(n, '\0');
-    if (n > 0) ar_(cereal::binary_data(s.data(), n));
-    return s;
-  }
-
- private:
-  std::istringstream is_;
-  cereal::PortableBinaryInputArchive ar_;
-  uint64_t total_;
-  std::string what_;
-};
-
-void write_bytes(cereal::PortableBinaryOutputArchive& ar, const std::string& s) {
-  ar(static_cast<uint64_t>(s.size()));
-  if (!s.empty()) ar(cereal::binary_data(s.data(), s.size()));
-}
 
 void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inclusive,
                      const std::string& where) {
@@ -203,13 +158,10 @@ std::string serialize_model_data(const ModelData& data) {
   std::ostringstream os(std::ios::binary);
   {
     cereal::PortableBinaryOutputArchive ar(os);
-    write_bytes(ar, data.detector);
+    write_byte_string(ar, data.detector);
     ar(data.descriptor_bytes);
-    const ContextRegionOptions& ro = data.regions.options();
-    ar(ro.num_regions, ro.seed, ro.min_area, ro.max_area, ro.max_aspect, ro.max_offset);
-    ar(static_cast<uint64_t>(data.regions.size()));
-    for (const RegionRect& r : data.regions.rects()) ar(r.x0, r.y0, r.x1, r.y1);
-    write_bytes(ar, data.vocabulary.to_payload());
+    write_context_regions(ar, data.regions);
+    write_byte_string(ar, data.vocabulary.to_payload());
     ar(data.num_classes);
     ar(static_cast<uint64_t>(data.class_landmark.size()));
     for (landmark_t id : data.class_landmark) ar(static_cast<int64_t>(id));
@@ -220,12 +172,12 @@ std::string serialize_model_data(const ModelData& data) {
     ar(static_cast<uint64_t>(data.stumps.size()));
     for (const SharedStump& s : data.stumps) {
       ar(s.dim, s.theta, s.a, s.b, static_cast<uint32_t>(s.classes.size()));
-      write_bytes(ar, detail::encode_ascending_ids(s.classes));
+      write_byte_string(ar, detail::encode_ascending_ids(s.classes));
     }
     ar(static_cast<int32_t>(data.inverted_file.size()));
     for (const std::vector<int32_t>& list : data.inverted_file) {
       ar(static_cast<uint32_t>(list.size()));
-      write_bytes(ar, detail::encode_ascending_ids(list));
+      write_byte_string(ar, detail::encode_ascending_ids(list));
     }
     if (data.fusion.enabled()) {
       const DescriptorFusion& f = data.fusion;
@@ -248,24 +200,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
     BoundedReader r(payload, what);
     d.detector = r.byte_string("detector", kMaxDetectorNameBytes);
     r.value(d.descriptor_bytes);
-    ContextRegionOptions ro;
-    r.value(ro.num_regions);
-    r.value(ro.seed);
-    r.value(ro.min_area);
-    r.value(ro.max_area);
-    r.value(ro.max_aspect);
-    r.value(ro.max_offset);
-    const uint64_t num_regions = r.count(4 * sizeof(float), "regions");
-    LMB_CHECK(num_regions >= 1 && num_regions <= static_cast<uint64_t>(kMaxContextRegions),
-              what << ": regions: count " << num_regions << " outside 1.." << kMaxContextRegions);
-    std::vector<RegionRect> rects(num_regions);
-    for (RegionRect& q : rects) {
-      r.value(q.x0);
-      r.value(q.y0);
-      r.value(q.x1);
-      r.value(q.y1);
-    }
-    d.regions = ContextRegions(std::move(rects), ro);
+    d.regions = read_context_regions(r);
     d.vocabulary = Vocabulary::from_payload(r.byte_string("vocabulary"), what + ": vocabulary");
     r.value(d.num_classes);
     LMB_CHECK(d.num_classes >= 1, what << ": num_classes = " << d.num_classes << " must be >= 1");

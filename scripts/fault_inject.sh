@@ -22,6 +22,13 @@
 #   sigterm_load SIGTERM to a random rank while the ranks still load the data and build features
 #                (0.2-1.7 s after the rank started): the job must stop after its first round with
 #                a checkpoint and exit 75 like any requeue, not die of the signal
+#   sigterm_mpirun  SIGTERM to `mpirun` itself in the first rounds: the launcher the user started
+#                (jobs/train_local.sh, which runs mpirun) must exit 75 with a checkpoint. A bare
+#                Open MPI 4 `mpirun` cannot: it answers SIGTERM by killing the job and exits 1 (it
+#                refuses to forward SIGTERM: MCA ess_base_forward_signals rejects it), so the
+#                case also sends SIGTERM to a bare mpirun and checks that the ranks still
+#                checkpoint ("stop requested"), the only status it can give is 1, and the rerun
+#                resumes to the reference model
 # Each case checks: no hang (every command runs under `timeout`, LMB_FAULT_TIMEOUT s, default 300;
 # exit 124 = hang), the expected exit status and message in the log, that every ckpt-*.h5 left
 # reads back whole (`lboost inspect`, CRC-32 included), and that the rerun (same command, after the
@@ -36,7 +43,7 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 seeds_arg=3
-cases_arg=kill9,kill9_ckpt,disk_full,read_only,sigterm,sigterm_load
+cases_arg=kill9,kill9_ckpt,disk_full,read_only,sigterm,sigterm_load,sigterm_mpirun
 rounds=100
 work=/tmp/lmb_fault_inject
 keep_work=0
@@ -47,7 +54,7 @@ while [ $# -gt 0 ]; do
     --rounds) rounds=$2; shift 2 ;;
     --work) work=$2; shift 2 ;;
     --keep) keep_work=1; shift ;;
-    *) sed -n '2,33p' "$0"; exit 2 ;;
+    *) sed -n '2,40p' "$0"; exit 2 ;;
   esac
 done
 if [[ "$seeds_arg" == *,* ]]; then IFS=, read -r -a seeds <<< "$seeds_arg"; else seeds=($(seq 1 "$seeds_arg")); fi
@@ -306,6 +313,40 @@ case_sigterm_load() {
   finish
   expect_requeue "$run"
   detail="SIGTERM to rank $victim during $when (+0.2+${delay}s); stopped after round ${after:-?}"
+}
+
+case_sigterm_mpirun() {
+  local run=$1 launcher bare status_bare=0
+  # 1. The launcher: jobs/train_local.sh traps SIGTERM and asks mpirun (SIGUSR1, which mpirun
+  #    forwards) to stop the ranks; it must exit 75.
+  launched=$(now)
+  LBOOST=$lboost MPIEXEC=$mpiexec timeout -k 10 "$limit" "$root/jobs/train_local.sh" 2 "${train_args[@]:1}" --out "$run" \
+    > "$run.log" 2>&1 &
+  job=$!
+  if wait_until has_rounds "$run" 1; then
+    launcher=$(pgrep -f -- "train_local.sh 2 .*--out $run\$" | head -n 1)
+    if [ -n "$launcher" ]; then kill -TERM "$launcher"; else problem="$problem; launcher not found"; fi
+  else
+    problem="$problem; the job ended before round 1"
+  fi
+  finish
+  expect_requeue "$run"
+  local first_after=${after:-?}
+  # 2. A bare mpirun, on a copy of the run: the ranks checkpoint; Open MPI's exit status is 1.
+  check_checkpoints "$run"
+  local bare_run=$run.bare
+  rm -rf "$bare_run"
+  cp -a "$run" "$bare_run"
+  launch "$bare_run" "$bare_run.log"
+  if wait_until has_rounds "$bare_run" "$(( $(rounds_done "$bare_run") + 1 ))"; then
+    bare=$(pgrep -f -- "^$mpiexec -n 2 .*--out $bare_run\$" | head -n 1)
+    if [ -n "$bare" ]; then kill -TERM "$bare"; else problem="$problem; bare mpirun not found"; fi
+  fi
+  wait "$job" || status_bare=$?
+  grep -q "stop requested by a signal after round" "$bare_run.log" || problem="$problem; bare mpirun: the ranks did not checkpoint"
+  [ "$status_bare" -eq 1 ] || [ "$status_bare" -eq 75 ] || problem="$problem; bare mpirun exit $status_bare"
+  rm -rf "$bare_run" "$bare_run".*
+  detail="SIGTERM to jobs/train_local.sh: exit 75 after round $first_after; to a bare mpirun: exit $status_bare (Open MPI), ranks checkpointed"
 }
 
 IFS=, read -r -a cases <<< "$cases_arg"

@@ -30,6 +30,7 @@
 #include "infer/model.h"
 #include "test/common/io/test_maps.h"
 #include "test/infer/test_models.h"
+#include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
 
 namespace lmb {
@@ -211,7 +212,11 @@ std::vector<Row> rows() {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<Row> r;
   // model.lbm
-  r.push_back({"model.lbm", "missing file", [](const fs::path& dir) { Model::load(dir / "model.lbm"); }, "DIR/model.lbm: cannot open file"});
+  r.push_back({"model.lbm", "missing file", [](const fs::path& dir) { Model::load(dir / "model.lbm"); }, "DIR/model.lbm: cannot open file: No such file or directory"});
+  r.push_back({"model.lbm", "a folder", [](const fs::path& dir) {
+                 fs::create_directories(dir / "model.lbm");
+                 Model::load(dir / "model.lbm");
+               }, "DIR/model.lbm: is a folder, not a file"});
   r.push_back({"model.lbm", "empty file", model_with([] { return std::string(); }), "DIR/model.lbm: file too short (0 bytes) for a LMBMODEL header"});
   r.push_back({"model.lbm", "a vocabulary file instead", model_with(good_vocab_file), "DIR/model.lbm: not a LMBMODEL file (wrong magic)"});
   r.push_back({"model.lbm", "format version 3", model_with([] { return with_byte(good_model_file(), 8, 3); }), "DIR/model.lbm: format version 3 is not supported (this build reads versions 1 to 2)"});
@@ -254,8 +259,23 @@ std::vector<Row> rows() {
                  // The int32 descriptor_bytes follows the archive's endianness byte and the detector name.
                  return edited_model_file([](std::string& p) { p[1 + 8 + 4] = 16; });
                }), "DIR/model.lbm: vocabulary has 8-byte words, descriptors have 16 bytes"});
+  r.push_back({"model.lbm", "an empty context region (a crafted file)", model_with([] {
+                 // Region 0's four floats follow the endianness byte, the detector name (8 + 4 bytes),
+                 // descriptor_bytes, the region options (4 + 8 + 4 x 8 bytes) and the region count.
+                 return edited_model_file([](std::string& p) { std::memset(p.data() + 1 + 12 + 4 + 44 + 8, 0, 16); });
+               }), "DIR/model.lbm: regions: region 0 is empty ([0, 0) x [0, 0))"});
+  // model.bin (the trainer's output)
+  r.push_back({"model.bin", "format version 1 (an older lboost: no feature-space record)", [](const fs::path& dir) {
+                 BoostModel m;
+                 m.num_dims = 2;
+                 m.num_classes = 1;
+                 m.class_landmark = {0};
+                 m.bias = {0.0, 0.0};
+                 write_bytes(dir / "model.bin", as_string(make_container("LMBBOOST", 1, serialize_boost_model(m))));
+                 load_trained_model(dir / "model.bin");
+               }, "DIR/model.bin: a model.bin of an older lboost (format version 1), which does not record the context regions, vocabulary and map it was trained with, so export cannot prove they match; retrain it (or export it with the lboost that trained it)"});
   // vocab.lbv
-  r.push_back({"vocab.lbv", "missing file", [](const fs::path& dir) { Vocabulary::load(dir / "vocab.lbv"); }, "DIR/vocab.lbv: cannot open file"});
+  r.push_back({"vocab.lbv", "missing file", [](const fs::path& dir) { Vocabulary::load(dir / "vocab.lbv"); }, "DIR/vocab.lbv: cannot open file: No such file or directory"});
   r.push_back({"vocab.lbv", "a model file instead", vocab_with(good_model_file), "DIR/vocab.lbv: not a LMBVOCAB file (wrong magic)"});
   r.push_back({"vocab.lbv", "format version 2", vocab_with([] { return with_byte(good_vocab_file(), 8, 2); }), "DIR/vocab.lbv: format version 2 is not supported (this build reads version 1)"});
   r.push_back({"vocab.lbv", "one payload bit flipped", vocab_with([] {
@@ -341,6 +361,13 @@ std::vector<Row> rows() {
   r.push_back({"COLMAP text", "image of a missing camera", colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 9 a.png\n\n"), "DIR/sparse/images.txt line 1: image refers to camera 9, which cameras.txt lacks"});
   r.push_back({"COLMAP text", "duplicate image name",
                colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 0 1 a.png\n\n"), "DIR/sparse/images.txt line 3: duplicate image name a.png"});
+  r.push_back({"COLMAP text", "image name with '..' (would leave the image folder)",
+               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 ../../a.png\n\n"), "DIR/sparse/images.txt line 1: image name '../../a.png' leaves the image folder ('..' component)"});
+  r.push_back({"COLMAP text", "absolute image name", colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 /etc/passwd\n\n"),
+               "DIR/sparse/images.txt line 1: image name '/etc/passwd' is an absolute path (names are relative to the image folder)"});
+  r.push_back({"COLMAP text", "image id -5", colmap_text_with("images.txt", "-5 1 0 0 0 0 0 0 1 a.png\n\n"), "DIR/sparse/images.txt line 1: IMAGE_ID -5 is negative"});
+  r.push_back({"COLMAP text", "NUL byte in an image name",
+               colmap_text_with("images.txt", std::string("1 1 0 0 0 0 0 0 1 a") + '\0' + "b.png\n\n"), "DIR/sparse/images.txt line 1: contains a NUL byte (not a text file?)"});
   r.push_back({"COLMAP text", "track of a missing image", colmap_text_with("points3D.txt", "5 1 2 3 0 0 0 0.5 7 0\n"), "DIR/sparse/points3D.txt line 1: track refers to image 7, which the model lacks"});
   // COLMAP binary
   r.push_back({"COLMAP binary", "cameras.bin cut by 3 bytes",
@@ -359,6 +386,8 @@ std::vector<Row> rows() {
                colmap_binary_with([nan](ColmapModel& m) { m.images[1].cam_from_world.translation.z() = nan; }), "DIR/sparse/images.bin: image record 1 (id 2): translation component is not finite (at byte offset 172 of 216)"});
   r.push_back({"COLMAP binary", "track of a 2D point the image lacks",
                colmap_binary_with([](ColmapModel& m) { m.points[0].track[1].point2d_idx = 4; }), "DIR/sparse/points3D.bin: point3D record 0 (id 5): track refers to 2D point 4 of image 2, which has 1 (at byte offset 75 of 75)"});
+  r.push_back({"COLMAP binary", "image name with '..' (would leave the image folder)",
+               colmap_binary_with([](ColmapModel& m) { m.images[1].name = "../b.png"; }), "DIR/sparse/images.bin: image record 1 (id 2): image name '../b.png' leaves the image folder ('..' component) (at byte offset 185 of 217)"});
   r.push_back({"COLMAP binary", "trailing bytes", colmap_binary_with({}, "points3D.bin", [](std::string& b) { b += "xyz"; }), "DIR/sparse/points3D.bin: 3 trailing bytes after the last record (wrong count?) (at byte offset 75 of 78)"});
   // gravity.txt
   r.push_back({"gravity.txt", "3 fields", gravity_with("im1.png 0 1\n"), "DIR/gravity.txt line 1: expected 4 fields (IMAGE_NAME GX GY GZ), got 3"});
@@ -373,9 +402,10 @@ std::vector<Row> rows() {
   r.push_back({"train config (TOML)", "1e37 for an integer", config_with("[boost]\nnum_rounds = 1e37\n"),
                "DIR/train.toml: boost.num_rounds: expected an integer"});
   r.push_back({"train config (TOML)", "integer out of range", config_with("[boost]\nnum_rounds = 99999999999\n"), "DIR/train.toml: boost.num_rounds: 99999999999 is out of range"});
-  r.push_back({"train config (TOML)", "num_rounds = 0", config_with("[boost]\nnum_rounds = 0\n"), "boost options: num_rounds must be >= 1, got 0"});
-  r.push_back({"train config (TOML)", "nan for a real", config_with("[boost]\nexclusion_radius = nan\n"), "boost options: exclusion_radius must be finite and >= 0, got nan"});
-  r.push_back({"train config (TOML)", "inf region area", config_with("[regions]\nmax_area = inf\n"), "context regions: max_area = inf must be finite and >= min_area (1)"});
+  r.push_back({"train config (TOML)", "num_rounds = 0", config_with("[boost]\nnum_rounds = 0\n"), "DIR/train.toml: boost options: num_rounds must be >= 1, got 0"});
+  r.push_back({"train config (TOML)", "nan for a real", config_with("[boost]\nexclusion_radius = nan\n"), "DIR/train.toml: boost options: exclusion_radius must be finite and >= 0, got nan"});
+  r.push_back({"train config (TOML)", "inf region area", config_with("[regions]\nmax_area = inf\n"), "DIR/train.toml: context regions: max_area = inf must be finite and >= min_area (1)"});
+  r.push_back({"train config (TOML)", "negative seed", config_with("[regions]\nseed = -1\n"), "DIR/train.toml: regions.seed: -1 is out of range"});
   return r;
 }
 

@@ -5,12 +5,13 @@
 #include <climits>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <set>
 #include <sstream>
+#include <system_error>
 
 #include "common/error.h"
+#include "common/file_io.h"
 
 namespace lmb {
 
@@ -57,12 +58,7 @@ const char* colmap_model_name_for_id(int id) {
 // current record and the byte offset.
 class BinaryReader {
  public:
-  explicit BinaryReader(const fs::path& path) : path_(path) {
-    std::ifstream in(path, std::ios::binary);
-    LMB_CHECK(in.good(), path.string() << ": cannot open file");
-    bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    LMB_CHECK(!in.bad(), path.string() << ": read error");
-  }
+  explicit BinaryReader(const fs::path& path) : path_(path), bytes_(read_file(path)) {}
 
   void set_record(const std::string& record) { record_ = record; }
   uint64_t offset() const { return pos_; }
@@ -125,7 +121,7 @@ class BinaryReader {
 
  private:
   fs::path path_;
-  std::vector<char> bytes_;
+  std::string bytes_;
   uint64_t pos_ = 0;
   std::string record_;
 };
@@ -193,7 +189,7 @@ void read_images(const fs::path& path, ColmapModel* model) {
     for (int k = 0; k < 3; ++k) image.cam_from_world.translation[k] = in.read_finite("translation component");
     image.camera_id = in.read_id32("camera_id");
     image.name = in.read_name("image name");
-    if (image.name.empty()) in.fail("empty image name");
+    if (const std::string why = image_name_error(image.name); !why.empty()) in.fail(why);
     if (!model->cameras.count(image.camera_id)) {
       in.fail("image refers to camera " + std::to_string(image.camera_id) + ", which cameras.bin lacks");
     }
@@ -261,13 +257,7 @@ class BinaryWriter {
     bytes_.insert(bytes_.end(), name.begin(), name.end());
     bytes_.push_back('\0');
   }
-  void save(const fs::path& path) const {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    LMB_CHECK(out.good(), path.string() << ": cannot open file for writing");
-    out.write(bytes_.data(), static_cast<std::streamsize>(bytes_.size()));
-    out.close();
-    LMB_CHECK(out.good(), path.string() << ": write failed");
-  }
+  void save(const fs::path& path) const { write_file_atomically(path, bytes_.data(), bytes_.size()); }
 
  private:
   std::vector<char> bytes_;
@@ -290,7 +280,9 @@ ColmapModel read_colmap_binary(const fs::path& sparse_dir) {
 }
 
 void write_colmap_binary(const ColmapModel& model, const fs::path& sparse_dir) {
-  fs::create_directories(sparse_dir);
+  std::error_code ec;
+  fs::create_directories(sparse_dir, ec);
+  LMB_CHECK(!ec, sparse_dir.string() << ": cannot create the folder: " << ec.message());
   {
     BinaryWriter out;
     out.put<uint64_t>(model.cameras.size());

@@ -8,36 +8,18 @@
 #include <iomanip>
 #include <set>
 #include <sstream>
+#include <system_error>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/colmap_binary.h"
+#include "common/text_lines.h"
 
 namespace lmb {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-// Reads the non-comment, non-empty lines of a text file together with their line numbers.
-std::vector<std::pair<int, std::string>> read_data_lines(const fs::path& path) {
-  std::ifstream in(path);
-  LMB_CHECK(in.good(), path.string() << ": cannot open file");
-  std::vector<std::pair<int, std::string>> lines;
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    lines.emplace_back(number, line);
-  }
-  return lines;
-}
-
-std::string where(const fs::path& path, int line) {
-  return path.string() + " line " + std::to_string(line);
-}
 
 template <typename T>
 T parse(std::istringstream& in, const std::string& at, const char* field) {
@@ -55,6 +37,28 @@ double parse_finite(std::istringstream& in, const std::string& at, const char* f
 }
 
 }  // namespace
+
+std::string image_name_error(const std::string& name) {
+  if (name.empty()) return "empty image name";
+  const std::string quoted = "image name '" + name + "'";
+  if (name.front() == '/') return quoted + " is an absolute path (names are relative to the image folder)";
+  size_t begin = 0;
+  while (begin <= name.size()) {
+    size_t end = name.find('/', begin);
+    if (end == std::string::npos) end = name.size();
+    const std::string part = name.substr(begin, end - begin);
+    if (part.empty()) return quoted + " has an empty path component";
+    if (part == "..") return quoted + " leaves the image folder ('..' component)";
+    if (part == ".") return quoted + " has a '.' path component";
+    begin = end + 1;
+  }
+  return "";
+}
+
+void check_image_name(const std::string& name, const std::string& where) {
+  const std::string why = image_name_error(name);
+  LMB_CHECK(why.empty(), where << ": " << why);
+}
 
 Eigen::Quaterniond checked_rotation(double qw, double qx, double qy, double qz, const std::string& at) {
   const double norm = std::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
@@ -79,12 +83,12 @@ std::string colmap_track_error(const ColmapModel& model, const ColmapTrackElemen
 
 ColmapModel read_colmap_text(const fs::path& sparse_dir) {
   ColmapModel model;
-  const fs::path cameras_path = sparse_dir / "cameras.txt";
-  for (const auto& [number, line] : read_data_lines(cameras_path)) {
-    const std::string at = where(cameras_path, number);
-    std::istringstream in(line);
+  for (TextLineReader lines(sparse_dir / "cameras.txt"); lines.next();) {
+    const std::string at = lines.where();
+    std::istringstream in(lines.line());
     Camera camera;
     const int id = parse<int>(in, at, "CAMERA_ID");
+    LMB_CHECK(id >= 0, at << ": CAMERA_ID " << id << " is negative");
     camera.model = camera_model_from_name(parse<std::string>(in, at, "MODEL"), at);
     camera.width = parse<int>(in, at, "WIDTH");
     camera.height = parse<int>(in, at, "HEIGHT");
@@ -97,20 +101,16 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     LMB_CHECK(model.cameras.emplace(id, camera).second, at << ": duplicate camera id " << id);
   }
 
-  const fs::path images_path = sparse_dir / "images.txt";
-  const auto image_lines = read_data_lines(images_path);
   std::set<int> image_ids;
   std::set<std::string> names;
   // images.txt holds two lines per image; the second (2D points) may be empty, in which case
-  // read_data_lines dropped it. A line with 10 fields starts an image; a POINTS2D line has a
+  // the line reader skipped it. A line with 10 fields starts an image; a POINTS2D line has a
   // multiple of 3 fields, so the two never look alike.
   bool points_allowed = false;
-  for (const auto& [number, line] : image_lines) {
-    const std::string at = where(images_path, number);
-    std::istringstream probe(line);
-    std::vector<std::string> tokens;
-    std::string token;
-    while (probe >> token) tokens.push_back(token);
+  for (TextLineReader lines(sparse_dir / "images.txt"); lines.next();) {
+    const std::string at = lines.where();
+    const std::string& line = lines.line();
+    const std::vector<std::string> tokens = lines.tokens();
     if (tokens.size() != 10) {
       LMB_CHECK(tokens.size() % 3 == 0 && points_allowed,
                 at << ": expected an image line with 10 fields or a POINTS2D line, got "
@@ -132,6 +132,7 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     std::istringstream in(line);
     ColmapImage image;
     image.image_id = parse<int>(in, at, "IMAGE_ID");
+    LMB_CHECK(image.image_id >= 0, at << ": IMAGE_ID " << image.image_id << " is negative");
     const double qw = parse_finite(in, at, "QW");
     const double qx = parse_finite(in, at, "QX");
     const double qy = parse_finite(in, at, "QY");
@@ -142,6 +143,7 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     image.cam_from_world.translation.z() = parse_finite(in, at, "TZ");
     image.camera_id = parse<int>(in, at, "CAMERA_ID");
     image.name = parse<std::string>(in, at, "NAME");
+    check_image_name(image.name, at);
     LMB_CHECK(model.cameras.count(image.camera_id),
               at << ": image refers to camera " << image.camera_id << ", which cameras.txt lacks");
     LMB_CHECK(image_ids.insert(image.image_id).second, at << ": duplicate image id " << image.image_id);
@@ -154,11 +156,12 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
 
   const fs::path points_path = sparse_dir / "points3D.txt";
   if (fs::exists(points_path)) {
-    for (const auto& [number, line] : read_data_lines(points_path)) {
-      const std::string at = where(points_path, number);
-      std::istringstream in(line);
+    for (TextLineReader lines(points_path); lines.next();) {
+      const std::string at = lines.where();
+      std::istringstream in(lines.line());
       ColmapPoint3D p;
       p.point3d_id = parse<int64_t>(in, at, "POINT3D_ID");
+      LMB_CHECK(p.point3d_id >= 0, at << ": POINT3D_ID " << p.point3d_id << " is negative");
       p.xyz.x() = parse_finite(in, at, "X");
       p.xyz.y() = parse_finite(in, at, "Y");
       p.xyz.z() = parse_finite(in, at, "Z");
@@ -191,9 +194,11 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
 }
 
 void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
-  fs::create_directories(sparse_dir);
+  std::error_code ec;
+  fs::create_directories(sparse_dir, ec);
+  LMB_CHECK(!ec, sparse_dir.string() << ": cannot create the folder: " << ec.message());
   {
-    std::ofstream out(sparse_dir / "cameras.txt");
+    std::ostringstream out;
     out << "# Camera list with one line of data per camera:\n"
         << "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
         << "# Number of cameras: " << model.cameras.size() << "\n";
@@ -203,10 +208,10 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
       for (double p : camera.params) out << ' ' << p;
       out << '\n';
     }
-    LMB_CHECK(out.good(), (sparse_dir / "cameras.txt").string() << ": write failed");
+    write_file_atomically(sparse_dir / "cameras.txt", out.str());
   }
   {
-    std::ofstream out(sparse_dir / "images.txt");
+    std::ostringstream out;
     out << "# Image list with two lines of data per image:\n"
         << "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
         << "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
@@ -223,10 +228,10 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
       }
       out << '\n';
     }
-    LMB_CHECK(out.good(), (sparse_dir / "images.txt").string() << ": write failed");
+    write_file_atomically(sparse_dir / "images.txt", out.str());
   }
   {
-    std::ofstream out(sparse_dir / "points3D.txt");
+    std::ostringstream out;
     out << "# 3D point list with one line of data per point:\n"
         << "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
         << "# Number of points: " << model.points.size() << "\n";
@@ -237,7 +242,7 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
       for (const ColmapTrackElement& e : p.track) out << ' ' << e.image_id << ' ' << e.point2d_idx;
       out << '\n';
     }
-    LMB_CHECK(out.good(), (sparse_dir / "points3D.txt").string() << ": write failed");
+    write_file_atomically(sparse_dir / "points3D.txt", out.str());
   }
 }
 

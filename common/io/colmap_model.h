@@ -87,6 +87,14 @@ void check_collection_images(const ColmapModel& model, const std::filesystem::pa
 // Both readers check every track element with it.
 std::string colmap_track_error(const ColmapModel& model, const ColmapTrackElement& element);
 
+// Why an image name read from a sparse model could not be used as a path inside the image folder:
+// "" when it can (relative, '/'-separated, no empty, "." or ".." component), else the reason, e.g.
+// "image name '../x.png' leaves the image folder ('..' component)". Both readers check every name,
+// so no caller joins a name that escapes the folder (`import colmap` writes links at these names).
+std::string image_name_error(const std::string& name);
+// Throws lmb::Error "<where>: <reason>" when image_name_error(name) is not empty.
+void check_image_name(const std::string& name, const std::string& where);
+
 // Checks that a quaternion read from a file is a rotation: finite and of unit norm within 1e-3
 // (then normalized), else throws naming `where`.
 Eigen::Quaterniond checked_rotation(double qw, double qx, double qy, double qz, const std::string& where);

@@ -2,33 +2,23 @@
 #include "common/io/gravity_file.h"
 
 #include <cmath>
-#include <fstream>
 #include <iomanip>
 #include <sstream>
 #include <vector>
 
 #include "common/error.h"
+#include "common/file_io.h"
+#include "common/text_lines.h"
 
 namespace lmb {
 
 namespace fs = std::filesystem;
 
 std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path) {
-  std::ifstream in(path);
-  LMB_CHECK(in.good(), path.string() << ": cannot open gravity file");
   std::map<std::string, Eigen::Vector3d> gravity;
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    const std::string at = path.string() + " line " + std::to_string(number);
-    std::istringstream fields(line);
-    std::vector<std::string> tokens;
-    std::string token;
-    while (fields >> token) tokens.push_back(token);
+  for (TextLineReader lines(path); lines.next();) {
+    const std::string at = lines.where();
+    const std::vector<std::string> tokens = lines.tokens();
     LMB_CHECK(tokens.size() == 4, at << ": expected 4 fields (IMAGE_NAME GX GY GZ), got " << tokens.size());
     const Eigen::Vector3d g(parse_finite_number(tokens[1], at, "GX"), parse_finite_number(tokens[2], at, "GY"),
                             parse_finite_number(tokens[3], at, "GZ"));
@@ -39,7 +29,6 @@ std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path) {
               at << ": gravity of image " << tokens[0] << " is the zero vector");
     LMB_CHECK(gravity.emplace(tokens[0], (g / scale).normalized()).second, at << ": duplicate image name " << tokens[0]);
   }
-  LMB_CHECK(!in.bad(), path.string() << ": read error");
   return gravity;
 }
 
@@ -58,8 +47,7 @@ std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path, c
 }
 
 void write_gravity_file(const std::map<std::string, Eigen::Vector3d>& gravity_in_cam, const fs::path& path) {
-  std::ofstream out(path, std::ios::trunc);
-  LMB_CHECK(out.good(), path.string() << ": cannot open for writing");
+  std::ostringstream out;
   out << "# Gravity direction (down) in each image's camera frame (x right, y down, z forward), any scale.\n"
       << "# IMAGE_NAME GX GY GZ\n";
   out << std::setprecision(17);
@@ -68,8 +56,7 @@ void write_gravity_file(const std::map<std::string, Eigen::Vector3d>& gravity_in
               path.string() << ": image name '" << name << "' contains white space");
     out << name << ' ' << g.x() << ' ' << g.y() << ' ' << g.z() << '\n';
   }
-  out.close();
-  LMB_CHECK(out.good(), path.string() << ": write failed");
+  write_file_atomically(path, out.str());
 }
 
 }  // namespace lmb

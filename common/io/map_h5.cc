@@ -1,6 +1,5 @@
 #include "common/io/map_h5.h"
 
-#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -8,6 +7,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/h5_util.h"
 
 namespace lmb {
@@ -94,15 +94,8 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
 void write_map_h5(const LandmarkMap& map, const fs::path& path) {
   validate_landmark_map(map, path.string() + " (map to write)");
   H5::Exception::dontPrint();
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  std::string tmp_name = ".";  // built step by step: GCC 12 warns falsely (-Wrestrict) on "." + string
-  tmp_name += path.filename().string();
-  tmp_name += ".tmp-";
-  tmp_name += std::to_string(::getpid());
-  const fs::path tmp = dir / tmp_name;
   try {
-    {
-      H5::H5File file(tmp.string(), H5F_ACC_TRUNC);
+    write_h5_atomically(path, [&](H5::H5File& file) {
       write_string_attribute(file, "format", kMapH5Format);
       write_int_attribute(file, "format_version", kMapH5Version);
       write_string_attribute(file, "detector", map.detector);
@@ -190,21 +183,9 @@ void write_map_h5(const LandmarkMap& map, const fs::path& path) {
       write_column(landmarks, "mean_reprojection_error", reprojection, num_landmarks);
       write_column(landmarks, "num_map_observations", map_obs, num_landmarks);
       write_column(landmarks, "num_query_observations", query_obs, num_landmarks);
-      file.close();
-    }
-    fsync_path(tmp, false);
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    LMB_CHECK(!ec, path.string() << ": cannot rename the temporary file into place: " << ec.message());
-    fsync_path(dir, true);
+    });
   } catch (const H5::Exception& e) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
     LMB_FAIL(path.string() << ": cannot write HDF5: " << e.getFuncName() << ": " << e.getDetailMsg());
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
   }
 }
 

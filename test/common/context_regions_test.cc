@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <sstream>
 
 #include <cereal/archives/portable_binary.hpp>
 #include <gtest/gtest.h>
 
+#include "common/bounded_reader.h"
 #include "common/error.h"
 
 namespace lmb {
@@ -107,33 +109,55 @@ TEST(ContextRegions, SameSeedSameSetOtherSeedOtherSet) {
   EXPECT_FALSE(a == ContextRegions(o));
 }
 
-TEST(ContextRegions, CerealRoundTripAndBoundedCount) {
+std::string serialized(const ContextRegions& regions) {
+  std::ostringstream os(std::ios::binary);
+  {
+    cereal::PortableBinaryOutputArchive ar(os);
+    write_context_regions(ar, regions);
+  }
+  return os.str();
+}
+
+ContextRegions parsed(const std::string& bytes, const std::string& what) {
+  BoundedReader r(bytes, what);
+  ContextRegions out = read_context_regions(r);
+  r.expect_end();
+  return out;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ContextRegions, SerializerRoundTripAndBoundedCount) {
   const ContextRegions a{ContextRegionOptions{}};
-  std::stringstream ss;
-  {
-    cereal::PortableBinaryOutputArchive ar(ss);
-    ar(a);
-  }
-  const std::string bytes = ss.str();
-  ContextRegions b;
-  {
-    std::istringstream is(bytes);
-    cereal::PortableBinaryInputArchive ar(is);
-    ar(b);
-  }
+  const std::string bytes = serialized(a);
+  const ContextRegions b = parsed(bytes, "x.lbm");
   EXPECT_TRUE(a == b);
   EXPECT_EQ(b.options().seed, a.options().seed);
+  EXPECT_EQ(b.options().max_offset, a.options().max_offset);
+  EXPECT_EQ(serialized(b), bytes);
 
-  // A corrupted count is rejected before anything is allocated from it. The count follows the
-  // endianness byte, int32 num_regions, uint64 seed and four doubles.
+  // A corrupted count is rejected before anything is allocated from it. The uint64 count follows
+  // the endianness byte, int32 num_regions, uint64 seed and four doubles.
   std::string bad = bytes;
   const size_t count_offset = 1 + 4 + 8 + 4 * 8;
-  const int32_t huge = 0x7fffffff;
-  bad.replace(count_offset, 4, reinterpret_cast<const char*>(&huge), 4);
-  std::istringstream is(bad);
-  cereal::PortableBinaryInputArchive ar(is);
-  ContextRegions c;
-  EXPECT_THROW(ar(c), Error);
+  const uint64_t huge = uint64_t{1} << 60;
+  bad.replace(count_offset, 8, reinterpret_cast<const char*>(&huge), 8);
+  EXPECT_NE(error_of([&] { parsed(bad, "x.lbm"); }).find("x.lbm: regions: corrupt count 1152921504606846976"),
+            std::string::npos);
+  // An empty rectangle: the error names the source, not only "context regions".
+  std::string empty = bytes;
+  const float x0 = 0.f;
+  empty.replace(count_offset + 8 + 8, 4, reinterpret_cast<const char*>(&x0), 4);  // x1 of region 0
+  empty.replace(count_offset + 8, 4, reinterpret_cast<const char*>(&x0), 4);      // x0 of region 0
+  EXPECT_EQ(error_of([&] { parsed(empty, "x.lbm"); }).rfind("x.lbm: regions: region 0 is empty", 0), 0u)
+      << error_of([&] { parsed(empty, "x.lbm"); });
 }
 
 TEST(ContextRegions, BadOptionsAndRectanglesThrow) {

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "common/file_container.h"
+#include "common/feature_space.h"
+#include "common/file_io.h"
 #include "common/io/colmap_binary.h"
 #include "common/io/colmap_model.h"
 #include "common/io/gravity_file.h"
@@ -20,6 +22,7 @@
 #include "test/infer/test_models.h"
 #include "train/boost/stump_learner.h"
 #include "train/boost/synthetic_problem.h"
+#include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
 #include "train/checkpoint/checkpoint_h5.h"
 
@@ -27,13 +30,6 @@ namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 void put(const fs::path& dir, const std::string& name, const std::string& bytes) {
   fs::create_directories(dir);
@@ -130,6 +126,27 @@ void make_seeds(const fs::path& out, const fs::path& scratch) {
   put(out / "train_config", "short.toml",
       "# a short config\n[boost]\nnum_rounds = 50\nexclusion_radius = 0.25\nscreening_step = true\n"
       "[regions]\nnum_regions = 100\n[features]\nthreads = 2\n");
+  // model.bin: a two-stump model in a map's feature space (3 regions, 4 words of 8 bytes) and in a
+  // synthetic one.
+  {
+    BoostModel m;
+    m.num_dims = 3 * 4 + 64;
+    m.num_classes = 2;
+    m.class_landmark = {4, 9};
+    m.bias = {0.5, -0.25, 0.0};
+    m.stumps.push_back({1, 4, 2.0, -1.0, {0, 2}});
+    m.stumps.push_back({70, 0, -0.5, 0.25, {1}});
+    LandmarkMap map = test::random_map(1);
+    map.descriptor_bytes = 8;
+    map.descriptors.assign(map.keypoints.size() * 8, 3);
+    const FeatureSpace space =
+        map_feature_space(ContextRegions(ContextRegionOptions{.num_regions = 3}), test::test_vocabulary(), map);
+    save_trained_model(scratch / "model.bin", m, space);
+    put(out / "trained_model", "map.bin", read_file(scratch / "model.bin"));
+    m.num_dims = 80;
+    save_trained_model(scratch / "synthetic.bin", m, synthetic_feature_space("synthetic:small", 80));
+    put(out / "trained_model", "synthetic.bin", read_file(scratch / "synthetic.bin"));
+  }
   // Gravity.
   write_gravity_file({{"map/1.png", Eigen::Vector3d(0, 1, 0)}, {"map/2.png", Eigen::Vector3d(0.1, 0.9, -0.2)},
                       {"query/3.png", Eigen::Vector3d(1e-3, 2.5, 1e3)}},
@@ -151,6 +168,7 @@ void make_seeds(const fs::path& out, const fs::path& scratch) {
       ck.seed = config.boost.seed;
       ck.config = train_config_toml(config);
       ck.data = "synthetic:fuzz";
+      ck.feature_space = synthetic_feature_space(ck.data, problem.features.num_dims);
       ck.state = learner.save_state();
       const fs::path path = scratch / ("ckpt-rounds" + std::to_string(rounds) + ".h5");
       write_checkpoint(path, ck);

@@ -101,6 +101,10 @@ TEST(CApiTest, ErrorsAreStatusesWithMessages) {
   EXPECT_EQ(lmb_model_load("/nonexistent/model.lbm", &model), LMB_ERROR_MODEL_FILE);
   EXPECT_EQ(model, nullptr);
   EXPECT_NE(std::string(lmb_last_error()).find("/nonexistent/model.lbm"), std::string::npos);
+  // A folder given as the model (issue 16): a model-file error naming it, not LMB_ERROR_INTERNAL.
+  const std::string folder = std::filesystem::temp_directory_path().string();
+  EXPECT_EQ(lmb_model_load(folder.c_str(), &model), LMB_ERROR_MODEL_FILE);
+  EXPECT_EQ(std::string(lmb_last_error()), "lmb_model_load: " + folder + ": is a folder, not a file");
   EXPECT_EQ(lmb_model_load(nullptr, &model), LMB_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(lmb_model_load(fx.path.c_str(), nullptr), LMB_ERROR_INVALID_ARGUMENT);
 

@@ -6,14 +6,16 @@
 #include <cereal/archives/portable_binary.hpp>
 #include <cereal/types/vector.hpp>
 
+#include "common/bounded_reader.h"
 #include "common/error.h"
 #include "common/file_container.h"
+#include "common/file_io.h"
 
 namespace lmb {
 
 namespace {
 constexpr char kMagic[] = "LMBBOOST";
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;  // 1: no feature space (refused)
 }  // namespace
 
 void BoostModel::scores(const uint8_t* v, double* out) const {
@@ -78,50 +80,22 @@ std::string serialize_boost_model(const BoostModel& model) {
   return os.str();
 }
 
-namespace {
-// Bounds every count against the bytes left before anything is allocated (cereal trusts sizes).
-class BoundedReader {
- public:
-  BoundedReader(const std::string& bytes, const std::string& what) : is_(bytes), ar_(is_), total_(bytes.size()), what_(what) {}
-  template <class T>
-  void value(T& x) { ar_(x); }
-  uint64_t count(size_t element_bytes) {
-    uint64_t n = 0;
-    ar_(cereal::make_size_tag(n));
-    const auto pos = static_cast<uint64_t>(is_.tellg());
-    LMB_CHECK(pos <= total_ && n <= (total_ - pos) / element_bytes,
-              what_ << ": corrupt count " << n << " exceeds the " << (total_ - pos) << " bytes left");
-    return n;
-  }
-  template <class T>
-  void vector(std::vector<T>& v) {
-    v.resize(count(sizeof(T)));
-    for (auto& x : v) ar_(x);
-  }
- private:
-  std::istringstream is_;
-  cereal::PortableBinaryInputArchive ar_;
-  uint64_t total_;
-  std::string what_;
-};
-}  // namespace
-
 BoostModel deserialize_boost_model(const std::string& bytes, const std::string& what) {
   BoostModel model;
   try {
     BoundedReader r(bytes, what);
     r.value(model.num_dims);
     r.value(model.num_classes);
-    r.vector(model.class_landmark);
-    r.vector(model.bias);
+    r.vector(model.class_landmark, "class_landmark");
+    r.vector(model.bias, "bias");
     // A stump takes at least dim + theta + a + b + size = 29 bytes.
-    model.stumps.resize(r.count(29));
+    model.stumps.resize(r.count(29, "stumps"));
     for (SharedStump& s : model.stumps) {
       r.value(s.dim);
       r.value(s.theta);
       r.value(s.a);
       r.value(s.b);
-      r.vector(s.classes);
+      r.vector(s.classes, "stump classes");
     }
   } catch (const cereal::Exception& e) {
     LMB_FAIL(what << ": truncated or corrupt boost model (" << e.what() << ")");
@@ -130,13 +104,43 @@ BoostModel deserialize_boost_model(const std::string& bytes, const std::string& 
   return model;
 }
 
-void save_boost_model(const std::filesystem::path& path, const BoostModel& model) {
+void save_trained_model(const std::filesystem::path& path, const BoostModel& model, const FeatureSpace& space) {
   model.check();
-  write_container_file(path, kMagic, kVersion, serialize_boost_model(model));
+  LMB_CHECK(model.num_dims == space.num_dims, path.string() << ": the model has " << model.num_dims
+                                                          << " feature dims, its feature space " << space.num_dims);
+  std::ostringstream os(std::ios::binary);
+  {
+    cereal::PortableBinaryOutputArchive ar(os);
+    write_byte_string(ar, serialize_boost_model(model));
+    write_feature_space(ar, space);
+  }
+  write_container_file(path, kMagic, kVersion, os.str());
 }
 
-BoostModel load_boost_model(const std::filesystem::path& path) {
-  return deserialize_boost_model(read_container_file(path, kMagic, kVersion), path.string());
+TrainedModel load_trained_model(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  const std::string bytes = read_file(path);
+  if (bytes.size() >= kContainerHeaderBytes && bytes.compare(0, 8, kMagic) == 0 && bytes[8] == 1 &&
+      bytes[9] == 0 && bytes[10] == 0 && bytes[11] == 0) {
+    LMB_FAIL(name << ": a model.bin of an older lboost (format version 1), which does not record the context "
+                     "regions, vocabulary and map it was trained with, so export cannot prove they match; "
+                     "retrain it (or export it with the lboost that trained it)");
+  }
+  const std::string payload = open_container(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(),
+                                             kMagic, kVersion, name);
+  TrainedModel t;
+  try {
+    BoundedReader r(payload, name);
+    t.model = deserialize_boost_model(r.byte_string("model"), name);
+    t.feature_space = read_feature_space(r);
+    r.expect_end();
+  } catch (const cereal::Exception& e) {
+    LMB_FAIL(name << ": truncated or corrupt model file (" << e.what() << ")");
+  }
+  LMB_CHECK(t.model.num_dims == t.feature_space.num_dims,
+            name << ": the model has " << t.model.num_dims << " feature dims, its feature space "
+                 << t.feature_space.num_dims);
+  return t;
 }
 
 }  // namespace lmb

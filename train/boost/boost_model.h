@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "common/shared_stump.h"
+#include "common/feature_space.h"
 #include "common/types.h"
 
 namespace lmb {
@@ -42,11 +43,21 @@ struct BoostModel {
   }
 };
 
-// cereal portable binary, and the same behind the file container (magic "LMBBOOST", version 1).
-// Loading checks every count against the bytes left before allocating, then model.check().
+// cereal portable binary. Loading checks every count against the bytes left before allocating,
+// then model.check().
 std::string serialize_boost_model(const BoostModel& model);
 BoostModel deserialize_boost_model(const std::string& bytes, const std::string& what = "model");
-void save_boost_model(const std::filesystem::path& path, const BoostModel& model);
-BoostModel load_boost_model(const std::filesystem::path& path);
+
+// The trainer's output file, model.bin: the file container (common/file_container.h) with magic
+// "LMBBOOST", version 2, around the BoostModel payload followed by the feature space it was
+// trained in (common/feature_space.h). Version 1 files (no feature space) are refused: nothing
+// could prove which regions and vocabulary their stumps read.
+struct TrainedModel {
+  BoostModel model;
+  FeatureSpace feature_space;
+};
+// Throws lmb::Error when the model is invalid or its num_dims differs from the feature space's.
+void save_trained_model(const std::filesystem::path& path, const BoostModel& model, const FeatureSpace& space);
+TrainedModel load_trained_model(const std::filesystem::path& path);
 
 }  // namespace lmb

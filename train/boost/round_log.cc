@@ -8,10 +8,7 @@
 namespace lmb {
 
 RoundLogger::RoundLogger(const std::filesystem::path& metrics_path, int32_t num_rounds) : num_rounds_(num_rounds) {
-  if (!metrics_path.empty()) {
-    out_.open(metrics_path, std::ios::app);
-    LMB_CHECK(out_.good(), metrics_path.string() << ": cannot open for writing");
-  }
+  if (!metrics_path.empty()) out_ = AppendFile(metrics_path);
 }
 
 std::string RoundLogger::json_line(const RoundStats& s, double eta_seconds) {
@@ -46,10 +43,7 @@ void RoundLogger::log(const RoundStats& s) {
   spdlog::info("round {}/{} cost {:.6g} J {:.6g} val_p1 {} share {} dim {}>{} {:.3f} s/round ETA {:.0f} s",
                s.round + 1, num_rounds_, s.cost, s.squared_error, val, s.sharing_size, s.dim, s.theta,
                s.seconds, eta);
-  if (out_.is_open()) {
-    out_ << json_line(s, eta) << '\n';
-    out_.flush();
-  }
+  if (out_.is_open()) out_.write(json_line(s, eta) + '\n');
 }
 
 }  // namespace lmb

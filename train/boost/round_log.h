@@ -9,23 +9,24 @@
 
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <string>
 
+#include "common/file_io.h"
 #include "train/boost/stump_learner.h"
 
 namespace lmb {
 
 class RoundLogger {
  public:
-  // Appends to `metrics_path` (empty = no file). Throws lmb::Error if it cannot be opened.
+  // Appends to `metrics_path` (empty = no file). Throws lmb::Error if it cannot be opened; log()
+  // throws when a line cannot be written (a full disk), naming the file and the system's reason.
   RoundLogger(const std::filesystem::path& metrics_path, int32_t num_rounds);
   void log(const RoundStats& stats);
   // The JSON line for one round (no newline).
   static std::string json_line(const RoundStats& stats, double eta_seconds);
 
  private:
-  std::ofstream out_;
+  AppendFile out_;
   int32_t num_rounds_;
   double total_seconds_ = 0.0;
   int64_t logged_ = 0;

@@ -1,14 +1,15 @@
 #include "train/boost/train_config.h"
 
 #include <algorithm>
-#include <fstream>
 #include <limits>
 #include <sstream>
 #include <type_traits>
+#include <utility>
 
 #include <toml++/toml.h>
 
 #include "common/error.h"
+#include "common/file_io.h"
 
 namespace lmb {
 
@@ -139,6 +140,12 @@ void TrainConfig::check() const {
     LMB_CHECK(k.range.contains(setting_as_double(ref)),
               "config: " << k.name() << " must be " << k.range.text() << ", got " << setting_value_text(ref));
   }
+  // Seeds are written to config.toml as TOML integers (int64).
+  constexpr uint64_t kMaxSeed = static_cast<uint64_t>(std::numeric_limits<int64_t>::max());
+  for (const auto& [name, seed] : {std::pair{"training_set.seed", training_set.seed},
+                                  std::pair{"boost.seed", boost.seed}, std::pair{"regions.seed", regions.seed}}) {
+    LMB_CHECK(seed <= kMaxSeed, "config: " << name << " = " << seed << " must be in 0.." << kMaxSeed);
+  }
 }
 
 void apply_train_config_toml(const std::string& text, const std::string& what, TrainConfig* config) {
@@ -168,12 +175,13 @@ void apply_train_config_toml(const std::string& text, const std::string& what, T
 }
 
 TrainConfig read_train_config(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  LMB_CHECK(in.good(), path.string() << ": cannot open the config");
-  std::stringstream ss;
-  ss << in.rdbuf();
   TrainConfig c;
-  apply_train_config_toml(ss.str(), path.string(), &c);
+  apply_train_config_toml(read_file(path, 1 << 20), path.string(), &c);
+  try {
+    c.check();
+  } catch (const Error& e) {
+    LMB_FAIL(path.string() << ": " << e.what());
+  }
   return c;
 }
 

@@ -27,7 +27,7 @@ struct TrainConfig {
   int feature_threads = 1;
   int32_t checkpoint_interval = 100;  // rounds between checkpoints (0 = only on a signal and at the end)
   int32_t checkpoint_keep = 3;        // newest checkpoints kept
-  void check() const;  // every part's check(); throws lmb::Error naming the field
+  void check() const;  // every part's check() and seeds in 0..2^63-1; throws lmb::Error naming the field
 };
 
 // One key of the config file, [table] key.
@@ -47,6 +47,7 @@ std::string describe_config_key(const std::string& name);
 // Overrides the fields present in a TOML document. Throws lmb::Error naming `what`, the table and
 // key on a parse error, an unknown table or key, or a value of the wrong type or range.
 void apply_train_config_toml(const std::string& toml_text, const std::string& what, TrainConfig* config);
+// The defaults overridden by the file, then check()ed; every error names the file.
 TrainConfig read_train_config(const std::filesystem::path& path);
 // Every field, as TOML (round-trips through apply_train_config_toml).
 std::string train_config_toml(const TrainConfig& config);

@@ -1,10 +1,8 @@
 #include "train/checkpoint/checkpoint_h5.h"
 
-#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <map>
@@ -15,6 +13,7 @@
 
 #include "common/error.h"
 #include "common/file_container.h"
+#include "common/file_io.h"
 #include "common/io/h5_util.h"
 #include "train/boost/boost_model.h"
 
@@ -84,17 +83,13 @@ std::string config_difference(const std::string& checkpoint_toml, const std::str
 
 void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
   const LearnerState& st = ck.state;
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  std::string tmp_name = ".";  // step by step: GCC 12 warns falsely (-Wrestrict) on "." + string
-  tmp_name += path.filename().string();
-  tmp_name += ".tmp-";
-  tmp_name += std::to_string(::getpid());
-  const fs::path tmp = dir / tmp_name;
+  LMB_CHECK(ck.feature_space.num_dims == st.model.num_dims,
+            path.string() << ": the model has " << st.model.num_dims << " feature dims, its feature space "
+                          << ck.feature_space.num_dims);
   H5::Exception::dontPrint();
-  errno = 0;  // so that a failure below reports its own system error, not an older one
   try {
-    {
-      H5::H5File file(tmp.string(), H5F_ACC_TRUNC);
+    // Built in memory, written by the atomic writer (common/io/h5_util.h).
+    write_h5_atomically(path, [&](H5::H5File& file) {
       write_string_attribute(file, "format", kCheckpointFormat);
       write_int_attribute(file, "format_version", kCheckpointVersion);
       write_scalar_attribute<int64_t>(file, "rounds", ck.rounds);
@@ -115,6 +110,7 @@ void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
       put(root, "data_source", bytes_of(ck.data));
       const std::string model = serialize_boost_model(st.model);
       put(root, "model", bytes_of(model));
+      put(root, "feature_space", bytes_of(serialize_feature_space(ck.feature_space)));
       H5::Group learner = create_untimed_group(file, "/learner");
       write_scalar_attribute<int64_t>(learner, "weight_exponent", st.weight_exponent);
       write_scalar_attribute<int64_t>(learner, "num_validation_rows", st.num_validation_rows);
@@ -128,28 +124,14 @@ void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
       put(learner, "last_validation", std::vector<double>{st.last_validation});
       write_scalar_attribute<int64_t>(file, "crc32", crc);
       write_int_attribute(file, "complete", 1);
-      // Close explicitly: HDF5's C++ destructors report a failed close (e.g. the disk filling up
-      // while the last metadata is written) only on stderr and carry on.
-      learner.close();
-      root.close();
-      file.flush(H5F_SCOPE_GLOBAL);
-      file.close();
-    }
-    fsync_path(tmp, false);
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    LMB_CHECK(!ec, path.string() << ": cannot rename the temporary checkpoint into place: " << ec.message());
-    fsync_path(dir, true);
+    });
   } catch (const H5::Exception& e) {
-    const int err = errno;  // HDF5 does not say why a write failed; the system's last error usually does
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    LMB_FAIL(path.string() << ": cannot write the checkpoint: " << e.getDetailMsg()
-                           << (err ? std::string(" (last system error: ") + std::strerror(err) + ")" : std::string()));
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
+    LMB_FAIL(path.string() << ": cannot write the checkpoint: " << e.getDetailMsg());
+  } catch (const Error& e) {
+    // AtomicFile's "<path>: <step> failed: <reason>" (a full disk, a read-only folder).
+    std::string reason = e.what();
+    if (reason.rfind(path.string() + ": ", 0) == 0) reason.erase(0, path.string().size() + 2);
+    LMB_FAIL(path.string() << ": cannot write the checkpoint: " << reason);
   }
 }
 
@@ -164,8 +146,16 @@ Checkpoint read_checkpoint(const fs::path& path) {
     LMB_CHECK(r.string_attribute("format") == kCheckpointFormat,
               name << ": attribute 'format': not a " << kCheckpointFormat);
     const int64_t version = r.int_attribute("format_version");
-    LMB_CHECK(version == kCheckpointVersion,
-              name << ": attribute 'format_version': " << version << ", this build reads " << kCheckpointVersion);
+    if (version == 1) {
+      throw CheckpointVersionError(
+          name + ": written by an older lboost (checkpoint format version 1), which does not record the "
+                 "context regions, vocabulary and map it was trained with; finish the run with the lboost that "
+                 "started it, or train into a new --out folder");
+    }
+    if (version != kCheckpointVersion) {
+      throw CheckpointVersionError(name + ": attribute 'format_version': " + std::to_string(version) +
+                                   ", this build reads " + std::to_string(kCheckpointVersion));
+    }
     LMB_CHECK(file.attrExists("complete") && r.int_attribute("complete") == 1,
               name << ": attribute 'complete': missing (the write did not finish)");
     Checkpoint ck;
@@ -183,6 +173,8 @@ Checkpoint read_checkpoint(const fs::path& path) {
     get("/data_source", &bytes);
     ck.data = string_of(bytes);
     get("/model", &bytes);
+    std::vector<uint8_t> space_bytes;
+    get("/feature_space", &space_bytes);
     LearnerState& st = ck.state;
     std::vector<double> last;
     get("/learner/entry_sample", &st.entry_sample);
@@ -199,6 +191,9 @@ Checkpoint read_checkpoint(const fs::path& path) {
     LMB_CHECK(last.size() == 1, name << ": dataset '/learner/last_validation': expected 1 value");
     st.last_validation = last[0];
     st.model = deserialize_boost_model(string_of(bytes), name + ": /model");
+    ck.feature_space = parse_feature_space(string_of(space_bytes), name + ": /feature_space");
+    LMB_CHECK(ck.feature_space.num_dims == st.model.num_dims,
+              name << ": /feature_space has " << ck.feature_space.num_dims << " dims, /model " << st.model.num_dims);
     H5::Group learner = file.openGroup("/learner");
     auto group_int = [&](const char* attr) {
       LMB_CHECK(learner.attrExists(attr), name << ": attribute '/learner/" << attr << "': missing");
@@ -246,6 +241,8 @@ std::optional<Checkpoint> CheckpointDir::newest_valid(
   for (const fs::path& p : list()) {
     try {
       return read_checkpoint(p);
+    } catch (const CheckpointVersionError&) {
+      throw;
     } catch (const Error& e) {
       if (on_skip) on_skip(p, e.what());
     }
@@ -253,35 +250,17 @@ std::optional<Checkpoint> CheckpointDir::newest_valid(
   return std::nullopt;
 }
 
-void CheckpointDir::remove_stale_temporaries() const {
-  // ".ckpt-NNNNNNN.h5.tmp-PID" of a writer that no longer runs on this machine (killed while
-  // writing): up to a whole checkpoint each, never read.
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(folder_, ec)) {
-    const std::string name = entry.path().filename().string();
-    const size_t at = name.rfind(".tmp-");
-    if (name.rfind(".ckpt-", 0) != 0 || at == std::string::npos) continue;
-    char* end = nullptr;
-    const long pid = std::strtol(name.c_str() + at + 5, &end, 10);
-    if (end == name.c_str() + at + 5 || *end != '\0' || pid <= 0 || pid == ::getpid()) continue;
-    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
-      std::error_code rm;
-      fs::remove(entry.path(), rm);
-    }
-  }
-}
-
 fs::path CheckpointDir::write(const Checkpoint& checkpoint, int keep) const {
   LMB_CHECK(keep >= 1, "checkpoint.keep must be at least 1, got " << keep);
-  fs::create_directories(folder_);
-  remove_stale_temporaries();
+  std::error_code ec;
+  fs::create_directories(folder_, ec);
+  LMB_CHECK(!ec, folder_.string() << ": cannot create the checkpoint folder: " << ec.message());
+  // ".ckpt-NNNNNNN.h5.tmp-PID" of a writer killed while it wrote: up to a whole checkpoint each.
+  remove_stale_temporaries(folder_);
   const fs::path path = path_for(checkpoint.rounds);
   write_checkpoint(path, checkpoint);
   const auto all = list();
-  for (size_t i = static_cast<size_t>(keep); i < all.size(); ++i) {
-    std::error_code ec;
-    fs::remove(all[i], ec);
-  }
+  for (size_t i = static_cast<size_t>(keep); i < all.size(); ++i) fs::remove(all[i], ec);
   return path;
 }
 

@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +20,7 @@
 #include "common/vocabulary.h"
 #include "train/cli/commands.h"
 #include "train/features/build_features.h"
+#include "common/file_io.h"
 
 namespace lmb::cli {
 
@@ -293,9 +293,7 @@ void run_context_bench(const ContextBenchArgs& a) {
     report["used_dims_us_per_keypoint"] = query_us;
     report["used_dims_frame_us_per_keypoint"] = frame_us;
     report["used_dims_naive_us_per_keypoint"] = naive_us;
-    std::ofstream os(a.json_path);
-    LMB_CHECK(os.good(), a.json_path << ": cannot open for writing");
-    os << report.dump(2) << "\n";
+    write_file_atomically(a.json_path, report.dump(2) + "\n");
   }
 }
 

@@ -33,6 +33,7 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
+#include "common/file_io.h"
 #include "train/cli/commands.h"
 #include "train/eval/timing.h"
 #include "train/export/synthetic_model.h"
@@ -446,7 +447,7 @@ void run_bench_infer(const BenchInferArgs& a) {
   b.stages = time_stages(a, model, d, inverted, b.checksum);
   b.unbatched = time_unbatched(model, d.frames.front(), bytes, b.checksum);
   print_bench(a, *model, b);
-  if (!a.json.empty()) std::ofstream(a.json) << bench_json(a, *model, b).dump(1) << "\n";
+  if (!a.json.empty()) write_file_atomically(a.json, bench_json(a, *model, b).dump(1) + "\n");
 }
 
 }  // namespace

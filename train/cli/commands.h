@@ -1,6 +1,8 @@
 // Each `lboost` subcommand registers itself on the application through one of these.
 #pragma once
 
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 namespace lmb::cli {
@@ -9,6 +11,10 @@ namespace lmb::cli {
 struct CommandExit {
   int code = 0;
 };
+
+// `message` on one line: line breaks, NUL and other control characters (from file names or
+// content quoted in an error) become \n, \0, \xNN escapes.
+std::string one_line(const std::string& message);
 
 void add_world_command(CLI::App& app);
 void add_map_command(CLI::App& app);

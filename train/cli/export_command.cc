@@ -1,15 +1,24 @@
-// `lboost export`: a training run's model + the map, vocabulary and regions it was trained with ->
-// model.lbm, the one file the inference library needs (infer/model.h). With --fusion on (the
-// default) it also fits the descriptor-distance fusion (train/export/descriptor_fusion.h) on the
-// run's held-out map observations and stores it with the class exemplars.
+// `lboost export`: a training run's model + the map and vocabulary it was trained with -> model.lbm,
+// the one file the inference library needs (infer/model.h). With --fusion on (the default) it also
+// fits the descriptor-distance fusion (train/export/descriptor_fusion.h) on the run's held-out map
+// observations and stores it with the class exemplars.
+//
+// The trained model (model.bin) records the feature space its stumps were trained in
+// (common/feature_space.h): export takes the context regions from that record and refuses a map or
+// vocabulary other than the ones of training, so it cannot build a silently wrong model. The run's
+// config.toml is read only for the fusion's held-out observations (train rewrites it only after a
+// resume is accepted).
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <spdlog/spdlog.h>
 
 #include "common/context_regions.h"
 #include "common/error.h"
+#include "common/feature_space.h"
+#include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/vocabulary.h"
 #include "infer/model.h"
@@ -31,47 +40,70 @@ struct ExportArgs {
   std::string map;
   std::string vocab;
   std::string out;
-  int regions = -1;            // -1: from the run's config.toml (or the default without --run)
-  int64_t region_seed = -1;
+  std::optional<int32_t> regions;      // as recorded in the model unless given (then checked)
+  std::optional<int64_t> region_seed;
   ExportOptions options;
   std::string fusion = "on";
   DescriptorFusionOptions fusion_options;
 };
 
-// The trained model of a run dir: <run>/model.bin (the trainer's BoostModel file, magic
-// "LMBBOOST"), unless --boost-model names one.
+// The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
+// --boost-model names one.
 std::filesystem::path boost_model_path(const ExportArgs& a) {
+  LMB_CHECK(a.run_dir.empty() || a.boost_model.empty(), "give --run RUN_DIR or --boost-model FILE, not both");
   if (!a.boost_model.empty()) return a.boost_model;
-  LMB_CHECK(!a.run_dir.empty(), "export: give --run RUN_DIR or --boost-model FILE");
+  LMB_CHECK(!a.run_dir.empty(), "give --run RUN_DIR or --boost-model FILE");
   const std::filesystem::path p = std::filesystem::path(a.run_dir) / "model.bin";
-  LMB_CHECK(std::filesystem::exists(p), p.string() << ": no trained model in the run dir");
+  LMB_CHECK(std::filesystem::exists(p), p.string() << ": no trained model in the run dir (has the training finished?)");
   return p;
 }
 
-// The context regions of training: the run's config.toml [regions] (when --run is given), then
-// --regions / --region-seed overrides.
-ContextRegionOptions region_options(const ExportArgs& a) {
-  ContextRegionOptions ro;
-  if (!a.run_dir.empty()) {
-    const std::filesystem::path config = std::filesystem::path(a.run_dir) / "config.toml";
-    LMB_CHECK(std::filesystem::exists(config), config.string() << ": missing (the run's effective config)");
-    ro = read_train_config(config).regions;
+// The regions of training, from the model's record. --regions / --region-seed, when given, must
+// describe the same regions.
+ContextRegions training_regions(const ExportArgs& a, const FeatureSpace& trained, const std::string& model_name) {
+  const ContextRegions& recorded = trained.regions;
+  if (!a.regions && !a.region_seed) return recorded;
+  ContextRegionOptions ro = recorded.options();
+  if (a.regions) ro.num_regions = *a.regions;
+  if (a.region_seed) {
+    LMB_CHECK(*a.region_seed >= 0, "--region-seed " << *a.region_seed << ": must be >= 0");
+    ro.seed = static_cast<uint64_t>(*a.region_seed);
   }
-  if (a.regions != -1) ro.num_regions = a.regions;
-  if (a.region_seed != -1) ro.seed = static_cast<uint64_t>(a.region_seed);
   ro.check();
-  return ro;
+  const ContextRegions given(ro);
+  LMB_CHECK(given == recorded, model_name << " was trained with " << recorded.size() << " regions of seed "
+                                          << recorded.options().seed << ", not " << given.size()
+                                          << " of seed " << ro.seed
+                                          << " (--regions and --region-seed are optional: the model records them)");
+  return recorded;
 }
 
 void run_export(const ExportArgs& a) {
   const std::filesystem::path boost_path = boost_model_path(a);
-  const BoostModel boost = load_boost_model(boost_path);
+  const std::string model_name = boost_path.string();
+  check_writable_file(a.out, "--out");
+  const TrainedModel trained = load_trained_model(boost_path);
+  LMB_CHECK(!trained.feature_space.is_synthetic(),
+            model_name << ": trained on " << trained.feature_space.synthetic << ", not on a map: nothing to export");
   const LandmarkMap map = read_map_h5(a.map);
   const Vocabulary vocabulary = Vocabulary::load(a.vocab);
-  const ContextRegions regions(region_options(a));
+  const ContextRegions regions = training_regions(a, trained.feature_space, model_name);
+  const FeatureSpace given = map_feature_space(regions, vocabulary, map);
+  if (trained.feature_space.vocabulary_fingerprint != given.vocabulary_fingerprint ||
+      trained.feature_space.num_words != given.num_words) {
+    LMB_FAIL(model_name << " was not trained with the vocabulary " << a.vocab << ": "
+                        << feature_space_difference(trained.feature_space, given));
+  }
+  if (trained.feature_space.map_fingerprint != given.map_fingerprint ||
+      trained.feature_space.descriptor_bytes != given.descriptor_bytes) {
+    LMB_FAIL(model_name << " was not trained on the map " << a.map << ": "
+                        << feature_space_difference(trained.feature_space, given));
+  }
+  const std::string diff = feature_space_difference(trained.feature_space, given);
+  LMB_CHECK(diff.empty(), model_name << ": " << diff);
   LMB_CHECK(a.fusion == "on" || a.fusion == "off", "export: --fusion must be on or off, got '" << a.fusion << "'");
   ExportStats stats;
-  ModelData data = export_model_data(boost, map, vocabulary, regions, a.options, &stats);
+  ModelData data = export_model_data(trained.model, map, vocabulary, regions, a.options, &stats);
   if (a.fusion == "on") {
     // The held-out observations are those of the run's training set: rebuilt from its config.
     LMB_CHECK(!a.run_dir.empty(), "export: --fusion on needs --run (the training set of its config.toml); "
@@ -109,13 +141,15 @@ void add_export_command(CLI::App& app) {
   auto args = std::make_shared<ExportArgs>();
   auto* cmd = app.add_subcommand(
       "export", "Turn a training run into model.lbm, the file the inference library loads");
-  cmd->add_option("--run", args->run_dir, "Run dir of `lboost train` (reads RUN/model.bin and RUN/config.toml)");
+  cmd->add_option("--run", args->run_dir, "Run dir of `lboost train` (reads RUN/model.bin)");
   cmd->add_option("--boost-model", args->boost_model, "The trained model file (LMBBOOST) instead of --run");
   cmd->add_option("--map", args->map, "The map the model was trained on (map.h5)")->required();
   cmd->add_option("--vocab", args->vocab, "The vocabulary used in training (.lbv)")->required();
   cmd->add_option("--out", args->out, "Output model file (model.lbm), written atomically")->required();
-  cmd->add_option("--regions", args->regions, "Context regions used in training (default: the run's config)");
-  cmd->add_option("--region-seed", args->region_seed, "Seed of the training regions (default: the run's config)");
+  cmd->add_option("--regions", args->regions,
+                  "Context regions of training (optional: the model records them; checked when given)");
+  cmd->add_option("--region-seed", args->region_seed,
+                  "Seed of the training regions (optional: the model records it; checked when given)");
   cmd->add_option("--min-word-observations", args->options.min_word_observations,
                   "Observations of a (landmark, word) pair for an inverted-file entry")
       ->capture_default_str();

@@ -94,6 +94,7 @@ void inspect_checkpoint(const InspectArgs& args) {
 }
 
 void run_inspect(const InspectArgs& args) {
+  LMB_CHECK(args.threads >= 1 && args.threads <= 256, "inspect: --threads = " << args.threads << " must be in 1..256");
   if (std::filesystem::path(args.map_path).filename().string().rfind("ckpt-", 0) == 0) {
     inspect_checkpoint(args);
     return;

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
-#include <fstream>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -18,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/landmark_map.h"
 #include "infer/localizer.h"
@@ -25,6 +25,7 @@
 #include "train/cli/commands.h"
 #include "train/eval/metrics.h"
 #include "train/eval/report.h"
+#include "train/eval/evaluation.h"
 
 namespace lmb::cli {
 
@@ -222,19 +223,10 @@ void print_summary(const nlohmann::json& s, int threads, const std::string& out)
 
 void run_localize(const LocalizeArgs& a) {
   LMB_CHECK(a.threads >= 1 && a.threads <= 256, "localize: --threads = " << a.threads << " must be in 1..256");
+  check_writable_file(a.out, "--out");
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
-  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(),
-            a.map << ": " << map.descriptor_bytes << "-byte descriptors, the model expects "
-                  << model->descriptor_bytes());
-  std::vector<char> is_class(map.landmarks.size(), 0);
-  for (int32_t c = 0; c < model->num_classes(); ++c) {
-    const landmark_t l = model->class_landmark(c);
-    LMB_CHECK(l >= 0 && static_cast<size_t>(l) < map.landmarks.size(),
-              a.model << ": class " << c << " is landmark " << l << ", but " << a.map << " has "
-                      << map.landmarks.size() << " landmarks (the model was trained on another map)");
-    is_class[l] = 1;
-  }
+  const std::vector<char> is_class = check_model_fits_map(*model, a.model, map, a.map);
   const Localizer localizer(model, a.options);
   const std::vector<frame_t> frames = select_frames(map, a.queries);
   spdlog::info("localize: {} frames, model {} classes, {} stumps, {} used dims, {} scoring, {} thread(s)",
@@ -258,12 +250,7 @@ void run_localize(const LocalizeArgs& a) {
   for (size_t i = 0; i < frames.size(); ++i) jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
   out["frames"] = std::move(jframes);
   out["summary"] = summary_json(map, frames, outcomes);
-  const std::string text = out.dump(1);
-  std::ofstream os(a.out);
-  LMB_CHECK(os.good(), a.out << ": cannot open for writing");
-  os << text << "\n";
-  os.close();
-  LMB_CHECK(os.good(), a.out << ": write failed");
+  write_file_atomically(a.out, out.dump(1) + "\n");
   print_summary(out["summary"], a.threads, a.out);
 }
 

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "train/cli/commands.h"
 #include "train/mapping/map_gravity.h"
@@ -34,6 +35,7 @@ void run_map(const MapArgs& args) {
   options.up = gravity.up;
   options.gravity_file = gravity.gravity_file;
   options.check();
+  check_writable_file(args.out, "--out");  // before the mapping run, not after it
   spdlog::info("map: collection {} -> {}", args.collection, args.out);
   std::printf("map: gravity: %s\n", gravity.description.c_str());
   std::fflush(stdout);

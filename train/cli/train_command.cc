@@ -5,29 +5,39 @@
 //                [--checkpoint-interval N] [--checkpoint-keep K]
 //   lboost train --synthetic small|medium|paper --out RUN_DIR ...   (synthetic problem of
 //                train/boost/synthetic_problem.h instead of a map: tests, job tests, benchmarks)
-// Rank 0 writes RUN_DIR/config.toml (effective config), log.txt, metrics.jsonl (one line per
-// round), checkpoints/ckpt-*.h5, model.bin (train/boost/boost_model.h: cereal portable binary in
-// the "LMBBOOST" container) and summary.json (final validation P@1 next to the Hamming
+// Rank 0 locks RUN_DIR (RUN_DIR/.train.lock, flock: a second trainer of the folder fails at once)
+// and writes RUN_DIR/config.toml (effective config), log.txt, metrics.jsonl (one line per round),
+// checkpoints/ckpt-*.h5, model.bin (train/boost/boost_model.h: the stumps and the feature space
+// they were trained in) and summary.json (final validation P@1 next to the Hamming
 // nearest-neighbour baseline; per-rank memory and communication). Each rank builds only the
 // feature columns it owns. A run resumes from the newest valid checkpoint of RUN_DIR; after
 // SIGTERM / SIGUSR1 it checkpoints and exits with code 75 (requeue).
+// Everything is checked before anything is written into RUN_DIR: the config against the
+// checkpoint's, the data source, and the feature space (regions, vocabulary, map) against the one
+// the checkpoint was trained in. A refused run leaves RUN_DIR exactly as it was.
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <sstream>
 #include <string>
+#include <string_view>
 
-#include <spdlog/sinks/basic_file_sink.h>
+#include <spdlog/sinks/base_sink.h>
+#include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "common/context_regions.h"
 #include "common/error.h"
-#include "common/file_container.h"
+#include "common/feature_space.h"
+#include "common/file_io.h"
 #include "common/hamming.h"
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
@@ -58,7 +68,7 @@ struct TrainArgs {
   std::optional<int32_t> rounds;
   std::optional<int32_t> dims_per_round;
   std::optional<int32_t> top_k;
-  std::optional<uint64_t> seed;
+  std::optional<int64_t> seed;
   std::optional<int> threads;
   std::optional<int32_t> checkpoint_interval;
   std::optional<int32_t> checkpoint_keep;
@@ -119,6 +129,7 @@ struct RankData {
   TrainingSet set;
   FeatureMatrix features;
   std::string source;  // checked on resume
+  FeatureSpace feature_space;  // rank 0 (the map's fingerprint is computed there only)
   HammingBaseline hamming;
 };
 
@@ -146,6 +157,7 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
     d.features = comm.distributed() ? keep_rank_columns(std::move(p.features), comm.rank(), comm.size())
                                     : std::move(p.features);
     d.source = "synthetic:" + a.synthetic;
+    d.feature_space = synthetic_feature_space(d.source, d.features.num_dims);
   } else {
     LMB_CHECK(!a.map.empty() && !a.vocab.empty(), "--map and --vocab are required (or --synthetic)");
     const LandmarkMap map = read_map_h5(a.map);
@@ -161,7 +173,10 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
           rank_dims(embedding_layout(map, regions, vocabulary).num_dims(), comm.rank(), comm.size());
     }
     d.features = build_training_features(map, regions, vocabulary, d.set.sample_keypoint, feature_options);
-    if (comm.rank() == 0) d.hamming = hamming_nn_validation_p1(map, d.set);
+    if (comm.rank() == 0) {
+      d.hamming = hamming_nn_validation_p1(map, d.set);
+      d.feature_space = map_feature_space(regions, vocabulary, map);
+    }
     d.source = std::filesystem::absolute(a.map).lexically_normal().string();
   }
   int64_t validation = 0, background = 0;
@@ -182,23 +197,92 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
   return d;
 }
 
+// Rank 0's hold on the run folder: the lock, and what to undo if the run is refused before it
+// starts (a folder or lock file this process created).
+class RunFolder {
+ public:
+  explicit RunFolder(const std::filesystem::path& dir) : dir_(dir) {}
+  ~RunFolder() {
+    if (started_) return;
+    std::error_code ec;
+    if (created_lock_) std::filesystem::remove(dir_ / kLockName, ec);
+    lock_.unlock();
+    if (created_dir_) std::filesystem::remove(dir_, ec);  // only if empty
+  }
+  // Creates the folder if needed and locks it. Throws lmb::Error (one line) when another trainer
+  // holds the lock.
+  void lock() {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::exists(dir_, ec)) {
+      LMB_CHECK(fs::is_directory(dir_, ec), "--out " << dir_.string() << ": exists and is not a folder");
+    } else {
+      fs::create_directories(dir_, ec);
+      LMB_CHECK(!ec, "--out " << dir_.string() << ": cannot create the folder: " << ec.message());
+      created_dir_ = true;
+    }
+    const fs::path lock_path = dir_ / kLockName;
+    created_lock_ = !fs::exists(lock_path, ec);
+    std::string holder;
+    const FileLock::Status status = lock_.try_lock(lock_path, &holder);
+    if (status == FileLock::Status::kBusy) {
+      created_lock_ = false;
+      LMB_FAIL("--out " << dir_.string() << ": another lboost train is using this run folder ("
+                        << (holder.empty() ? std::string("it holds ") : holder + " holds ") << lock_path.string()
+                        << "); wait for it to end or use another --out folder");
+    }
+    if (status == FileLock::Status::kUnsupported) {
+      spdlog::warn("train: {}: the file system does not support file locks; nothing stops a second trainer "
+                   "from using this run folder at the same time", lock_path.string());
+    }
+  }
+  // From here on the folder is the run's: nothing is undone.
+  void start() { started_ = true; }
+
+ private:
+  static constexpr const char* kLockName = ".train.lock";
+  std::filesystem::path dir_;
+  FileLock lock_;
+  bool created_dir_ = false;
+  bool created_lock_ = false;
+  bool started_ = false;
+};
+
+// Appends the log to RUN_DIR/log.txt through the project's checked appender.
+class LogFileSink : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  explicit LogFileSink(const std::filesystem::path& path) : file_(path) {}
+  // Lines already formatted (the log kept in memory before the run was accepted).
+  void write_raw(std::string_view text) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    file_.write(text);
+  }
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    spdlog::memory_buf_t formatted;
+    formatter_->format(msg, formatted);
+    file_.write(std::string_view(formatted.data(), formatted.size()));
+  }
+  void flush_() override {}
+
+ private:
+  AppendFile file_;
+};
+
 void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator& comm) {
   const std::filesystem::path run_dir(a.out);
   const std::string config_text = train_config_toml(config);
-  if (comm.rank() == 0) {
-    std::filesystem::create_directories(run_dir);
-    LMB_CHECK(std::filesystem::is_directory(run_dir), "--out " << a.out << ": not a folder");
-    write_file_atomically(run_dir / "config.toml", config_text.data(), config_text.size());
-  }
-  comm.barrier();
 
-  // Rank 0 logs to the console and RUN_DIR/log.txt; the other ranks print warnings and errors only.
+  // Rank 0 logs to the console and RUN_DIR/log.txt (kept in memory until the run is accepted);
+  // the other ranks print warnings and errors only.
   auto previous = spdlog::default_logger();
   auto console = std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
+  std::ostringstream early_log;
   std::shared_ptr<spdlog::logger> logger;
   if (comm.rank() == 0) {
-    auto file = std::make_shared<spdlog::sinks::basic_file_sink_mt>((run_dir / "log.txt").string(), false);
-    logger = std::make_shared<spdlog::logger>("train", spdlog::sinks_init_list{console, file});
+    auto memory = std::make_shared<spdlog::sinks::ostream_sink_mt>(early_log);
+    logger = std::make_shared<spdlog::logger>("train", spdlog::sinks_init_list{console, memory});
     logger->set_pattern("[%H:%M:%S] %v");
   } else {
     logger = std::make_shared<spdlog::logger>("train", console);
@@ -213,6 +297,11 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   } restore{previous};
   if (comm.distributed()) spdlog::info("train: {} MPI ranks, feature-parallel", comm.size());
 
+  // 1. Lock the run folder before reading or writing anything in it.
+  RunFolder folder(run_dir);
+  agree_on_rank0(comm, [&] { folder.lock(); });
+
+  // 2. Validate: the checkpoint to resume (config, data source), the data, the feature space.
   TrainingJobOptions job;
   job.run_dir = run_dir;
   job.config_toml = config_text;
@@ -221,11 +310,22 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   job.data = a.synthetic.empty() ? std::filesystem::absolute(a.map).lexically_normal().string()
                                   : "synthetic:" + a.synthetic;
   const std::optional<Checkpoint> resume = find_resume_checkpoint(comm, job);
-
   const RankData data = load_rank_data(a, config, comm);
+  job.feature_space = data.feature_space;
+  check_resume_feature_space(comm, job, resume);
   FeatureParallelLearner learner(comm, data.features, data.set, config.boost);
+
+  // 3. Accepted: from here on the run writes into its folder.
   std::optional<RoundLogger> round_log;
-  if (comm.rank() == 0) round_log.emplace(run_dir / "metrics.jsonl", config.boost.num_rounds);
+  agree_on_rank0(comm, [&] {
+    write_file_atomically(run_dir / "config.toml", config_text);
+    auto file = std::make_shared<LogFileSink>(run_dir / "log.txt");
+    file->write_raw(early_log.str());
+    file->set_pattern("[%H:%M:%S] %v");
+    logger->sinks().back() = file;  // replaces the in-memory sink
+    round_log.emplace(run_dir / "metrics.jsonl", config.boost.num_rounds);
+    folder.start();
+  });
   const TrainingJobResult r = run_training_job(comm, learner, job, resume, [&](const RoundStats& s) { round_log->log(s); });
 
   // Per-rank figures for the summary.
@@ -237,7 +337,7 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   const double validation_p1_landmarks = learner.validation_precision(true);
   if (r.stopped) throw CommandExit{kRequeueExitCode};
   if (comm.rank() != 0) return;
-  save_boost_model(run_dir / "model.bin", learner.model());
+  save_trained_model(run_dir / "model.bin", learner.model(), data.feature_space);
   nlohmann::json summary;
   summary["classes"] = data.set.num_classes;
   summary["samples"] = data.set.num_samples();
@@ -264,8 +364,7 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   summary["bytes_sent_per_round_all_ranks"] = static_cast<double>(total_sent) / n;
   summary["bytes_sent_per_round_rank0"] = static_cast<double>(r.bytes_sent) / n;
   summary["bytes_received_per_round_rank0"] = static_cast<double>(r.bytes_received) / n;
-  const std::string summary_text = summary.dump(2) + "\n";
-  write_file_atomically(run_dir / "summary.json", summary_text.data(), summary_text.size());
+  write_file_atomically(run_dir / "summary.json", summary.dump(2) + "\n");
   spdlog::info("train: {} stumps written to {}", learner.model().stumps.size(), (run_dir / "model.bin").string());
 }
 
@@ -274,7 +373,10 @@ void run_train(const TrainArgs& a) {
   if (a.rounds) config.boost.num_rounds = *a.rounds;
   if (a.dims_per_round) config.boost.dims_per_round = *a.dims_per_round;
   if (a.top_k) config.training_set.top_k_landmarks = *a.top_k;
-  if (a.seed) config.boost.seed = config.training_set.seed = *a.seed;
+  if (a.seed) {
+    LMB_CHECK(*a.seed >= 0, "--seed " << *a.seed << ": must be in 0.." << std::numeric_limits<int64_t>::max());
+    config.boost.seed = config.training_set.seed = static_cast<uint64_t>(*a.seed);
+  }
   if (a.threads) config.feature_threads = *a.threads;
   if (a.checkpoint_interval) config.checkpoint_interval = *a.checkpoint_interval;
   if (a.checkpoint_keep) config.checkpoint_keep = *a.checkpoint_keep;
@@ -291,11 +393,13 @@ void run_train(const TrainArgs& a) {
   } catch (const CommandExit&) {
     throw;
   } catch (const AgreedError&) {
-    throw;  // every rank stops together
+    // Every rank stops together; rank 0 prints the one line, the others end quietly.
+    if (comm.rank() != 0) throw CommandExit{1};
+    throw;
   } catch (const std::exception& e) {
     if (!comm.distributed()) throw;
     // One rank failed alone: the others may be waiting in a collective, so end the whole job.
-    std::fprintf(stderr, "lboost train: rank %d of %d: error: %s\n", comm.rank(), comm.size(), e.what());
+    std::fprintf(stderr, "lboost train: rank %d of %d: error: %s\n", comm.rank(), comm.size(), one_line(e.what()).c_str());
     std::fflush(stderr);
     comm.abort(1);
   }

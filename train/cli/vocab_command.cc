@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/random.h"
 #include "common/vocabulary.h"
 #include "train/cli/commands.h"
@@ -61,6 +62,7 @@ void run_vocab(const VocabArgs& a) {
   options.check();
   LMB_CHECK(a.max_descriptors >= a.words,
             "--max-descriptors " << a.max_descriptors << " must be >= --words " << a.words);
+  check_writable_file(a.out, "--out");
   cv::Ptr<cv::Feature2D> detector;
   if (a.detector == "BRISK") {
     detector = cv::BRISK::create();

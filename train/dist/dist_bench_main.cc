@@ -2,12 +2,12 @@
 //   mpirun -n R lmb_dist_bench [--rounds N] [--classes C] [--dims-per-round K] [--out report.json]
 // Without a launcher it runs on one process.
 #include <cstdio>
-#include <fstream>
 
 #include <CLI/CLI.hpp>
 
 #include "common/error.h"
 #include "train/dist/dist_bench.h"
+#include "common/file_io.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"Distributed JointBoost training benchmark (paper-shape synthetic problem by default)"};
@@ -24,7 +24,7 @@ int main(int argc, char** argv) {
     const std::string report = lmb::run_dist_bench(comm, options);
     if (comm.rank() == 0) {
       std::printf("%s\n", report.c_str());
-      if (!out.empty()) std::ofstream(out) << report << "\n";
+      if (!out.empty()) lmb::write_file_atomically(out, report + "\n");
     }
   } catch (const lmb::Error& e) {
     std::fprintf(stderr, "lmb_dist_bench: error: %s\n", e.what());

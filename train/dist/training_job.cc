@@ -14,8 +14,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-// Rank 0 runs `fn`; its lmb::Error stops every rank: rank 0 throws the message, the others a
-// short "stopped with rank 0" (lboost prints one line per rank).
 void agree(Communicator& comm, const std::function<void()>& fn) {
   std::string error;
   if (comm.rank() == 0) {
@@ -31,6 +29,19 @@ void agree(Communicator& comm, const std::function<void()>& fn) {
   throw AgreedError("rank " + std::to_string(comm.rank()) + ": stopped with rank 0");
 }
 }  // namespace
+
+void agree_on_rank0(Communicator& comm, const std::function<void()>& fn) { agree(comm, fn); }
+
+void check_resume_feature_space(Communicator& comm, const TrainingJobOptions& options,
+                                const std::optional<Checkpoint>& resume) {
+  if (!resume) return;
+  agree(comm, [&] {
+    const std::string diff = feature_space_difference(resume->feature_space, options.feature_space);
+    LMB_CHECK(diff.empty(), CheckpointDir(options.run_dir).path_for(resume->rounds).string()
+                                << ": cannot resume: " << diff
+                                << "; give the --map and --vocab of the run, or use another --out folder");
+  });
+}
 
 std::optional<Checkpoint> find_resume_checkpoint(Communicator& comm, const TrainingJobOptions& options) {
   const CheckpointDir dir(options.run_dir);
@@ -82,6 +93,7 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
       ck.ranks = comm.size();
       ck.config = options.config_toml;
       ck.data = options.data;
+      ck.feature_space = options.feature_space;
       ck.state = std::move(state);
       const auto path = dir.write(ck, options.checkpoint_keep);
       spdlog::info("train: checkpoint {} written in {:.2f} s", path.string(), since(t0));

@@ -32,10 +32,15 @@ class AgreedError : public Error {
   using Error::Error;
 };
 
+// Collective. Rank 0 runs `fn`; an lmb::Error it throws is thrown on every rank as AgreedError:
+// on rank 0 with its message, on the others as "rank R: stopped with rank 0".
+void agree_on_rank0(Communicator& comm, const std::function<void()>& fn);
+
 struct TrainingJobOptions {
   std::filesystem::path run_dir;
   std::string config_toml;          // the effective config (train/boost/train_config.h)
   std::string data;                 // the training data source, checked on resume
+  FeatureSpace feature_space;       // what the stumps are trained on (rank 0), checked on resume
   int32_t checkpoint_interval = 0;  // rounds between checkpoints; 0 = only on a stop and at the end
   int32_t checkpoint_keep = 3;
 };
@@ -55,6 +60,11 @@ struct TrainingJobResult {
 // Collective. The checkpoint to resume from (nullopt: start afresh). Throws lmb::Error on every
 // rank when the newest valid checkpoint does not fit the run (config or data differ).
 std::optional<Checkpoint> find_resume_checkpoint(Communicator& comm, const TrainingJobOptions& options);
+
+// Collective. Throws AgreedError on every rank when `resume` was trained in another feature space
+// than options.feature_space (as rank 0 knows it): another vocabulary, map or regions.
+void check_resume_feature_space(Communicator& comm, const TrainingJobOptions& options,
+                                const std::optional<Checkpoint>& resume);
 
 // Collective. Restores `resume` (if any) into the learner and trains to options().num_rounds or a
 // stop. on_round runs on rank 0 only.

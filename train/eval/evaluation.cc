@@ -20,27 +20,6 @@ namespace lmb {
 
 namespace {
 
-// The model and the map must describe the same landmarks: every class's landmark exists in the
-// map at the same position. Returns the landmark -> class flag.
-std::vector<char> check_model_against_map(const Model& model, const LandmarkMap& map, const EvalOptions& a) {
-  LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
-            a.map << ": " << map.descriptor_bytes << "-byte descriptors, but " << a.model << " expects "
-                  << model.descriptor_bytes() << " (a model of another detector?)");
-  std::vector<char> is_class(map.landmarks.size(), 0);
-  for (int32_t c = 0; c < model.num_classes(); ++c) {
-    const landmark_t l = model.class_landmark(c);
-    LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
-              a.model << ": class " << c << " is landmark " << l << ", but " << a.map << " has "
-                      << map.landmarks.size() << " landmarks (the model was trained on another map)");
-    const double d = (map.landmarks[l].position - model.class_position(c)).norm();
-    LMB_CHECK(d <= 1e-6 * std::max(1.0, map.landmarks[l].position.norm()),
-              a.model << ": class " << c << " (landmark " << l << ") lies " << d << " m from that landmark in "
-                      << a.map << " (the model was trained on another map)");
-    is_class[l] = 1;
-  }
-  return is_class;
-}
-
 // The map's query frames, in map order.
 std::vector<EvalQuery> query_frames(const LandmarkMap& map, const std::vector<char>& is_class, const EvalOptions& a) {
   std::vector<EvalQuery> out;
@@ -199,12 +178,32 @@ std::string cpu_line(const nlohmann::json& cpu) {
 
 }  // namespace
 
+std::vector<char> check_model_fits_map(const Model& model, const std::string& model_name, const LandmarkMap& map,
+                                       const std::string& map_name) {
+  LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
+            map_name << ": " << map.descriptor_bytes << "-byte descriptors, but " << model_name << " expects "
+                  << model.descriptor_bytes() << " (a model of another detector?)");
+  std::vector<char> is_class(map.landmarks.size(), 0);
+  for (int32_t c = 0; c < model.num_classes(); ++c) {
+    const landmark_t l = model.class_landmark(c);
+    LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
+              model_name << ": class " << c << " is landmark " << l << ", but " << map_name << " has "
+                      << map.landmarks.size() << " landmarks (the model was trained on another map)");
+    const double d = (map.landmarks[l].position - model.class_position(c)).norm();
+    LMB_CHECK(d <= 1e-6 * std::max(1.0, map.landmarks[l].position.norm()),
+              model_name << ": class " << c << " (landmark " << l << ") lies " << d << " m from that landmark in "
+                      << map_name << " (the model was trained on another map)");
+    is_class[l] = 1;
+  }
+  return is_class;
+}
+
 EvalResult run_evaluation(const EvalOptions& a) {
   a.check();
   cv::setNumThreads(1);
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
-  const std::vector<char> is_class = check_model_against_map(*model, map, a);
+  const std::vector<char> is_class = check_model_fits_map(*model, a.model, map, a.map);
   const std::vector<EvalQuery> queries = query_frames(map, is_class, a);
   int64_t with_class_truth = 0;
   const DatasetCounts counts = count_dataset(map, queries, &with_class_truth);

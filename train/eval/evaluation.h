@@ -39,6 +39,14 @@ struct EvalResult {
 // model of another map, a map without query frames or without query keypoints of a model class.
 EvalResult run_evaluation(const EvalOptions& options);
 
+// The model and the map must describe the same landmarks (lboost eval and lboost localize): the
+// same descriptor length, and every class's landmark is a landmark of the map at the model's
+// position (within 1e-6 relative). Returns the landmark -> class flag. Throws lmb::Error naming
+// both files ("<model>: class 3 (landmark 17) lies 2.5 m from that landmark in <map> (the model was
+// trained on another map)").
+std::vector<char> check_model_fits_map(const Model& model, const std::string& model_name, const LandmarkMap& map,
+                                       const std::string& map_name);
+
 // Copies RUN_DIR/summary.json (a finished `lboost train` run) into report["training"]. Throws
 // lmb::Error when it is missing or not JSON.
 void attach_training_summary(nlohmann::json& report, const std::filesystem::path& run_dir);

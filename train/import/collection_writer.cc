@@ -16,6 +16,7 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
   std::set<std::string> names;
   for (const CollectionImage& im : images) {
     LMB_CHECK(names.insert(im.image.name).second, out_dir.string() << ": image name " << im.image.name << " used twice");
+    check_image_name(im.image.name, out_dir.string());
     LMB_CHECK(im.image.name.find_first_of(" \t\n") == std::string::npos,
               im.image.name << ": image names must not contain white space (COLMAP text format)");
     LMB_CHECK(fs::is_regular_file(im.source), im.source.string() << ": source image is missing");
@@ -33,22 +34,35 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
     fs::remove_all(out_dir / "images");
     fs::remove(out_dir / "gravity.txt");
   }
-  fs::create_directories(out_dir / "images");
-
-  ColmapModel model;
-  model.cameras = cameras;
-  std::map<std::string, Eigen::Vector3d> gravity;
-  for (const CollectionImage& im : images) {
-    const fs::path link = out_dir / "images" / im.image.name;
-    fs::create_directories(link.parent_path());
+  // A failed write (a full disk) leaves no half collection: what this call created is removed.
+  auto remove_outputs = [&] {
     std::error_code ec;
-    fs::create_symlink(fs::absolute(im.source).lexically_normal(), link, ec);
-    LMB_CHECK(!ec, link.string() << ": cannot create symbolic link: " << ec.message());
-    model.images.push_back(im.image);
-    if (im.gravity_in_cam) gravity[im.image.name] = *im.gravity_in_cam;
+    fs::remove_all(out_dir / "sparse", ec);
+    fs::remove_all(out_dir / "images", ec);
+    fs::remove(out_dir / "gravity.txt", ec);
+  };
+  try {
+    std::error_code ec;
+    fs::create_directories(out_dir / "images", ec);
+    LMB_CHECK(!ec, (out_dir / "images").string() << ": cannot create the folder: " << ec.message());
+    ColmapModel model;
+    model.cameras = cameras;
+    std::map<std::string, Eigen::Vector3d> gravity;
+    for (const CollectionImage& im : images) {
+      const fs::path link = out_dir / "images" / im.image.name;
+      fs::create_directories(link.parent_path(), ec);
+      LMB_CHECK(!ec, link.parent_path().string() << ": cannot create the folder: " << ec.message());
+      fs::create_symlink(fs::absolute(im.source).lexically_normal(), link, ec);
+      LMB_CHECK(!ec, link.string() << ": cannot create symbolic link: " << ec.message());
+      model.images.push_back(im.image);
+      if (im.gravity_in_cam) gravity[im.image.name] = *im.gravity_in_cam;
+    }
+    write_colmap_text(model, out_dir / "sparse");
+    if (!gravity.empty()) write_gravity_file(gravity, out_dir / "gravity.txt");
+  } catch (...) {
+    remove_outputs();
+    throw;
   }
-  write_colmap_text(model, out_dir / "sparse");
-  if (!gravity.empty()) write_gravity_file(gravity, out_dir / "gravity.txt");
 }
 
 }  // namespace lmb

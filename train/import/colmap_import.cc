@@ -4,6 +4,9 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <set>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "common/error.h"
 #include "common/io/colmap_model.h"
@@ -80,6 +83,27 @@ std::optional<DepthStats> observed_point_depths(const ColmapModel& model) {
   d.p95 = quantile(0.95);
   return d;
 }
+namespace {
+
+// Each camera's size against its first image (in id order), decoded as the mapper will decode it:
+// a wrong camera is an error now, not after the import (images sorted by id).
+void check_camera_sizes(const ColmapModel& model, const fs::path& sparse_dir, const fs::path& image_dir) {
+  std::set<int> seen;
+  for (const ColmapImage& im : model.images) {
+    if (!seen.insert(im.camera_id).second) continue;
+    const fs::path path = image_dir / im.name;
+    const cv::Mat image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
+    LMB_CHECK(!image.empty(), "image " << im.image_id << " '" << im.name << "': " << path.string()
+                                       << ": cannot decode the image");
+    const Camera& camera = model.cameras.at(im.camera_id);
+    LMB_CHECK(image.cols == camera.width && image.rows == camera.height,
+              sparse_dir.string() << ": camera " << im.camera_id << " is " << camera.width << "x" << camera.height
+                                  << " pixels, but its image " << path.string() << " is " << image.cols << "x"
+                                  << image.rows);
+  }
+}
+
+}  // namespace
 
 ColmapImportStats import_colmap(const ColmapImportOptions& options) {
   options.check();
@@ -87,6 +111,7 @@ ColmapImportStats import_colmap(const ColmapImportOptions& options) {
   const ColmapModel model = read_colmap_model(options.sparse_dir, &format);
   LMB_CHECK(!model.images.empty(), options.sparse_dir.string() << ": the sparse model has no image");
   check_collection_images(model, options.image_dir);
+  check_camera_sizes(model, options.sparse_dir, options.image_dir);
   // The gravity file must cover every image of the model; lines of other images (photos the
   // reconstruction did not register) are skipped and counted.
   std::map<std::string, Eigen::Vector3d> gravity;

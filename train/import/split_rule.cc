@@ -1,12 +1,12 @@
 #include "train/import/split_rule.h"
 
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <sstream>
 
 #include "common/text_parse.h"
 #include "common/error.h"
+#include "common/text_lines.h"
 
 namespace lmb {
 
@@ -38,18 +38,16 @@ SplitRule parse_split_rule(const std::string& text) {
     rule.kind = SplitRule::Kind::kList;
     rule.list_names_queries = kind == "query-list";
     rule.list_file = arg;
-    std::ifstream in(rule.list_file);
-    LMB_CHECK(!arg.empty() && in.good(), "--split '" << text << "': cannot open list file '" << arg << "'");
-    std::string line;
-    int number = 0;
+    LMB_CHECK(!arg.empty(), "--split '" << text << "': no list file named");
     std::set<std::string> seen;
-    while (std::getline(in, line)) {
-      ++number;
-      std::istringstream fields(line);
-      std::string entry;
-      if (!(fields >> entry) || entry[0] == '#') continue;
-      LMB_CHECK(seen.insert(entry).second, arg << " line " << number << ": duplicate entry " << entry);
-      rule.list.push_back(entry);
+    try {
+      for (TextLineReader lines(rule.list_file); lines.next();) {
+        const std::string entry = lines.tokens().front();
+        LMB_CHECK(seen.insert(entry).second, lines.where() << ": duplicate entry " << entry);
+        rule.list.push_back(entry);
+      }
+    } catch (const Error& e) {
+      LMB_FAIL("--split '" << text << "': " << e.what());
     }
     LMB_CHECK(!rule.list.empty(), arg << ": the split list names no frame");
   } else {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
 #include <Eigen/Geometry>
@@ -11,6 +10,7 @@
 #include "common/text_parse.h"
 #include "common/error.h"
 #include "common/io/colmap_model.h"
+#include "common/text_lines.h"
 #include "train/import/collection_writer.h"
 #include "train/import/split_rule.h"
 
@@ -22,28 +22,11 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-// Calls fn(line_number, tokens) for each non-comment, non-empty line.
+// Calls fn("<path> line <n>", tokens) for each data line (common/text_lines.h).
 template <typename Fn>
 void for_each_data_line(const fs::path& path, Fn fn) {
-  std::ifstream in(path);
-  LMB_CHECK(in.good(), path.string() << ": cannot open file");
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream fields(line);
-    std::vector<std::string> tokens;
-    std::string token;
-    while (fields >> token) tokens.push_back(token);
-    fn(number, tokens);
-  }
-  LMB_CHECK(!in.bad(), path.string() << ": read error");
+  for (TextLineReader lines(path); lines.next();) fn(lines.where(), lines.tokens());
 }
-
-std::string at_line(const fs::path& path, int number) { return path.string() + " line " + std::to_string(number); }
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * kRadToDeg;
@@ -74,8 +57,7 @@ Eigen::Vector3d axis_vector(int k) {
 
 std::vector<TumImage> read_tum_image_list(const fs::path& path) {
   std::vector<TumImage> images;
-  for_each_data_line(path, [&](int number, const std::vector<std::string>& tokens) {
-    const std::string at = at_line(path, number);
+  for_each_data_line(path, [&](const std::string& at, const std::vector<std::string>& tokens) {
     LMB_CHECK(tokens.size() == 2, at << ": expected 2 fields (timestamp filename), got " << tokens.size());
     TumImage im;
     im.timestamp = tokens[0];
@@ -91,8 +73,7 @@ std::vector<TumImage> read_tum_image_list(const fs::path& path) {
 
 TumTrajectory read_tum_trajectory(const fs::path& path) {
   TumTrajectory trajectory;
-  for_each_data_line(path, [&](int number, const std::vector<std::string>& tokens) {
-    const std::string at = at_line(path, number);
+  for_each_data_line(path, [&](const std::string& at, const std::vector<std::string>& tokens) {
     LMB_CHECK(tokens.size() == 8, at << ": expected 8 fields (timestamp tx ty tz qx qy qz qw), got " << tokens.size());
     const char* names[8] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
     double v[8];
@@ -109,8 +90,7 @@ TumTrajectory read_tum_trajectory(const fs::path& path) {
 
 TumAccelerometer read_tum_accelerometer(const fs::path& path) {
   TumAccelerometer accel;
-  for_each_data_line(path, [&](int number, const std::vector<std::string>& tokens) {
-    const std::string at = at_line(path, number);
+  for_each_data_line(path, [&](const std::string& at, const std::vector<std::string>& tokens) {
     LMB_CHECK(tokens.size() == 4, at << ": expected 4 fields (timestamp ax ay az), got " << tokens.size());
     const double t = parse_finite_number(tokens[0], at, "timestamp");
     LMB_CHECK(accel.time_s.empty() || t >= accel.time_s.back(),

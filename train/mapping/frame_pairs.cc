@@ -9,7 +9,8 @@
 namespace lmb {
 
 void PairOptions::check() const {
-  LMB_CHECK(std::isfinite(max_center_distance), "pair options: max_center_distance must be finite");
+  LMB_CHECK(std::isfinite(max_center_distance) && max_center_distance >= 0,
+            "pair options: max_center_distance must be finite and >= 0 (0 = automatic), got " << max_center_distance);
   LMB_CHECK(max_view_angle_deg > 0 && max_view_angle_deg <= 180,
             "pair options: max_view_angle_deg must be in (0, 180], got " << max_view_angle_deg);
   LMB_CHECK(max_pairs_per_frame >= 0, "pair options: max_pairs_per_frame must be >= 0");

@@ -11,8 +11,8 @@
 namespace lmb {
 
 struct PairOptions {
-  // Camera centres at most this far apart (world units). <= 0: automatic, 8 x the median distance
-  // between map frames and their nearest map neighbour.
+  // Camera centres at most this far apart (world units). 0: automatic, 8 x the median distance
+  // between map frames and their nearest map neighbour. Negative values are refused.
   double max_center_distance = 0.0;
   double max_view_angle_deg = 60.0;  // angle between the optical axes
   int max_pairs_per_frame = 20;      // the closest candidates per frame by distance and angle

@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <system_error>
 
 #include <unistd.h>
@@ -11,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/colmap_model.h"
 #include "train/world/renderer.h"
 #include "train/world/trajectory.h"
@@ -25,14 +25,18 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// Encoded in memory, then written by the project's atomic writer (errors name the file and the
+// system's reason; cv::imwrite does not check the final flush).
 void write_png(const fs::path& path, const cv::Mat& image) {
+  std::vector<uint8_t> png;
   bool ok = false;
   try {
-    ok = cv::imwrite(path.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 3});
+    ok = cv::imencode(".png", image, png, {cv::IMWRITE_PNG_COMPRESSION, 3});
   } catch (const cv::Exception& e) {
-    LMB_FAIL(path.string() << ": cannot write image: " << e.what());
+    LMB_FAIL(path.string() << ": cannot encode image: " << e.what());
   }
-  LMB_CHECK(ok, path.string() << ": cannot write image");
+  LMB_CHECK(ok, path.string() << ": cannot encode image");
+  write_file_atomically(path, png.data(), png.size());
 }
 
 nlohmann::json lighting_json(const Lighting& l) {
@@ -61,12 +65,12 @@ fs::path make_temp_dir(const fs::path& out_dir) {
     LMB_CHECK(!ec, tmp.string() << ": cannot create output folder: " << ec.message());
   }
   // Probe writability (create_directories can succeed on some read-only mounts as root).
-  const fs::path probe = tmp / ".probe";
-  {
-    std::ofstream f(probe);
-    LMB_CHECK(f.good(), out_dir.string() << ": output folder is not writable");
+  try {
+    check_writable_folder(tmp, "output folder");
+  } catch (const Error& e) {
+    fs::remove_all(tmp, ec);
+    LMB_FAIL(out_dir.string() << ": output folder is not writable (" << e.what() << ")");
   }
-  fs::remove(probe, ec);
   return tmp;
 }
 
@@ -183,11 +187,7 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     j["images"] = {{"format", "png"}, {"channels", 1}, {"bit_depth", 8}};
     j["depth"] = {{"format", "png"}, {"bit_depth", 16}, {"kind", "z-depth of the pixel centre"},
                   {"units", "mm"}, {"invalid", 0}};
-    {
-      std::ofstream f(tmp / "world.json");
-      f << j.dump(2) << '\n';
-      LMB_CHECK(f.good(), (tmp / "world.json").string() << ": write failed");
-    }
+    write_file_atomically(tmp / "world.json", j.dump(2) + "\n");
     stats.render_seconds = seconds_since(t1);
     commit_dir(tmp, out_dir);
     return stats;

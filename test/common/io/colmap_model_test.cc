@@ -48,6 +48,15 @@ class ColmapTextTest : public ::testing::Test {
   void write(const std::string& file, const std::string& text) {
     std::ofstream(dir_ / file) << text;
   }
+  // Reading the model fails with a message containing `needle`.
+  void expect_error(const std::string& needle) {
+    try {
+      read_colmap_text(dir_);
+      ADD_FAILURE() << "no error, expected one containing '" << needle << "'";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  }
 
   fs::path dir_;
 };
@@ -71,14 +80,6 @@ TEST_F(ColmapTextTest, RoundTripIsExact) {
 
 TEST_F(ColmapTextTest, MalformedFilesFailWithFileAndLine) {
   write_colmap_text(sample(), dir_);
-  auto expect_error = [&](const std::string& needle) {
-    try {
-      read_colmap_text(dir_);
-      ADD_FAILURE() << "no error, expected one containing '" << needle << "'";
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-    }
-  };
   write("cameras.txt", "3 OPENCV_FISHEYE 640 480 500 500 320 240 0 0 0 0\n");
   expect_error("unsupported camera model 'OPENCV_FISHEYE'");
   write("cameras.txt", "3 PINHOLE 640 480 500 500 320\n");
@@ -95,7 +96,36 @@ TEST_F(ColmapTextTest, MalformedFilesFailWithFileAndLine) {
   write("images.txt", "1 1 0 0 0 0 0 0 3 a.png\n\n2 1 0 0 0 0 0 0 3 a.png\n");
   expect_error("duplicate image name a.png");
   fs::remove(dir_ / "images.txt");
-  expect_error("images.txt: cannot open file");
+  expect_error("images.txt: cannot open file: No such file or directory");
+}
+
+// Issue 16: an image name must stay inside the image folder (`import colmap` links images at these
+// names); ids are never negative; a NUL byte is an error naming file and line (it cut messages).
+TEST_F(ColmapTextTest, NamesIdsAndBytesThatCannotBeUsed) {
+  write("cameras.txt", "3 PINHOLE 640 480 500 500 320 240\n");
+  write("images.txt", "1 1 0 0 0 0 0 0 3 ../../outside.png\n\n");
+  expect_error("images.txt line 1: image name '../../outside.png' leaves the image folder ('..' component)");
+  write("images.txt", "1 1 0 0 0 0 0 0 3 map/../../x.png\n\n");
+  expect_error("leaves the image folder");
+  write("images.txt", "1 1 0 0 0 0 0 0 3 /etc/passwd\n\n");
+  expect_error("images.txt line 1: image name '/etc/passwd' is an absolute path");
+  write("images.txt", "1 1 0 0 0 0 0 0 3 a//b.png\n\n");
+  expect_error("has an empty path component");
+  write("images.txt", "-5 1 0 0 0 0 0 0 3 a.png\n\n");
+  expect_error("images.txt line 1: IMAGE_ID -5 is negative");
+  write("images.txt", std::string("1 1 0 0 0 0 0 0 3 a") + '\0' + "b.png\n\n");
+  expect_error("images.txt line 1: contains a NUL byte (not a text file?)");
+  write("images.txt", "1 1 0 0 0 0 0 0 3 dir/a.png\n\n");
+  write("cameras.txt", "-3 PINHOLE 640 480 500 500 320 240\n");
+  expect_error("cameras.txt line 1: CAMERA_ID -3 is negative");
+  write("cameras.txt", "3 PINHOLE 640 480 500 500 320 240\n");
+  write("points3D.txt", "-7 0 0 1 1 2 3 0.5\n");
+  expect_error("points3D.txt line 1: POINT3D_ID -7 is negative");
+  fs::remove(dir_ / "points3D.txt");
+  EXPECT_EQ(read_colmap_text(dir_).images[0].name, "dir/a.png");
+  EXPECT_EQ(image_name_error("a/./b.png"), "image name 'a/./b.png' has a '.' path component");
+  EXPECT_EQ(image_name_error(""), "empty image name");
+  EXPECT_EQ(image_name_error("sub/dir/a b..png"), "");
 }
 
 TEST_F(ColmapTextTest, PointsAndTracksRoundTripAndAreValidated) {

@@ -2,10 +2,14 @@
 
 #include <cmath>
 #include <filesystem>
+#include <string>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "common/file_container.h"
 
 namespace lmb {
 namespace {
@@ -49,9 +53,30 @@ TEST(BoostModel, RoundTripsAndRejectsCorruption) {
   huge[1 + 4 + 4] = static_cast<char>(0xFF);
   huge[1 + 4 + 4 + 6] = static_cast<char>(0x7F);
   EXPECT_THROW(deserialize_boost_model(huge), Error);
-  const auto path = std::filesystem::temp_directory_path() / "lmb_boost_model_test.bin";
-  save_boost_model(path, m);
-  EXPECT_EQ(load_boost_model(path), m);
+}
+
+TEST(BoostModel, TrainedModelFileRecordsTheFeatureSpace) {
+  const BoostModel m = two_stump_model();
+  const auto path = std::filesystem::temp_directory_path() / ("lmb_boost_model_test_" + std::to_string(::getpid()) + ".bin");
+  EXPECT_THROW(save_trained_model(path, m, synthetic_feature_space("synthetic:x", 4)), Error);  // 3 dims
+  EXPECT_FALSE(std::filesystem::exists(path));
+  save_trained_model(path, m, synthetic_feature_space("synthetic:x", 3));
+  const TrainedModel t = load_trained_model(path);
+  EXPECT_EQ(t.model, m);
+  EXPECT_EQ(t.feature_space.synthetic, "synthetic:x");
+  EXPECT_EQ(t.feature_space.num_dims, 3);
+
+  // A model.bin of format version 1 (the BoostModel alone) is refused with what to do.
+  write_container_file(path, "LMBBOOST", 1, serialize_boost_model(m));
+  try {
+    load_trained_model(path);
+    FAIL() << "a version-1 model.bin was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              path.string() + ": a model.bin of an older lboost (format version 1), which does not record the context "
+                              "regions, vocabulary and map it was trained with, so export cannot prove they match; "
+                              "retrain it (or export it with the lboost that trained it)");
+  }
   std::filesystem::remove(path);
 }
 

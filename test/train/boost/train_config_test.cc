@@ -2,10 +2,15 @@
 
 #include <cmath>
 #include <set>
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
 
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "common/file_io.h"
 
 namespace lmb {
 namespace {
@@ -111,6 +116,45 @@ TEST(TrainConfig, EveryRangeIsCheckedAtItsEnds) {
     }
   }
   EXPECT_GE(checked, 20);
+}
+
+// Issue 16: `--seed -1` (2^64 - 1) passed check() but the config.toml written for it could not be
+// read back. Every config that passes check() now round-trips; larger seeds are refused.
+TEST(TrainConfig, EveryCheckedConfigRoundTripsAndHugeSeedsAreRefused) {
+  TrainConfig c;
+  c.boost.seed = c.training_set.seed = c.regions.seed = 9223372036854775807ull;
+  c.check();
+  TrainConfig d;
+  apply_train_config_toml(train_config_toml(c), "config.toml", &d);
+  EXPECT_EQ(d.boost.seed, c.boost.seed);
+  EXPECT_EQ(d.regions.seed, c.regions.seed);
+  c.boost.seed = 18446744073709551615ull;
+  try {
+    c.check();
+    FAIL() << "seed 2^64 - 1 accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "config: boost.seed = 18446744073709551615 must be in 0..9223372036854775807");
+  }
+}
+
+// Issue 16: a value error of a config file named the key but not the file.
+TEST(TrainConfig, ValueErrorsOfAFileNameTheFile) {
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("lmb_train_config_" + std::to_string(::getpid()) + ".toml");
+  write_file_atomically(path, "[boost]\nnum_rounds = 0\n");
+  try {
+    read_train_config(path);
+    FAIL() << "num_rounds = 0 accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), path.string() + ": boost options: num_rounds must be >= 1, got 0");
+  }
+  std::filesystem::remove(path);
+  try {
+    read_train_config(path);
+    FAIL() << "a missing file accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), path.string() + ": cannot open file: No such file or directory");
+  }
 }
 
 }  // namespace

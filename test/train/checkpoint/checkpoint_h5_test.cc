@@ -4,12 +4,15 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <algorithm>
 #include <fstream>
 
+#include <H5Cpp.h>
 #include <gtest/gtest.h>
 
 #include "common/error.h"
 #include "train/boost/stump_learner.h"
+#include "common/feature_space.h"
 #include "train/boost/synthetic_problem.h"
 #include "train/boost/train_config.h"
 
@@ -43,6 +46,7 @@ class CheckpointTest : public ::testing::Test {
     ck.ranks = 2;
     ck.config = train_config_toml(config_);
     ck.data = "synthetic:test";
+    ck.feature_space = synthetic_feature_space(ck.data, problem_.features.num_dims);
     ck.state = learner.save_state();
     return ck;
   }
@@ -76,6 +80,8 @@ TEST_F(CheckpointTest, RoundTripsExactlyAndResumesBitIdentically) {
   EXPECT_EQ(back.ranks, 2);
   EXPECT_EQ(back.config, ck.config);
   EXPECT_EQ(back.data, ck.data);
+  EXPECT_EQ(back.feature_space.synthetic, "synthetic:test");
+  EXPECT_EQ(back.feature_space.num_dims, problem_.features.num_dims);
   expect_same_state(back.state, ck.state);
   // No temporary file is left behind.
   int files = 0;
@@ -187,6 +193,47 @@ TEST_F(CheckpointTest, RejectsMissingAndForeignFiles) {
   std::ofstream(text) << "not hdf5";
   EXPECT_THROW(read_checkpoint(text), Error);
   EXPECT_FALSE(CheckpointDir(dir_).newest_valid({}).has_value());  // no checkpoints/ folder
+}
+
+TEST_F(CheckpointTest, RecordsTheFeatureSpaceOfAMap) {
+  Checkpoint ck = make(2);
+  const ContextRegions regions(ContextRegionOptions{.num_regions = 3});
+  std::vector<uint8_t> words(16 * 8);
+  for (size_t i = 0; i < words.size(); ++i) words[i] = static_cast<uint8_t>(i * 37);
+  LandmarkMap map;
+  map.descriptor_bytes = 8;
+  ck.feature_space = map_feature_space(regions, Vocabulary(8, words), map);
+  // The learner's problem has another dimension: the writer refuses the mismatch.
+  EXPECT_THROW(write_checkpoint(dir_ / "x.h5", ck), Error);
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+  ck.state.model.num_dims = ck.feature_space.num_dims;
+  for (SharedStump& s : ck.state.model.stumps) s.dim = std::min(s.dim, ck.feature_space.num_dims - 1);
+  write_checkpoint(dir_ / "x.h5", ck);
+  const Checkpoint back = read_checkpoint(dir_ / "x.h5");
+  EXPECT_EQ(feature_space_difference(ck.feature_space, back.feature_space), "");
+  EXPECT_TRUE(back.feature_space.regions == regions);
+}
+
+// A checkpoint of format version 1 (no feature space) is refused, never skipped for an older one:
+// resuming from an older checkpoint would silently throw rounds away.
+TEST_F(CheckpointTest, OldFormatVersionIsRefusedNotSkipped) {
+  const CheckpointDir dir(dir_);
+  dir.write(make(3), 5);
+  const fs::path newest = dir.write(make(6), 5);
+  {
+    H5::H5File file(newest.string(), H5F_ACC_RDWR);
+    const int32_t one = 1;
+    file.openAttribute("format_version").write(H5::PredType::NATIVE_INT32, &one);
+  }
+  try {
+    dir.newest_valid({});
+    FAIL() << "a version-1 checkpoint was skipped";
+  } catch (const CheckpointVersionError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              newest.string() + ": written by an older lboost (checkpoint format version 1), which does not record "
+                                "the context regions, vocabulary and map it was trained with; finish the run with "
+                                "the lboost that started it, or train into a new --out folder");
+  }
 }
 
 TEST_F(CheckpointTest, RestoreRejectsAStateOfAnotherProblem) {

@@ -137,6 +137,7 @@ TEST(TrainingJob, ResumeOnAnyRankCountIsBitIdentical) {
     TrainingJobOptions job;
     job.run_dir = dir;
     job.data = "synthetic:test";
+    job.feature_space = synthetic_feature_space("synthetic:test", full.data.features.num_dims);
     // First part on all ranks of the world.
     {
       Problem part = make_problem(static_cast<int32_t>(stop_at), 32);
@@ -180,6 +181,7 @@ TEST(TrainingJob, SignalOnOneRankStopsAllAfterACheckpoint) {
   TrainingJobOptions job;
   job.run_dir = dir;
   job.data = "synthetic:test";
+  job.feature_space = synthetic_feature_space("synthetic:test", p.data.features.num_dims);
   job.config_toml = train_config_toml(p.config);
   job.checkpoint_interval = 4;
   job.checkpoint_keep = 2;

@@ -1,5 +1,7 @@
 #include "train/import/colmap_import.h"
 
+#include <signal.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -282,6 +284,70 @@ TEST_F(ColmapImportTest, DepthsOfTheModelsPointsAreReported) {
   const ColmapImportStats s = import_colmap(options());
   ASSERT_TRUE(s.depths.has_value());
   EXPECT_EQ(s.depths->observations, 20);
+}
+
+// Issue 16: a name with ".." made `import colmap` create folders and links outside --out.
+TEST_F(ColmapImportTest, ImageNamesCannotLeaveTheFolders) {
+  model_.images[1].name = "../../../../escapee/x.jpg";
+  write_colmap_text(model_, root_ / "sparse");
+  EXPECT_NE(error(options()).find("image name '../../../../escapee/x.jpg' leaves the image folder"), std::string::npos)
+      << error(options());
+  EXPECT_FALSE(fs::exists(root_ / "escapee"));
+  EXPECT_FALSE(fs::exists(root_.parent_path() / "escapee"));
+  EXPECT_FALSE(fs::exists(root_ / "collection"));
+}
+
+// Issue 16: a camera of 2147483647 x 2147483647 pixels for 8 x 6 images was accepted (map refused
+// it only later).
+TEST_F(ColmapImportTest, CameraSizeMustMatchItsImages) {
+  model_.cameras.at(2).width = 2147483647;
+  model_.cameras.at(2).height = 2147483647;
+  write_colmap_text(model_, root_ / "sparse");
+  EXPECT_NE(error(options()).find("camera 2 is 2147483647x2147483647 pixels, but its image " +
+                                  (root_ / "photos" / "day1" / "img_4.jpg").string() + " is 8x6"),
+            std::string::npos)
+      << error(options());
+  EXPECT_FALSE(fs::exists(root_ / "collection"));
+}
+
+// Issue 16: on a full disk the import printed "wrote" with 0-byte sparse/*.txt. A file-size limit
+// (RLIMIT_FSIZE) fails write(2) like a full disk, at any byte: the import fails naming the file and
+// leaves no half collection.
+TEST_F(ColmapImportTest, FullDiskFailsAndLeavesNoHalfCollection) {
+  write_colmap_text(model_, root_ / "sparse");
+  std::map<std::string, Eigen::Vector3d> gravity;
+  for (const ColmapImage& im : model_.images) gravity[im.name] = Eigen::Vector3d(0, 1, 0);
+  write_gravity_file(gravity, root_ / "g.txt");
+  ColmapImportOptions o = options();
+  o.gravity_file = root_ / "g.txt";
+  // Each written file in turn is the first one too large: the limits just below their sizes.
+  import_colmap(o);
+  std::vector<rlim_t> limits = {0};
+  for (const fs::path f : {o.out_dir / "sparse" / "cameras.txt", o.out_dir / "sparse" / "images.txt",
+                           o.out_dir / "sparse" / "points3D.txt", o.out_dir / "gravity.txt"}) {
+    limits.push_back(static_cast<rlim_t>(fs::file_size(f)) - 1);
+  }
+  fs::remove_all(o.out_dir);
+  for (rlim_t limit : limits) {
+    std::string message;
+    {
+      rlimit saved{};
+      ::getrlimit(RLIMIT_FSIZE, &saved);
+      const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
+      rlimit l = saved;
+      l.rlim_cur = limit;
+      ::setrlimit(RLIMIT_FSIZE, &l);
+      message = error(o);
+      ::setrlimit(RLIMIT_FSIZE, &saved);
+      ::signal(SIGXFSZ, old_handler);
+    }
+    EXPECT_NE(message.find(": write failed: File too large"), std::string::npos) << "limit " << limit << ": " << message;
+    EXPECT_TRUE(message.rfind((root_ / "collection").string(), 0) == 0) << message;
+    ASSERT_TRUE(fs::exists(o.out_dir));
+    EXPECT_TRUE(fs::is_empty(o.out_dir)) << "limit " << limit;
+  }
+  import_colmap(o);  // room again
+  EXPECT_EQ(read_colmap_text(o.out_dir / "sparse").images.size(), 5u);
 }
 
 }  // namespace
