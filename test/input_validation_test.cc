@@ -315,10 +315,24 @@ std::vector<Row> rows() {
                  fs::copy_file(fs::path(source) / "test/common/io/data/fuzz_null_vlen_string.h5", dir / "map.h5");
                  read_map_h5(dir / "map.h5");
                }, "DIR/map.h5: attribute 'format': unreadable (damaged file)"});
-  r.push_back({"map.h5", "format_version 2", map_edited([](H5::H5File& f) {
-                 const int v = 2;
+  r.push_back({"map.h5", "format_version 3", map_edited([](H5::H5File& f) {
+                 const int v = 3;
                  f.openAttribute("format_version").write(H5::PredType::NATIVE_INT, &v);
-               }), "DIR/map.h5: attribute 'format_version': version 2 is not supported (this build reads version 1)"});
+               }), "DIR/map.h5: attribute 'format_version': version 3 is not supported (this build reads versions 1 and 2)"});
+  r.push_back({"map.h5", "a frame's session out of range", map_edited([](H5::H5File& f) {
+                 H5::DataSet ds = f.openDataSet("/frames/session");
+                 std::vector<int32_t> v(5);
+                 ds.read(v.data(), H5::PredType::NATIVE_INT32);
+                 v[1] = 3;
+                 ds.write(v.data(), H5::PredType::NATIVE_INT32);
+               }), "DIR/map.h5: frames[1].session: 3 outside 0..2"});
+  r.push_back({"map.h5", "a query frame in a map session", map_edited([](H5::H5File& f) {
+                 H5::DataSet ds = f.openDataSet("/frames/session");
+                 std::vector<int32_t> v(5);
+                 ds.read(v.data(), H5::PredType::NATIVE_INT32);
+                 v[4] = 0;
+                 ds.write(v.data(), H5::PredType::NATIVE_INT32);
+               }), "DIR/map.h5: frames[4].is_query: 1, but its session 'map' is a map session (is_query must be 1 exactly for frames outside map sessions)"});
   r.push_back({"map.h5", "dataset /landmarks/quality missing",
                map_edited([](H5::H5File& f) { f.unlink("/landmarks/quality"); }), "DIR/map.h5: dataset '/landmarks/quality': missing"});
   r.push_back({"map.h5", "NaN camera translation of a frame", map_edited(set_double("/frames/cam_from_world_t", 4, nan)), "DIR/map.h5: frames[1].cam_from_world_t: not finite"});

@@ -22,6 +22,14 @@ using namespace h5;
 
 bool finite3(const Eigen::Vector3d& v) { return v.allFinite(); }
 
+void write_strings(H5::Group& group, const char* name, const std::vector<const char*>& strings) {
+  H5::StrType str_type(H5::PredType::C_S1, H5T_VARIABLE);
+  const hsize_t dims[1] = {strings.size()};
+  H5::DataSet ds = group.createDataSet(name, str_type, H5::DataSpace(1, dims), untimed_dataset());
+  if (!strings.empty()) ds.write(strings.data(), str_type);
+  ds.close();
+}
+
 }  // namespace
 
 void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
@@ -31,6 +39,21 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
   for (size_t c = 0; c < map.cameras.size(); ++c) {
     map.cameras[c].check(where + ": cameras[" + std::to_string(c) + "]");
   }
+  LMB_CHECK(map.frames.empty() || !map.sessions.empty(), where << ": sessions: none, but " << map.frames.size()
+                                                                 << " frames (every frame belongs to a session)");
+  for (size_t s = 0; s < map.sessions.size(); ++s) {
+    const MapSession& session = map.sessions[s];
+    const std::string at = where + ": sessions[" + std::to_string(s) + "]";
+    LMB_CHECK(!session.name.empty() && session.name.find_first_of(" \t\r\n") == std::string::npos,
+              at << ".name: '" << session.name << "' is empty or contains white space");
+    LMB_CHECK(session.kind == SessionKind::kMap || session.kind == SessionKind::kQuery ||
+                  session.kind == SessionKind::kOutside,
+              at << ".kind: " << static_cast<int>(session.kind) << " is not 0 (map), 1 (query) or 2 (outside)");
+    for (size_t t = 0; t < s; ++t) {
+      LMB_CHECK(map.sessions[t].name != session.name,
+                at << ".name: '" << session.name << "' is also the name of sessions[" << t << "]");
+    }
+  }
   const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
   int64_t next_keypoint = 0;
   for (size_t f = 0; f < map.frames.size(); ++f) {
@@ -39,6 +62,13 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
     LMB_CHECK(!frame.name.empty(), at << ".name: empty");
     LMB_CHECK(frame.camera >= 0 && frame.camera < static_cast<camera_t>(map.cameras.size()),
               at << ".camera: " << frame.camera << " outside 0.." << map.cameras.size());
+    LMB_CHECK(frame.session >= 0 && frame.session < static_cast<int32_t>(map.sessions.size()),
+              at << ".session: " << frame.session << " outside 0.." << map.sessions.size() - 1);
+    const SessionKind kind = map.sessions[static_cast<size_t>(frame.session)].kind;
+    LMB_CHECK(frame.is_query == (kind != SessionKind::kMap),
+              at << ".is_query: " << frame.is_query << ", but its session '"
+                 << map.sessions[static_cast<size_t>(frame.session)].name << "' is a " << session_kind_name(kind)
+                 << " session (is_query must be 1 exactly for frames outside map sessions)");
     const Eigen::Quaterniond& q = frame.cam_from_world.rotation;
     LMB_CHECK(q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 1e-6,
               at << ".cam_from_world_q: not a rotation (norm " << q.norm() << ")");
@@ -72,6 +102,9 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
       const landmark_t l = map.keypoint_landmark[k];
       LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
                 where << ": keypoint_landmark[" << k << "]: " << l << " outside -1.." << num_landmarks - 1);
+      LMB_CHECK(l == kInvalidLandmarkId || map.sessions[static_cast<size_t>(frame.session)].kind != SessionKind::kOutside,
+                where << ": keypoint_landmark[" << k << "]: " << l << ", but its frame '" << frame.name
+                      << "' is in an outside session (recorded where the map has no landmarks)");
       if (l >= 0) ++(frame.is_query ? query_obs : map_obs)[l];
     }
   }
@@ -117,15 +150,27 @@ void write_map_h5(const LandmarkMap& map, const fs::path& path) {
       write_column(cameras, "height", height, num_cameras);
       write_column(cameras, "params", params, num_cameras, kMaxCameraParams);
 
+      const hsize_t num_sessions = map.sessions.size();
+      std::vector<const char*> session_names;
+      std::vector<uint8_t> session_kind;
+      for (const MapSession& s : map.sessions) {
+        session_names.push_back(s.name.c_str());
+        session_kind.push_back(static_cast<uint8_t>(s.kind));
+      }
+      H5::Group sessions = create_untimed_group(file, "/sessions");
+      write_strings(sessions, "name", session_names);
+      write_column(sessions, "kind", session_kind, num_sessions);
+
       const hsize_t num_frames = map.frames.size();
       std::vector<const char*> names;
-      std::vector<int32_t> camera, num_keypoints;
+      std::vector<int32_t> camera, session, num_keypoints;
       std::vector<double> q, t, gravity;
       std::vector<uint8_t> is_query;
       std::vector<int64_t> first_keypoint;
       for (const MapFrame& f : map.frames) {
         names.push_back(f.name.c_str());
         camera.push_back(f.camera);
+        session.push_back(f.session);
         const Eigen::Quaterniond& r = f.cam_from_world.rotation;
         q.insert(q.end(), {r.w(), r.x(), r.y(), r.z()});
         const Eigen::Vector3d& tr = f.cam_from_world.translation;
@@ -136,13 +181,9 @@ void write_map_h5(const LandmarkMap& map, const fs::path& path) {
         num_keypoints.push_back(f.num_keypoints);
       }
       H5::Group frames = create_untimed_group(file, "/frames");
-      {
-        H5::StrType str_type(H5::PredType::C_S1, H5T_VARIABLE);
-        const hsize_t dims[1] = {num_frames};
-        H5::DataSet ds = frames.createDataSet("name", str_type, H5::DataSpace(1, dims), untimed_dataset());
-        if (num_frames > 0) ds.write(names.data(), str_type);
-      }
+      write_strings(frames, "name", names);
       write_column(frames, "camera", camera, num_frames);
+      write_column(frames, "session", session, num_frames);
       write_column(frames, "cam_from_world_q", q, num_frames, 4);
       write_column(frames, "cam_from_world_t", t, num_frames, 3);
       write_column(frames, "gravity_in_cam", gravity, num_frames, 3);
@@ -208,9 +249,9 @@ LandmarkMap read_map_h5(const fs::path& path) {
     LMB_CHECK(format == kMapH5Format, name << ": attribute 'format': '" << format
                                            << "' is not a landmark map (expected '" << kMapH5Format << "')");
     const int64_t version = r.int_attribute("format_version");
-    LMB_CHECK(version == kMapH5Version, name << ": attribute 'format_version': version " << version
-                                             << " is not supported (this build reads version "
-                                             << kMapH5Version << ")");
+    LMB_CHECK(version == 1 || version == kMapH5Version,
+              name << ": attribute 'format_version': version " << version
+                   << " is not supported (this build reads versions 1 and " << kMapH5Version << ")");
     map.detector = r.string_attribute("detector");
     const int64_t descriptor_bytes = r.int_attribute("descriptor_bytes");
     LMB_CHECK(descriptor_bytes >= 0 && descriptor_bytes <= 4096,
@@ -236,8 +277,21 @@ LandmarkMap read_map_h5(const fs::path& path) {
       map.cameras.push_back(cam);
     }
 
+    // Version 1 has no sessions: its frames become the sessions "map" and "query" (below).
+    std::vector<int32_t> session;
+    if (version >= 2) {
+      int64_t num_sessions = 0;
+      const auto kind = r.column<uint8_t>("/sessions/kind", -1, 1, -1, &num_sessions);
+      const auto session_names = r.strings("/sessions/name", num_sessions);
+      for (int64_t s = 0; s < num_sessions; ++s) {
+        LMB_CHECK(kind[s] <= 2, name << ": /sessions/kind[" << s << "]: " << int(kind[s])
+                                     << " is not 0 (map), 1 (query) or 2 (outside)");
+        map.sessions.push_back(MapSession{session_names[s], static_cast<SessionKind>(kind[s])});
+      }
+    }
     int64_t num_frames = 0;
     const auto camera = r.column<int32_t>("/frames/camera", -1, 1, -1, &num_frames);
+    if (version >= 2) session = r.column<int32_t>("/frames/session", num_frames);
     const auto names = r.strings("/frames/name", num_frames);
     const auto q = r.column<double>("/frames/cam_from_world_q", num_frames, 2, 4);
     const auto t = r.column<double>("/frames/cam_from_world_t", num_frames, 2, 3);
@@ -249,6 +303,7 @@ LandmarkMap read_map_h5(const fs::path& path) {
       MapFrame frame;
       frame.name = names[f];
       frame.camera = camera[f];
+      if (version >= 2) frame.session = session[f];
       frame.cam_from_world.rotation = Eigen::Quaterniond(q[4 * f], q[4 * f + 1], q[4 * f + 2], q[4 * f + 3]);
       frame.cam_from_world.translation = Eigen::Vector3d(t[3 * f], t[3 * f + 1], t[3 * f + 2]);
       frame.gravity_in_cam = Eigen::Vector3d(gravity[3 * f], gravity[3 * f + 1], gravity[3 * f + 2]);
@@ -258,6 +313,7 @@ LandmarkMap read_map_h5(const fs::path& path) {
       frame.num_keypoints = num_keypoints[f];
       map.frames.push_back(frame);
     }
+    if (version == 1) assign_sessions_from_query_flags(&map);
 
     int64_t n = 0;
     const auto xy = r.column<float>("/keypoints/xy", -1, 2, 2, &n);

@@ -1,7 +1,8 @@
 // map.h5: the landmark map on disk (versioned HDF5, serial library). The schema is documented in
-// docs/map_h5.md; in short, root attributes `format` = "landmarkboost-map", `format_version` = 1,
-// `detector`, `descriptor_bytes`, and groups /cameras, /frames, /keypoints, /landmarks holding the
-// columns of lmb::LandmarkMap.
+// docs/map_h5.md; in short, root attributes `format` = "landmarkboost-map", `format_version` = 2,
+// `detector`, `descriptor_bytes`, and groups /cameras, /sessions, /frames, /keypoints, /landmarks
+// holding the columns of lmb::LandmarkMap. Version 1 files (no sessions) are still read: their
+// frames get the sessions "map" and "query" (assign_sessions_from_query_flags).
 #pragma once
 
 #include <filesystem>
@@ -12,9 +13,11 @@
 namespace lmb {
 
 inline constexpr const char* kMapH5Format = "landmarkboost-map";
-inline constexpr int kMapH5Version = 1;
+inline constexpr int kMapH5Version = 2;  // the version written; 1 is read too
 
-// Checks that a map is self-consistent: cameras valid, frames referencing existing cameras with
+// Checks that a map is self-consistent: sessions with unique names and known kinds (at least one
+// when there are frames), frames referencing existing sessions (is_query set exactly outside map
+// sessions; no landmark observed in an outside session) and cameras with
 // contiguous keypoint ranges ("frame after frame") covering all keypoints, unit quaternions and
 // gravity, finite values, descriptor and landmark arrays of matching length, keypoint landmarks in
 // range and landmark observation counts equal to the counts found in keypoint_landmark.

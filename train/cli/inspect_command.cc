@@ -77,6 +77,36 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
       {"max", obs.empty() ? 0 : obs.back()}};
   j["mean_reprojection_error_px"] = error_sum / n;
   j["quality"] = {{"min", quality_min}, {"max", quality_max}};
+  // Per session: frames, keypoints, keypoints with a landmark, and (map sessions) landmarks that
+  // only this session observes.
+  const size_t num_sessions = map.sessions.size();
+  std::vector<int64_t> frames(num_sessions, 0), keypoints(num_sessions, 0), with(num_sessions, 0);
+  std::vector<int32_t> only(map.landmarks.size(), -1);  // the one session observing a landmark, -2 = several
+  for (const MapFrame& f : map.frames) {
+    const size_t s = static_cast<size_t>(f.session);
+    ++frames[s];
+    keypoints[s] += f.num_keypoints;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l == kInvalidLandmarkId) continue;
+      ++with[s];
+      if (!f.is_query) only[l] = only[l] == -1 || only[l] == f.session ? f.session : -2;
+    }
+  }
+  std::vector<int64_t> exclusive(num_sessions, 0);
+  for (int32_t s : only) {
+    if (s >= 0) ++exclusive[static_cast<size_t>(s)];
+  }
+  j["sessions"] = nlohmann::json::array();
+  for (size_t s = 0; s < num_sessions; ++s) {
+    nlohmann::json e = {{"name", map.sessions[s].name},
+                        {"kind", session_kind_name(map.sessions[s].kind)},
+                        {"frames", frames[s]},
+                        {"keypoints", keypoints[s]},
+                        {"keypoints_with_landmark", with[s]}};
+    if (map.sessions[s].kind == SessionKind::kMap) e["landmarks_seen_only_here"] = exclusive[s];
+    j["sessions"].push_back(e);
+  }
   return j;
 }
 
@@ -134,6 +164,15 @@ void run_inspect(const InspectArgs& args) {
   std::printf("%s: %s, %d-byte descriptors, %zu camera(s)\n", args.map_path.c_str(), map.detector.c_str(),
               map.descriptor_bytes, map.cameras.size());
   std::printf("frames: %d map, %d query\n", j["map_frames"].get<int>(), j["query_frames"].get<int>());
+  for (const auto& e : j["sessions"]) {
+    std::printf("session %s (%s): %lld frames, %lld keypoints, %lld with a landmark", e["name"].get<std::string>().c_str(),
+                e["kind"].get<std::string>().c_str(), e["frames"].get<long long>(), e["keypoints"].get<long long>(),
+                e["keypoints_with_landmark"].get<long long>());
+    if (e.contains("landmarks_seen_only_here")) {
+      std::printf("; %lld landmarks seen by no other map session", e["landmarks_seen_only_here"].get<long long>());
+    }
+    std::printf("\n");
+  }
   std::printf("keypoints: %lld map (%lld with a landmark), %lld query (%lld with a true landmark)\n",
               j["map_keypoints"].get<long long>(), j["map_keypoints_with_landmark"].get<long long>(),
               j["query_keypoints"].get<long long>(), j["query_keypoints_with_landmark"].get<long long>());

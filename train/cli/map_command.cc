@@ -1,6 +1,7 @@
-// lboost map: collection (COLMAP sparse text model + images) -> map.h5.
+// lboost map: one or more collections (COLMAP sparse model + images, optional sessions.txt) -> map.h5.
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
@@ -16,37 +17,64 @@ namespace lmb::cli {
 namespace {
 
 struct MapArgs {
-  std::string collection;
+  std::vector<std::string> collections;
+  std::vector<std::string> labels;
+  // --gravity: none (each collection's gravity.txt when present, else --up) or one per collection,
+  // each a file or "none"
+  std::vector<std::string> gravity;
   std::string out;
   std::string up = "+z";
-  std::string gravity;  // --gravity: a file, "none", or "" (COLLECTION/gravity.txt when present)
   bool up_given = false;
   MapperOptions options;
 };
 
 void run_map(const MapArgs& args) {
   MapperOptions options = args.options;
-  MapGravityRequest request;
-  request.collection = args.collection;
-  request.gravity = args.gravity;
-  request.up = args.up;
-  request.up_given = args.up_given;
-  const MapGravityChoice gravity = choose_map_gravity(request);
-  options.up = gravity.up;
-  options.gravity_file = gravity.gravity_file;
+  const size_t n = args.collections.size();
+  LMB_CHECK(args.labels.empty() || args.labels.size() == n,
+            "--label: " << args.labels.size() << " labels for " << n << " collections (give one per --collection)");
+  LMB_CHECK(args.gravity.empty() || args.gravity.size() == n,
+            "--gravity: " << args.gravity.size() << " values for " << n
+                          << " collections (give one per --collection, in the same order: a file or 'none')");
+  std::vector<CollectionInput> inputs;
+  std::string names;
+  for (size_t k = 0; k < n; ++k) {
+    MapGravityRequest request;
+    request.collection = args.collections[k];
+    request.gravity = args.gravity.empty() ? "" : args.gravity[k];
+    request.up = args.up;
+    request.up_given = args.up_given;
+    const MapGravityChoice gravity = choose_map_gravity(request);
+    options.up = gravity.up;  // --up's axis, the same for every collection
+    if (n == 1) {
+      std::printf("map: gravity: %s\n", gravity.description.c_str());
+    } else {
+      std::printf("map: gravity of %s: %s\n", args.collections[k].c_str(), gravity.description.c_str());
+    }
+    inputs.push_back(CollectionInput{args.collections[k], args.labels.empty() ? "" : args.labels[k],
+                                     gravity.gravity_file});
+    names += (k ? ", " : "") + args.collections[k];
+  }
   options.check();
   check_writable_file(args.out, "--out");  // before the mapping run, not after it
-  spdlog::info("map: collection {} -> {}", args.collection, args.out);
-  std::printf("map: gravity: %s\n", gravity.description.c_str());
+  spdlog::info("map: collection{} {} -> {}", n > 1 ? "s" : "", names, args.out);
   std::fflush(stdout);
   MapperStats stats;
-  const LandmarkMap map = map_collection(args.collection, options, &stats);
-  LMB_CHECK(!map.landmarks.empty(), args.collection << ": no landmark survived mapping (too few overlapping "
-                                                    << "map frames?); nothing written");
+  const LandmarkMap map = map_collections(inputs, options, &stats);
+  LMB_CHECK(!map.landmarks.empty(), names << ": no landmark survived mapping (too few overlapping "
+                                          << "map frames?); nothing written");
   write_map_h5(map, args.out);
-  std::printf("map: %d map frames, %d query frames, %lld keypoints (%s, %d bytes)\n", stats.num_map_frames,
-              stats.num_query_frames, static_cast<long long>(stats.num_keypoints), map.detector.c_str(),
-              map.descriptor_bytes);
+  std::printf("map: %d map frames, %d query frames (%d outside), %lld keypoints (%s, %d bytes)\n",
+              stats.num_map_frames, stats.num_query_frames, stats.num_outside_frames,
+              static_cast<long long>(stats.num_keypoints), map.detector.c_str(), map.descriptor_bytes);
+  std::vector<int> frames(map.sessions.size(), 0);
+  for (const MapFrame& f : map.frames) ++frames[static_cast<size_t>(f.session)];
+  std::string session_list;
+  for (size_t s = 0; s < map.sessions.size(); ++s) {
+    session_list += (s ? ", " : "") + map.sessions[s].name + " (" + session_kind_name(map.sessions[s].kind) + ", " +
+                    std::to_string(frames[s]) + " frames)";
+  }
+  std::printf("map: %zu sessions: %s\n", map.sessions.size(), session_list.c_str());
   std::printf("map: %lld frame pairs, %lld matches, %lld tracks -> %lld landmarks\n",
               static_cast<long long>(stats.num_pairs), static_cast<long long>(stats.num_matches),
               static_cast<long long>(stats.num_tracks), static_cast<long long>(stats.num_landmarks));
@@ -63,12 +91,19 @@ void run_map(const MapArgs& args) {
 void add_map_command(CLI::App& app) {
   auto args = std::make_shared<MapArgs>();
   auto* cmd = app.add_subcommand("map", "Build a landmark map (map.h5) from a collection of posed images");
-  cmd->add_option("--collection", args->collection,
-                  "Collection folder: sparse/{cameras,images,points3D}.txt and images/<name>")
-      ->required();
+  cmd->add_option("--collection", args->collections,
+                  "Collection folder: sparse/{cameras,images,points3D}.txt, images/<name>, optional sessions.txt; "
+                  "repeat it to join several collections (poses in one world frame) into one map")
+      ->required()
+      ->take_all();
+  cmd->add_option("--label", args->labels,
+                  "With several collections: one label per collection, prefixed to its frame and session names "
+                  "(LABEL/NAME; default: the collection's folder name)")
+      ->delimiter(',');
   cmd->add_option("--out", args->out, "Output map file (HDF5), written atomically")->required();
   cmd->add_option("--query-prefix", args->options.query_prefix,
-                  "Images whose name starts with this are query frames (held out of training)")
+                  "For a collection without sessions.txt: images whose name starts with this are the query "
+                  "session 'query' (held out of training), the others the map session 'map'")
       ->capture_default_str();
   cmd->add_option("--detector", args->options.detector.detector, "Binary keypoint detector")
       ->check(CLI::IsMember({"BRISK", "ORB"}))
@@ -76,8 +111,9 @@ void add_map_command(CLI::App& app) {
   cmd->add_option("--max-keypoints", args->options.detector.max_keypoints, "Keypoints per image (strongest)")
       ->capture_default_str();
   cmd->add_option("--gravity", args->gravity,
-                  "Per-image gravity file (IMAGE_NAME gx gy gz: down, camera frame), or 'none' for --up. "
-                  "Default: COLLECTION/gravity.txt when it exists, else --up");
+                  "Per-image gravity file (IMAGE_NAME gx gy gz: down, camera frame), or 'none' for --up; with "
+                  "several collections one per collection, in order. Default: each COLLECTION/gravity.txt when "
+                  "it exists, else --up");
   auto* up = cmd->add_option("--up", args->up,
                              "World up axis: +x, -x, +y, -y, +z, -z (gravity is -up); with "
                              "COLLECTION/gravity.txt present it must agree with the file")

@@ -21,6 +21,8 @@ struct WorldArgs {
   bool stats = false;
   int map_frames = -1;
   int query_frames = -1;
+  int map_sessions = -1;
+  int query_sessions = -1;
   double length_m = -1.0;
   int threads = 2;
   // Layout overrides (-1: the preset's value).
@@ -41,6 +43,8 @@ void run_world(const WorldArgs& a) {
   o.threads = a.threads;
   if (a.map_frames != -1) o.map_frames = a.map_frames;
   if (a.query_frames != -1) o.query_frames = a.query_frames;
+  if (a.map_sessions != -1) o.map_sessions = a.map_sessions;
+  if (a.query_sessions != -1) o.query_sessions = a.query_sessions;
   if (a.length_m != -1.0) o.length_m = a.length_m;
   if (a.poster_designs != -1) o.poster_designs = a.poster_designs;
   override_if_set(a.image_scale, &o.image_scale);
@@ -52,8 +56,10 @@ void run_world(const WorldArgs& a) {
   override_if_set(a.floor_stains_per_m, &o.floor_stains_per_m);
   o.check();
   LMB_CHECK(!a.out.empty(), "world: --out is required");
-  spdlog::info("world: preset {} seed {} {} corridor {:.1f} m, {} map + {} query frames -> {}", o.preset, o.seed,
-               o.non_aliased ? "non-aliased" : "aliased", o.length_m, o.map_frames, o.query_frames, a.out);
+  spdlog::info("world: preset {} seed {} {} corridor {:.1f} m, {} map frames in {} session{} + {} query frames in "
+               "each of {} session{} -> {}",
+               o.preset, o.seed, o.non_aliased ? "non-aliased" : "aliased", o.length_m, o.map_frames, o.map_sessions,
+               o.map_sessions > 1 ? "s" : "", o.query_frames, o.query_sessions, o.query_sessions > 1 ? "s" : "", a.out);
   int last_decile = 0;
   const WorldWriteStats s = write_world(o, a.out, [&](int done, int total) {
     const int decile = done * 10 / total;
@@ -84,14 +90,19 @@ void add_world_command(CLI::App& app) {
   auto args = std::make_shared<WorldArgs>();
   auto* cmd = app.add_subcommand(
       "world",
-      "Render a self-similar indoor corridor world (map + query sessions) into a COLMAP collection with depth");
+      "Render a self-similar indoor corridor world (map and query sessions) into a COLMAP collection with depth");
   cmd->add_option("--preset", args->preset, "tiny | default | paper")->capture_default_str();
   cmd->add_option("--seed", args->seed, "World seed (layout, textures, trajectories, noise)")->capture_default_str();
   cmd->add_option("--out", args->out, "Output folder (replaced atomically)")->required();
   cmd->add_flag("--non-aliased", args->non_aliased,
                 "Control world: every element instance gets a unique texture (same geometry and trajectories)");
-  cmd->add_option("--map-frames", args->map_frames, "Override the preset's map frame count");
-  cmd->add_option("--query-frames", args->query_frames, "Override the preset's query frame count");
+  cmd->add_option("--map-frames", args->map_frames,
+                  "Override the preset's map frame count (all map sessions together, split evenly)");
+  cmd->add_option("--query-frames", args->query_frames, "Override the preset's frame count of each query session");
+  cmd->add_option("--map-sessions", args->map_sessions,
+                  "Override the preset's map sessions (1-4): other lanes, camera heights, yaw patterns and lighting");
+  cmd->add_option("--query-sessions", args->query_sessions,
+                  "Override the preset's query sessions (1-3), each unlike every map session");
   cmd->add_option("--length", args->length_m, "Override the preset's corridor length (m)");
   cmd->add_option("--threads", args->threads, "Render threads")->capture_default_str();
   cmd->add_option("--image-scale", args->image_scale, "Override: image size relative to 640 x 480");

@@ -70,8 +70,9 @@ std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>
   std::vector<Candidate> candidates;
   for (int i = 0; i < n; ++i) {
     candidates.clear();
+    if (frames[i].outside) continue;
     for (int j = 0; j < n; ++j) {
-      if (j == i || (frames[i].is_query && frames[j].is_query)) continue;
+      if (j == i || (frames[i].is_query && frames[j].is_query) || frames[j].outside) continue;
       const double distance = (centers[i] - centers[j]).norm();
       if (distance > max_distance) continue;
       const double angle = axis_angle_deg(axes[i], axes[j]);
@@ -87,12 +88,12 @@ std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>
                       });
     for (size_t c = 0; c < keep; ++c) add(i, candidates[c].index);
   }
-  // Sequence neighbours within the map session.
+  // Sequence neighbours within each map session.
   for (int i = 0; i < n; ++i) {
     if (frames[i].is_query) continue;
     int found = 0;
     for (int j = i + 1; j < n && found < options.sequence_neighbors; ++j) {
-      if (frames[j].is_query) continue;
+      if (frames[j].is_query || frames[j].session != frames[i].session) continue;
       add(i, j);
       ++found;
     }

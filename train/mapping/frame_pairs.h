@@ -1,8 +1,11 @@
 // Choice of the frame pairs the mapper matches: covisible by the known poses (camera centres close,
-// viewing directions similar) plus near neighbours in capture order. Query-query pairs are never
-// chosen: query frames only need their link to the map.
+// viewing directions similar) plus near neighbours in capture order within a session. Query-query
+// pairs are never chosen: query frames only need their link to the map. Frames of different map
+// sessions pair like any others, so tracks join the sessions. Outside frames (recorded elsewhere)
+// are never paired.
 #pragma once
 
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -16,13 +19,15 @@ struct PairOptions {
   double max_center_distance = 0.0;
   double max_view_angle_deg = 60.0;  // angle between the optical axes
   int max_pairs_per_frame = 20;      // the closest candidates per frame by distance and angle
-  int sequence_neighbors = 2;        // frames i, i+1..i+k of the same session always pair (map only)
+  int sequence_neighbors = 2;        // map frames i and its next k map frames of the same session always pair
   void check() const;                // throws lmb::Error naming the field
 };
 
 struct PairFrame {
   Rigid3d cam_from_world;
-  bool is_query = false;
+  bool is_query = false;  // not a map frame (query or outside)
+  int32_t session = 0;    // frames in capture order within a session
+  bool outside = false;   // recorded where the map is not: never paired (implies is_query)
 };
 
 // Returns pairs (i, j), i < j, sorted and unique. Deterministic.

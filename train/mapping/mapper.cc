@@ -17,6 +17,7 @@
 
 #include "common/error.h"
 #include "common/io/colmap_model.h"
+#include "common/io/session_file.h"
 #include "train/mapping/tracks.h"
 
 namespace lmb {
@@ -101,26 +102,59 @@ void parallel_for(int64_t n, int threads, const std::function<void(int64_t, int)
 LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::vector<MapperFrame>& frames,
                                const std::string& detector, int descriptor_bytes, const MapperOptions& options,
                                MapperStats* stats_out) {
+  LandmarkMap by_flag;
+  for (const MapperFrame& f : frames) {
+    MapFrame mf;
+    mf.is_query = f.is_query;
+    by_flag.frames.push_back(mf);
+  }
+  assign_sessions_from_query_flags(&by_flag);
+  std::vector<MapperFrame> with_sessions = frames;
+  for (size_t f = 0; f < frames.size(); ++f) with_sessions[f].session = by_flag.frames[f].session;
+  return build_landmark_map(cameras, by_flag.sessions, with_sessions, detector, descriptor_bytes, options,
+                            stats_out);
+}
+
+LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::vector<MapSession>& sessions,
+                               const std::vector<MapperFrame>& frames, const std::string& detector,
+                               int descriptor_bytes, const MapperOptions& options, MapperStats* stats_out) {
   options.check();
   const auto start = Clock::now();
   MapperStats stats;
   LMB_CHECK(descriptor_bytes > 0, "mapper: descriptor_bytes must be positive");
   const int num_frames = static_cast<int>(frames.size());
+  LMB_CHECK(num_frames == 0 || !sessions.empty(), "mapper: " << num_frames << " frames but no session");
+  for (size_t s = 0; s < sessions.size(); ++s) {
+    LMB_CHECK(!sessions[s].name.empty() && sessions[s].name.find_first_of(" \t\r\n") == std::string::npos,
+              "mapper: session " << s << ": name '" << sessions[s].name << "' is empty or contains white space");
+    for (size_t t = 0; t < s; ++t) {
+      LMB_CHECK(sessions[t].name != sessions[s].name, "mapper: two sessions are called '" << sessions[s].name << "'");
+    }
+  }
+  stats.num_sessions = static_cast<int>(sessions.size());
 
   LandmarkMap map;
   map.detector = detector;
   map.descriptor_bytes = descriptor_bytes;
   map.cameras = cameras;
+  map.sessions = sessions;
   std::vector<frame_t> keypoint_frame;
   for (int f = 0; f < num_frames; ++f) {
     const MapperFrame& in = frames[f];
     LMB_CHECK(in.camera >= 0 && in.camera < static_cast<camera_t>(cameras.size()),
               "mapper: frame '" << in.name << "': camera index " << in.camera << " out of range");
+    LMB_CHECK(in.session >= 0 && in.session < static_cast<int32_t>(sessions.size()),
+              "mapper: frame '" << in.name << "': session index " << in.session << " out of range");
+    const SessionKind kind = sessions[static_cast<size_t>(in.session)].kind;
+    LMB_CHECK(in.is_query == (kind != SessionKind::kMap),
+              "mapper: frame '" << in.name << "': is_query " << in.is_query << " in the " << session_kind_name(kind)
+                                << " session '" << sessions[static_cast<size_t>(in.session)].name << "'");
     LMB_CHECK(in.descriptors.size() == in.keypoints.size() * static_cast<size_t>(descriptor_bytes),
               "mapper: frame '" << in.name << "': descriptor rows do not match the keypoints");
     MapFrame out;
     out.name = in.name;
     out.camera = in.camera;
+    out.session = in.session;
     out.cam_from_world = in.cam_from_world;
     out.gravity_in_cam = in.gravity_in_cam ? in.gravity_in_cam->normalized()
                                          : (in.cam_from_world.rotation * (-options.up)).normalized();
@@ -132,6 +166,7 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
     map.descriptors.insert(map.descriptors.end(), in.descriptors.begin(), in.descriptors.end());
     keypoint_frame.insert(keypoint_frame.end(), in.keypoints.size(), f);
     (in.is_query ? stats.num_query_frames : stats.num_map_frames) += 1;
+    stats.num_outside_frames += kind == SessionKind::kOutside;
   }
   const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
   map.keypoint_landmark.assign(num_keypoints, kInvalidLandmarkId);
@@ -140,7 +175,10 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
   // Pairs and guided matching.
   const auto match_start = Clock::now();
   std::vector<PairFrame> pair_frames;
-  for (const MapperFrame& f : frames) pair_frames.push_back(PairFrame{f.cam_from_world, f.is_query});
+  for (const MapperFrame& f : frames) {
+    pair_frames.push_back(PairFrame{f.cam_from_world, f.is_query, f.session,
+                                    sessions[static_cast<size_t>(f.session)].kind == SessionKind::kOutside});
+  }
   const auto pairs = select_frame_pairs(pair_frames, options.pairs);
   stats.num_pairs = static_cast<int64_t>(pairs.size());
   std::vector<std::unique_ptr<MatchingFrame>> matching_frames(num_frames);
@@ -224,9 +262,19 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
   return map;
 }
 
-LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& options, MapperStats* stats_out) {
-  options.check();
-  const auto start = Clock::now();
+namespace {
+
+// One collection read for mapping: its cameras, sessions and frames (features not yet detected),
+// with the image paths.
+struct LoadedCollection {
+  std::vector<Camera> cameras;
+  std::vector<MapSession> sessions;
+  std::vector<MapperFrame> frames;  // camera and session index into the above
+  std::vector<fs::path> image_paths;
+};
+
+LoadedCollection load_collection(const fs::path& collection_dir, const fs::path& gravity_file,
+                                 const MapperOptions& options) {
   const fs::path sparse = collection_dir / "sparse";
   const fs::path image_dir = collection_dir / "images";
   LMB_CHECK(fs::is_directory(collection_dir), collection_dir.string() << ": collection folder does not exist");
@@ -244,23 +292,89 @@ LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& 
   LMB_CHECK(!model.images.empty(), sparse.string() << ": the sparse model has no images");
   check_collection_images(model, image_dir);
   std::map<std::string, Eigen::Vector3d> gravity;
-  if (!options.gravity_file.empty()) gravity = read_gravity_file(options.gravity_file, model);
+  if (!gravity_file.empty()) gravity = read_gravity_file(gravity_file, model);
 
-  std::vector<Camera> cameras;
+  LoadedCollection c;
+  std::vector<int32_t> session_of_image;
+  const fs::path session_file = collection_dir / kSessionFileName;
+  if (fs::exists(session_file)) {
+    c.sessions = read_session_file(session_file);
+    session_of_image = image_sessions(c.sessions, model, session_file);
+  } else {
+    c.sessions = {MapSession{"map", SessionKind::kMap}};
+    bool any_query = false;
+    for (const ColmapImage& image : model.images) {
+      const bool query = !options.query_prefix.empty() && image.name.rfind(options.query_prefix, 0) == 0;
+      session_of_image.push_back(query ? 1 : 0);
+      any_query = any_query || query;
+    }
+    if (any_query) c.sessions.push_back(MapSession{"query", SessionKind::kQuery});
+  }
   std::map<int, camera_t> camera_index;
   for (const auto& [id, camera] : model.cameras) {
-    camera_index[id] = static_cast<camera_t>(cameras.size());
-    cameras.push_back(camera);
+    camera_index[id] = static_cast<camera_t>(c.cameras.size());
+    c.cameras.push_back(camera);
   }
-  std::vector<MapperFrame> frames(model.images.size());
+  c.frames.resize(model.images.size());
   for (size_t i = 0; i < model.images.size(); ++i) {
     const ColmapImage& image = model.images[i];
-    MapperFrame& f = frames[i];
+    MapperFrame& f = c.frames[i];
     f.name = image.name;
     f.camera = camera_index.at(image.camera_id);
+    f.session = session_of_image[i];
     f.cam_from_world = image.cam_from_world;
-    f.is_query = !options.query_prefix.empty() && image.name.rfind(options.query_prefix, 0) == 0;
+    f.is_query = c.sessions[static_cast<size_t>(f.session)].kind != SessionKind::kMap;
     if (!gravity.empty()) f.gravity_in_cam = gravity.at(image.name);
+    c.image_paths.push_back(image_dir / image.name);
+  }
+  return c;
+}
+
+}  // namespace
+
+LandmarkMap map_collections(const std::vector<CollectionInput>& collections, const MapperOptions& options,
+                            MapperStats* stats_out) {
+  options.check();
+  LMB_CHECK(!collections.empty(), "mapper: no collection to map");
+  const auto start = Clock::now();
+  const bool joined = collections.size() > 1;
+  std::vector<std::string> labels;
+  for (const CollectionInput& in : collections) {
+    std::string label = in.label;
+    if (label.empty()) label = fs::path(in.dir).lexically_normal().filename().string();
+    if (label.empty() || label == ".") label = fs::absolute(in.dir).lexically_normal().parent_path().filename().string();
+    if (joined) {
+      check_session_name(label, "mapper: collection " + in.dir.string() + ": label");
+      for (size_t k = 0; k < labels.size(); ++k) {
+        LMB_CHECK(labels[k] != label, "mapper: collections " << collections[k].dir.string() << " and "
+                                                             << in.dir.string() << " both have the label '" << label
+                                                             << "' (give each its own label)");
+      }
+    }
+    labels.push_back(label);
+  }
+
+  std::vector<Camera> cameras;
+  std::vector<MapSession> sessions;
+  std::vector<MapperFrame> frames;
+  std::vector<fs::path> image_paths;
+  for (size_t k = 0; k < collections.size(); ++k) {
+    LoadedCollection c = load_collection(collections[k].dir, collections[k].gravity_file, options);
+    const camera_t camera_base = static_cast<camera_t>(cameras.size());
+    const int32_t session_base = static_cast<int32_t>(sessions.size());
+    const std::string prefix = joined ? labels[k] + "/" : "";
+    cameras.insert(cameras.end(), c.cameras.begin(), c.cameras.end());
+    for (MapSession s : c.sessions) {
+      s.name = prefix + s.name;
+      sessions.push_back(std::move(s));
+    }
+    for (MapperFrame& f : c.frames) {
+      f.name = prefix + f.name;
+      f.camera += camera_base;
+      f.session += session_base;
+      frames.push_back(std::move(f));
+    }
+    image_paths.insert(image_paths.end(), c.image_paths.begin(), c.image_paths.end());
   }
 
   const int previous_cv_threads = cv::getNumThreads();
@@ -269,7 +383,7 @@ LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& 
   try {
     parallel_for(static_cast<int64_t>(frames.size()), options.threads, [&](int64_t i, int) {
       MapperFrame& f = frames[i];
-      const fs::path path = image_dir / f.name;
+      const fs::path& path = image_paths[i];
       const cv::Mat image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
       LMB_CHECK(!image.empty(), path.string() << ": cannot read image (unreadable or not an image)");
       const Camera& camera = cameras[f.camera];
@@ -286,11 +400,15 @@ LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& 
   }
   cv::setNumThreads(previous_cv_threads);
   stats.detect_seconds = seconds_since(start);
-  LandmarkMap map = build_landmark_map(cameras, frames, options.detector.detector,
+  LandmarkMap map = build_landmark_map(cameras, sessions, frames, options.detector.detector,
                                        detector_descriptor_bytes(options.detector.detector), options, &stats);
   stats.total_seconds = seconds_since(start);
   if (stats_out) *stats_out = stats;
   return map;
+}
+
+LandmarkMap map_collection(const fs::path& collection_dir, const MapperOptions& options, MapperStats* stats_out) {
+  return map_collections({CollectionInput{collection_dir, "", options.gravity_file}}, options, stats_out);
 }
 
 }  // namespace lmb

@@ -10,6 +10,7 @@
 
 #include "common/error.h"
 #include "common/io/colmap_model.h"
+#include "common/io/session_file.h"
 
 namespace fs = std::filesystem;
 
@@ -68,6 +69,16 @@ class PointClusters {
 LandmarkStats estimate_landmarks(const fs::path& world_dir, double voxel_m) {
   const auto t0 = std::chrono::steady_clock::now();
   const ColmapModel model = read_colmap_text(world_dir / "sparse");
+  // Map frames: those of map sessions (sessions.txt), or, in a collection without it, "map/...".
+  std::vector<bool> image_is_map;
+  if (fs::exists(world_dir / kSessionFileName)) {
+    const std::vector<MapSession> sessions = read_session_file(world_dir / kSessionFileName);
+    for (int32_t s : image_sessions(sessions, model, world_dir / kSessionFileName)) {
+      image_is_map.push_back(sessions[static_cast<size_t>(s)].kind == SessionKind::kMap);
+    }
+  } else {
+    for (const ColmapImage& im : model.images) image_is_map.push_back(im.name.rfind("map/", 0) == 0);
+  }
   LandmarkStats stats;
   LMB_CHECK(voxel_m > 0.0, "landmark estimate: merge radius must be positive");
   PointClusters clusters(voxel_m);
@@ -76,7 +87,7 @@ LandmarkStats estimate_landmarks(const fs::path& world_dir, double voxel_m) {
   auto brisk = cv::BRISK::create();
   for (size_t i = 0; i < model.images.size(); ++i) {
     const ColmapImage& im = model.images[i];
-    const bool is_map = im.name.rfind("map/", 0) == 0;
+    const bool is_map = image_is_map[i];
     const Camera& cam = model.cameras.at(im.camera_id);
     const fs::path image_path = world_dir / "images" / im.name, depth_path = world_dir / "depth" / im.name;
     const cv::Mat image = cv::imread(image_path.string(), cv::IMREAD_GRAYSCALE);

@@ -36,90 +36,155 @@ Rigid3d cam_from_world_pose(const Eigen::Vector3d& centre, double yaw, double pi
 
 namespace {
 
-struct PassSpec {
-  double heading;       // 0 (+x) or pi (-x)
-  double lateral;       // y of the walk
-  double height;        // z of the camera
-  double yaw_amp, yaw_period, yaw_phase;
-  double pitch_mean, pitch_amp, pitch_period;
-  double roll_amp;
-  double phase_offset;  // fraction of a step by which the samples are shifted
-};
+constexpr double kDeg = M_PI / 180.0;
 
-void add_pass(const World& world, const PassSpec& p, int frames, uint64_t seed, std::vector<Rigid3d>* out) {
+void add_pass(const World& world, const PassParams& p, double yaw_phase, int frames, uint64_t seed,
+              std::vector<Rigid3d>* out) {
   if (frames <= 0) return;
   const double margin = 1.5;  // keeps cameras off the end walls
   const double x0 = margin, x1 = world.length - margin;
   const double step = frames > 1 ? (x1 - x0) / (frames - 1) : 0.0;
   Rng rng(seed);
   for (int i = 0; i < frames; ++i) {
-    double s = frames > 1 ? i * step + p.phase_offset * step : 0.5 * (x1 - x0);
+    double s = frames > 1 ? i * step + p.sample_phase * step : 0.5 * (x1 - x0);
     s = std::clamp(s, 0.0, x1 - x0);
     const double x = p.heading == 0.0 ? x0 + s : x1 - s;
     const double tau = 2.0 * M_PI;
-    const double y = p.lateral + 0.08 * std::sin(tau * s / 5.3 + p.yaw_phase) + rng.uniform(-0.02, 0.02);
-    const double z = p.height + 0.04 * std::sin(tau * s / 1.4) + rng.uniform(-0.01, 0.01);
-    const double yaw = p.heading + p.yaw_amp * std::sin(tau * s / p.yaw_period + p.yaw_phase) + rng.uniform(-0.03, 0.03);
-    const double pitch = p.pitch_mean + p.pitch_amp * std::sin(tau * s / p.pitch_period + 1.3 * p.yaw_phase) +
+    const double y = p.lateral_m + 0.08 * std::sin(tau * s / 5.3 + yaw_phase) + rng.uniform(-0.02, 0.02);
+    const double z = p.height_m + 0.04 * std::sin(tau * s / 1.4) + rng.uniform(-0.01, 0.01);
+    const double yaw = p.heading + p.yaw_amplitude_deg * kDeg * std::sin(tau * s / p.yaw_period_m + yaw_phase) +
+                       rng.uniform(-0.03, 0.03);
+    const double pitch = p.pitch_mean_deg * kDeg +
+                         p.pitch_amplitude_deg * kDeg * std::sin(tau * s / p.pitch_period_m + 1.3 * yaw_phase) +
                          rng.uniform(-0.01, 0.01);
-    const double roll = p.roll_amp * std::sin(tau * s / 2.7 + 0.7) + rng.uniform(-0.01, 0.01);
+    const double roll = p.roll_amplitude_deg * kDeg * std::sin(tau * s / 2.7 + 0.7) + rng.uniform(-0.01, 0.01);
     out->push_back(cam_from_world_pose(Eigen::Vector3d(x, y, z), yaw, pitch, roll));
   }
 }
 
-constexpr double kDeg = M_PI / 180.0;
+// How a session looks: its two passes (forward, backward) and its lighting. Lamp k of the world
+// gets lamp_scale(k) (empty function: all lamps at 1).
+struct SessionStyle {
+  const char* time_of_day;
+  PassParams forward, backward;
+  double ambient, lamp_power, gain, exponent;
+  int lamp_pattern;  // 0: all lamps on; 1: every 4th off; 2: alternate lamps at 0.55; 3: original
+                     // query (every 3rd at 0.25, the others 0.8-1.2); 4: two of three at 0.3; 5: all 0.9
+};
 
-}  // namespace
+PassParams pass(double heading, double lateral, double height, double yaw_amp, double yaw_period, double pitch_mean,
+                double pitch_amp, double pitch_period, double roll_amp, double phase) {
+  return PassParams{heading, lateral, height, yaw_amp, yaw_period, pitch_mean, pitch_amp, pitch_period, roll_amp,
+                    phase};
+}
 
-Session make_map_session(const World& world, int frames) {
-  LMB_CHECK(frames >= 1, "world: --map-frames must be >= 1, got " << frames);
+// Map session styles; row 0 is the world's original map session. Lanes, heights and lighting are
+// spread over what people and robots walk (0.3-0.5 m off the centre, 1.35-1.75 m high; day, evening
+// and night lighting); none equals a query style (test/train/world/trajectory_test).
+SessionStyle map_style(int index) {
+  switch (index) {
+    case 0:
+      return {"day, lamps on", pass(0, -0.3, 1.5, 50, 3.2, -4, 4, 2.3, 2, 0.0), pass(M_PI, 0.3, 1.5, 50, 3.2, -4, 4, 2.3, 2, 0.0),
+              0.55, 1.0, 1.05, 0.9, 0};
+    case 1:
+      return {"evening, every 4th lamp off", pass(0, 0.35, 1.36, 44, 3.7, -1, 4, 2.6, 2.5, 0.25),
+              pass(M_PI, -0.35, 1.38, 44, 3.7, -2, 4, 2.6, 2.5, 0.5), 0.36, 1.35, 1.0, 0.8, 1};
+    case 2:
+      return {"bright day, lamps dim", pass(0, -0.5, 1.74, 56, 2.9, -9, 5, 2.0, 1.5, 0.6),
+              pass(M_PI, -0.05, 1.70, 56, 2.9, -7, 5, 2.0, 1.5, 0.15), 0.70, 0.7, 0.92, 1.05, 0};
+    default:
+      return {"night, alternate lamps dimmed", pass(0, 0.05, 1.44, 47, 3.5, -3, 3, 2.9, 3, 0.8),
+              pass(M_PI, 0.5, 1.46, 47, 3.5, -3, 3, 2.9, 3, 0.35), 0.28, 1.55, 1.15, 0.7, 2};
+  }
+}
+
+// Query session styles; row 0 is the world's original query session.
+SessionStyle query_style(int index) {
+  switch (index) {
+    case 0:
+      return {"dim, every 3rd lamp low", pass(0, 0.1, 1.62, 38, 4.1, -7, 3, 3.1, 3, 0.37),
+              pass(M_PI, -0.12, 1.58, 38, 4.1, -2, 3, 3.1, 3, 0.61), 0.42, 1.25, 0.95, 0.75, 3};
+    case 1:
+      return {"dusk, two of three lamps low", pass(0, -0.6, 1.28, 32, 4.8, 1, 3, 3.4, 3.5, 0.13),
+              pass(M_PI, 0.6, 1.25, 32, 4.8, 0, 3, 3.4, 3.5, 0.79), 0.33, 1.1, 1.08, 0.85, 4};
+    default:
+      return {"sunny, lamps dim", pass(0, -0.02, 1.82, 60, 2.5, -10, 4, 2.2, 2, 0.45),
+              pass(M_PI, 0.22, 1.80, 60, 2.5, -10, 4, 2.2, 2, 0.05), 0.78, 0.6, 0.88, 1.1, 5};
+  }
+}
+
+// `tag` keys the session's draws (phases, jitter, noise); session 0 of each kind keeps the draws
+// of the world's original session.
+Session make_session(const World& world, const SessionStyle& style, int frames, uint64_t tag, uint64_t index) {
   const uint64_t seed = world.options.seed;
-  Rng rng(counter_hash(seed, 0x3A9));
+  Rng rng(counter_hash(seed, tag, 0, index));
   Session s;
-  s.name = "map";
-  s.lateral_m = 0.3;
-  s.height_m = 1.5;
-  s.yaw_amplitude_deg = 50;
-  s.yaw_period_m = 3.2;
+  s.time_of_day = style.time_of_day;
+  s.passes[0] = style.forward;
+  s.passes[1] = style.backward;
   const int forward = (frames + 1) / 2;
-  PassSpec a{0.0, -0.3, 1.5, 50 * kDeg, 3.2, rng.uniform(0, 6.28), -4 * kDeg, 4 * kDeg, 2.3, 2 * kDeg, 0.0};
-  PassSpec b{M_PI, 0.3, 1.5, 50 * kDeg, 3.2, rng.uniform(0, 6.28), -4 * kDeg, 4 * kDeg, 2.3, 2 * kDeg, 0.0};
-  add_pass(world, a, forward, counter_hash(seed, 0x3A9, 1), &s.cam_from_world);
-  add_pass(world, b, frames - forward, counter_hash(seed, 0x3A9, 2), &s.cam_from_world);
-  s.lighting.ambient = 0.55;
-  s.lighting.lamp_power = 1.0;
-  s.lighting.gain = 1.05;
-  s.lighting.exponent = 0.9;
+  const double phase_a = rng.uniform(0, 6.28), phase_b = rng.uniform(0, 6.28);
+  add_pass(world, style.forward, phase_a, forward, counter_hash(seed, tag, 1, index), &s.cam_from_world);
+  add_pass(world, style.backward, phase_b, frames - forward, counter_hash(seed, tag, 2, index), &s.cam_from_world);
+  s.lighting.ambient = style.ambient;
+  s.lighting.lamp_power = style.lamp_power;
+  s.lighting.gain = style.gain;
+  s.lighting.exponent = style.exponent;
   s.lighting.noise_sigma = world.options.noise_sigma;
-  s.lighting.noise_seed = counter_hash(seed, 0x3A9, 3);
+  s.lighting.noise_seed = counter_hash(seed, tag, 3, index);
+  if (style.lamp_pattern != 0) {
+    for (size_t k = 0; k < world.lamps.size(); ++k) {
+      double scale = 1.0;
+      switch (style.lamp_pattern) {
+        case 1: scale = k % 4 == 2 ? 0.0 : 1.0; break;
+        case 2: scale = k % 2 == 1 ? 0.55 : 1.0; break;
+        case 3: scale = k % 3 == 1 ? 0.25 : 0.8 + 0.4 * to_unit_double(counter_hash(seed, 0x1A3, k, index)); break;
+        case 4: scale = k % 3 != 0 ? 0.3 : 1.0; break;
+        default: scale = 0.9; break;
+      }
+      s.lighting.lamp_scale.push_back(scale);
+    }
+  }
   return s;
 }
 
-Session make_query_session(const World& world, int frames) {
-  LMB_CHECK(frames >= 1, "world: --query-frames must be >= 1, got " << frames);
-  const uint64_t seed = world.options.seed;
-  Rng rng(counter_hash(seed, 0x9E7));
-  Session s;
-  s.name = "query";
-  s.lateral_m = 0.1;
-  s.height_m = 1.62;
-  s.yaw_amplitude_deg = 38;
-  s.yaw_period_m = 4.1;
-  const int forward = (frames + 1) / 2;
-  PassSpec a{0.0, 0.1, 1.62, 38 * kDeg, 4.1, rng.uniform(0, 6.28), -7 * kDeg, 3 * kDeg, 3.1, 3 * kDeg, 0.37};
-  PassSpec b{M_PI, -0.12, 1.58, 38 * kDeg, 4.1, rng.uniform(0, 6.28), -2 * kDeg, 3 * kDeg, 3.1, 3 * kDeg, 0.61};
-  add_pass(world, a, forward, counter_hash(seed, 0x9E7, 1), &s.cam_from_world);
-  add_pass(world, b, frames - forward, counter_hash(seed, 0x9E7, 2), &s.cam_from_world);
-  s.lighting.ambient = 0.42;
-  s.lighting.lamp_power = 1.25;
-  s.lighting.gain = 0.95;
-  s.lighting.exponent = 0.75;
-  s.lighting.noise_sigma = world.options.noise_sigma;
-  s.lighting.noise_seed = counter_hash(seed, 0x9E7, 3);
-  for (size_t k = 0; k < world.lamps.size(); ++k) {
-    s.lighting.lamp_scale.push_back(k % 3 == 1 ? 0.25 : 0.8 + 0.4 * to_unit_double(counter_hash(seed, 0x1A3, k)));
-  }
+std::string session_name(const char* kind, int index) {
+  return index == 0 ? std::string(kind) : std::string(kind) + "-" + std::to_string(index + 1);
+}
+
+}  // namespace
+
+Session make_map_session(const World& world, int frames, int index) {
+  LMB_CHECK(frames >= 1, "world: a map session needs >= 1 frame, got " << frames);
+  LMB_CHECK(index >= 0 && index < kMaxMapSessions,
+            "world: map session index " << index << " outside 0.." << kMaxMapSessions - 1);
+  Session s = make_session(world, map_style(index), frames, 0x3A9, static_cast<uint64_t>(index));
+  s.name = session_name("map", index);
+  s.kind = SessionKind::kMap;
+  s.frame_key_base = static_cast<uint64_t>(2 * index) << 32;
   return s;
+}
+
+Session make_query_session(const World& world, int frames, int index) {
+  LMB_CHECK(frames >= 1, "world: a query session needs >= 1 frame, got " << frames);
+  LMB_CHECK(index >= 0 && index < kMaxQuerySessions,
+            "world: query session index " << index << " outside 0.." << kMaxQuerySessions - 1);
+  Session s = make_session(world, query_style(index), frames, 0x9E7, static_cast<uint64_t>(index));
+  s.name = session_name("query", index);
+  s.kind = SessionKind::kQuery;
+  s.frame_key_base = static_cast<uint64_t>(2 * index + 1) << 32;
+  return s;
+}
+
+std::vector<Session> make_world_sessions(const World& world) {
+  const WorldOptions& o = world.options;
+  o.check();
+  std::vector<Session> sessions;
+  for (int i = 0; i < o.map_sessions; ++i) {
+    sessions.push_back(make_map_session(world, o.map_frames / o.map_sessions + (i < o.map_frames % o.map_sessions), i));
+  }
+  for (int j = 0; j < o.query_sessions; ++j) sessions.push_back(make_query_session(world, o.query_frames, j));
+  return sessions;
 }
 
 }  // namespace lmb

@@ -1,6 +1,8 @@
-// The camera and the two recording sessions of a rendered world: a map session (two walks along the
-// corridor, one each way, yaw swinging towards the walls) and a query session (a different lateral
-// offset, height, yaw pattern and lighting over the same places).
+// The camera and the recording sessions of a rendered world. A map session walks the corridor
+// twice, once each way, yaw swinging towards the walls; every map session has its own lanes, camera
+// height, yaw and pitch pattern and lighting (time of day). Query sessions walk the same places
+// with lanes, heights and lighting unlike every map session's. Session 0 of each kind is the
+// world's original map or query session.
 #pragma once
 
 #include <string>
@@ -9,6 +11,7 @@
 #include <Eigen/Core>
 
 #include "common/camera.h"
+#include "common/landmark_map.h"
 #include "common/rigid3.h"
 #include "train/world/renderer.h"
 #include "train/world/world_model.h"
@@ -26,16 +29,38 @@ Camera world_camera(double scale = 1.0);
 // down axis is world -z (gravity).
 Rigid3d cam_from_world_pose(const Eigen::Vector3d& centre, double yaw, double pitch, double roll);
 
-struct Session {
-  std::string name;                      // "map" or "query": the image folder
-  std::vector<Rigid3d> cam_from_world;   // one per frame
-  Lighting lighting;
-  // Trajectory parameters for world.json.
-  double lateral_m = 0, height_m = 0, yaw_amplitude_deg = 0, yaw_period_m = 0;
+// One straight pass of a session along the corridor.
+struct PassParams {
+  double heading = 0;            // 0 (+x) or pi (-x)
+  double lateral_m = 0;          // y of the walk
+  double height_m = 1.5;         // camera height
+  double yaw_amplitude_deg = 0;  // yaw swing towards the walls
+  double yaw_period_m = 3;
+  double pitch_mean_deg = 0, pitch_amplitude_deg = 0, pitch_period_m = 2;
+  double roll_amplitude_deg = 0;
+  double sample_phase = 0;       // fraction of a frame step by which the samples are shifted
 };
 
-// `frames` frames each; deterministic in the world's seed. Throws lmb::Error when frames < 1.
-Session make_map_session(const World& world, int frames);
-Session make_query_session(const World& world, int frames);
+struct Session {
+  std::string name;                      // the image folder: "map", "map-2", ..., "query", "query-2", ...
+  SessionKind kind = SessionKind::kMap;
+  std::string time_of_day;               // a label of the lighting, for world.json
+  std::vector<Rigid3d> cam_from_world;   // one per frame
+  Lighting lighting;
+  uint64_t frame_key_base = 0;           // frame i is rendered with noise key frame_key_base | i
+  PassParams passes[2];                  // forward, backward (world.json)
+};
+
+// `frames` frames each (the first ceil(frames / 2) walk forward); deterministic in the world's
+// seed and the index. Index 0 is the world's original session of the kind; map sessions 1..3 and
+// query sessions 1..2 vary lanes, height, yaw and pitch pattern and lighting. Throws lmb::Error
+// when frames < 1 or the index is outside 0..kMaxMapSessions - 1 (0..kMaxQuerySessions - 1).
+Session make_map_session(const World& world, int frames, int index = 0);
+Session make_query_session(const World& world, int frames, int index = 0);
+
+// The sessions of world.options: map_sessions map sessions sharing map_frames (the first
+// map_frames % map_sessions get one frame more), then query_sessions query sessions of
+// query_frames frames each.
+std::vector<Session> make_world_sessions(const World& world);
 
 }  // namespace lmb

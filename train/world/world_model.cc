@@ -22,6 +22,12 @@ void WorldOptions::check() const {
   LMB_CHECK(map_frames >= 1 && map_frames <= 1000000, "world: --map-frames must be >= 1, got " << map_frames);
   LMB_CHECK(query_frames >= 1 && query_frames <= 1000000,
             "world: --query-frames must be >= 1, got " << query_frames);
+  LMB_CHECK(map_sessions >= 1 && map_sessions <= kMaxMapSessions,
+            "world: --map-sessions must be in [1, " << kMaxMapSessions << "], got " << map_sessions);
+  LMB_CHECK(query_sessions >= 1 && query_sessions <= kMaxQuerySessions,
+            "world: --query-sessions must be in [1, " << kMaxQuerySessions << "], got " << query_sessions);
+  LMB_CHECK(map_frames >= map_sessions, "world: --map-frames " << map_frames << " cannot be shared by "
+                                                               << map_sessions << " map sessions");
   LMB_CHECK(poster_designs >= 1 && poster_designs <= 64,
             "world: poster designs must be in [1, 64], got " << poster_designs);
   LMB_CHECK(std::isfinite(pillar_bay_m) && pillar_bay_m >= 1.5 && pillar_bay_m <= 100.0,

@@ -21,6 +21,9 @@
 
 namespace lmb {
 
+inline constexpr int kMaxMapSessions = 4;
+inline constexpr int kMaxQuerySessions = 3;
+
 struct WorldOptions {
   std::string preset = "default";
   uint64_t seed = 1;
@@ -28,8 +31,10 @@ struct WorldOptions {
   double length_m = 16.0;         // corridor length
   double width_m = 2.4;           // corridor width
   double height_m = 2.7;          // ceiling height
-  int map_frames = 40;
-  int query_frames = 16;
+  int map_frames = 40;            // over all map sessions (split evenly)
+  int query_frames = 16;          // per query session
+  int map_sessions = 1;           // 1..kMaxMapSessions (train/world/trajectory.h)
+  int query_sessions = 1;         // 1..kMaxQuerySessions
   int poster_designs = 4;         // distinct poster designs of the aliased world
   double pillar_bay_m = 4.0;      // pillar spacing along the corridor
   double door_share = 0.45;       // share of wall slots that get a door (+ room plate)

@@ -1,6 +1,7 @@
 #include "train/world/world_writer.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <system_error>
 
@@ -12,6 +13,7 @@
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/io/colmap_model.h"
+#include "common/io/session_file.h"
 #include "train/world/renderer.h"
 #include "train/world/trajectory.h"
 
@@ -60,10 +62,8 @@ fs::path make_temp_dir(const fs::path& out_dir) {
   LMB_CHECK(!ec && fs::is_directory(parent), parent.string() << ": cannot create output folder: " << ec.message());
   const fs::path tmp = parent / ("." + out_dir.filename().string() + ".tmp-" + std::to_string(::getpid()));
   fs::remove_all(tmp, ec);
-  for (const char* sub : {"sparse", "images/map", "images/query", "depth/map", "depth/query"}) {
-    fs::create_directories(tmp / sub, ec);
-    LMB_CHECK(!ec, tmp.string() << ": cannot create output folder: " << ec.message());
-  }
+  fs::create_directories(tmp / "sparse", ec);
+  LMB_CHECK(!ec, tmp.string() << ": cannot create output folder: " << ec.message());
   // Probe writability (create_directories can succeed on some read-only mounts as root).
   try {
     check_writable_folder(tmp, "output folder");
@@ -101,23 +101,34 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     const World world = build_world(options);
     const Camera camera = world_camera(options.image_scale);
     const RayTable rays(camera, options.supersampling);
-    const Session sessions[2] = {make_map_session(world, options.map_frames),
-                                 make_query_session(world, options.query_frames)};
+    const std::vector<Session> sessions = make_world_sessions(world);
     stats.build_seconds = seconds_since(t0);
     stats.summary = world.summary;
 
     const auto t1 = std::chrono::steady_clock::now();
     ColmapModel model;
     model.cameras[1] = camera;
-    const int total = options.map_frames + options.query_frames;
+    std::vector<MapSession> session_list;
+    int total = 0;
+    for (const Session& session : sessions) {
+      total += static_cast<int>(session.cam_from_world.size());
+      (session.kind == SessionKind::kMap ? stats.map_frames : stats.query_frames) +=
+          static_cast<int>(session.cam_from_world.size());
+      session_list.push_back(MapSession{session.name, session.kind});
+      for (const char* sub : {"images", "depth"}) {
+        std::error_code ec;
+        fs::create_directories(tmp / sub / session.name, ec);
+        LMB_CHECK(!ec, tmp.string() << ": cannot create output folder: " << ec.message());
+      }
+    }
+    write_session_file(session_list, tmp / kSessionFileName);
     int done = 0;
-    for (int si = 0; si < 2; ++si) {
-      const Session& session = sessions[si];
+    for (const Session& session : sessions) {
       for (size_t i = 0; i < session.cam_from_world.size(); ++i) {
         char name[64];
         std::snprintf(name, sizeof(name), "%s/%06zu.png", session.name.c_str(), i);
         const RenderedFrame frame = render_frame(world, rays, session.cam_from_world[i], session.lighting,
-                                                 static_cast<uint64_t>(si) << 32 | i, options.threads);
+                                                 session.frame_key_base | i, options.threads);
         write_png(tmp / "images" / name, frame.image);
         write_png(tmp / "depth" / name, frame.depth_mm);
         ColmapImage im;
@@ -131,8 +142,6 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
       }
     }
     write_colmap_text(model, tmp / "sparse");
-    stats.map_frames = static_cast<int>(sessions[0].cam_from_world.size());
-    stats.query_frames = static_cast<int>(sessions[1].cam_from_world.size());
 
     const WorldSummary& s = world.summary;
     nlohmann::json j;
@@ -145,6 +154,7 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     j["up_axis"] = {0, 0, 1};
     j["gravity"] = {0, 0, -1};
     j["counts"] = {{"map_frames", stats.map_frames},   {"query_frames", stats.query_frames},
+                   {"map_sessions", options.map_sessions}, {"query_sessions", options.query_sessions},
                    {"doors", s.doors},                 {"posters", s.posters},
                    {"poster_textures", s.poster_textures}, {"pillars", s.pillars},
                    {"room_plates", s.plates},          {"signs", s.signs},
@@ -175,13 +185,23 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
                    {"wall_stains_per_m", options.wall_stains_per_m},
                    {"floor_stains_per_m", options.floor_stains_per_m}};
     for (const Session& session : sessions) {
-      j["sessions"][session.name] = {{"frames", session.cam_from_world.size()},
+      nlohmann::json passes = nlohmann::json::array();
+      for (const PassParams& p : session.passes) {
+        passes.push_back({{"heading_deg", p.heading * 180.0 / M_PI},
+                          {"lateral_offset_m", p.lateral_m},
+                          {"camera_height_m", p.height_m},
+                          {"yaw_amplitude_deg", p.yaw_amplitude_deg},
+                          {"yaw_period_m", p.yaw_period_m},
+                          {"pitch_mean_deg", p.pitch_mean_deg},
+                          {"pitch_amplitude_deg", p.pitch_amplitude_deg},
+                          {"roll_amplitude_deg", p.roll_amplitude_deg}});
+      }
+      j["sessions"][session.name] = {{"kind", session_kind_name(session.kind)},
+                                     {"frames", session.cam_from_world.size()},
                                      {"image_dir", "images/" + session.name},
                                      {"depth_dir", "depth/" + session.name},
-                                     {"lateral_offset_m", session.lateral_m},
-                                     {"camera_height_m", session.height_m},
-                                     {"yaw_amplitude_deg", session.yaw_amplitude_deg},
-                                     {"yaw_period_m", session.yaw_period_m},
+                                     {"time_of_day", session.time_of_day},
+                                     {"passes", passes},
                                      {"lighting", lighting_json(session.lighting)}};
     }
     j["images"] = {{"format", "png"}, {"channels", 1}, {"bit_depth", 8}};

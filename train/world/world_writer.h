@@ -1,10 +1,13 @@
-// `lboost world`: renders a World's map and query sessions and writes them as a collection:
+// `lboost world`: renders a World's sessions (WorldOptions::map_sessions map sessions, then
+// query_sessions query sessions; train/world/trajectory.h) and writes them as a collection:
 //
 //   DIR/sparse/{cameras,images,points3D}.txt   COLMAP text model (one OPENCV camera, id 1; images
-//                                               "map/NNNNNN.png" then "query/NNNNNN.png", ids from 1;
-//                                               no 2D points, no 3D points)
-//   DIR/images/{map,query}/NNNNNN.png          8-bit grayscale renders
-//   DIR/depth/{map,query}/NNNNNN.png           16-bit z-depth of each pixel centre in mm (0 = none)
+//                                               "SESSION/NNNNNN.png" session after session, ids
+//                                               from 1; no 2D points, no 3D points)
+//   DIR/sessions.txt                            the sessions, "NAME KIND" (common/io/session_file.h):
+//                                               map, map-2, ... (map), query, query-2, ... (query)
+//   DIR/images/SESSION/NNNNNN.png              8-bit grayscale renders
+//   DIR/depth/SESSION/NNNNNN.png               16-bit z-depth of each pixel centre in mm (0 = none)
 //   DIR/world.json                             preset, seed, up axis, counts, camera, geometry,
 //                                               lighting and trajectory of each session
 //
@@ -21,8 +24,8 @@
 namespace lmb {
 
 struct WorldWriteStats {
-  int map_frames = 0;
-  int query_frames = 0;
+  int map_frames = 0;    // over all map sessions
+  int query_frames = 0;  // over all query sessions
   double build_seconds = 0.0;   // textures and layout
   double render_seconds = 0.0;  // rendering and PNG writing
   WorldSummary summary;

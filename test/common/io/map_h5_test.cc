@@ -66,12 +66,18 @@ void expect_equal(const LandmarkMap& a, const LandmarkMap& b) {
     EXPECT_EQ(a.cameras[c].height, b.cameras[c].height);
     EXPECT_EQ(a.cameras[c].params, b.cameras[c].params);
   }
+  ASSERT_EQ(a.sessions.size(), b.sessions.size());
+  for (size_t s = 0; s < a.sessions.size(); ++s) {
+    EXPECT_EQ(a.sessions[s].name, b.sessions[s].name);
+    EXPECT_EQ(a.sessions[s].kind, b.sessions[s].kind);
+  }
   ASSERT_EQ(a.frames.size(), b.frames.size());
   for (size_t f = 0; f < a.frames.size(); ++f) {
     const MapFrame& x = a.frames[f];
     const MapFrame& y = b.frames[f];
     EXPECT_EQ(x.name, y.name);
     EXPECT_EQ(x.camera, y.camera);
+    EXPECT_EQ(x.session, y.session);
     EXPECT_EQ(x.cam_from_world.rotation.coeffs(), y.cam_from_world.rotation.coeffs());
     EXPECT_EQ(x.cam_from_world.translation, y.cam_from_world.translation);
     EXPECT_EQ(x.gravity_in_cam, y.gravity_in_cam);
@@ -139,7 +145,89 @@ TEST_F(MapH5Test, RootAttributesAreSet) {
   EXPECT_EQ(format, "landmarkboost-map");
   int version = 0;
   file.openAttribute("format_version").read(H5::PredType::NATIVE_INT, &version);
-  EXPECT_EQ(version, 1);
+  EXPECT_EQ(version, 2);
+}
+
+// A format-1 file (written before sessions existed: no /sessions, no /frames/session) still loads:
+// its map frames form the session "map", its query frames the session "query".
+TEST_F(MapH5Test, VersionOneFilesLoadAsAMapAndAQuerySession) {
+  const fs::path path = dir_ / "v1.h5";
+  LandmarkMap map = random_map(4);
+  write_map_h5(map, path);
+  {
+    H5::H5File file(path.string(), H5F_ACC_RDWR);
+    file.unlink("/sessions");
+    file.unlink("/frames/session");
+    const int v = 1;
+    file.openAttribute("format_version").write(H5::PredType::NATIVE_INT, &v);
+  }
+  const LandmarkMap read = read_map_h5(path);
+  ASSERT_EQ(read.sessions.size(), 2u);
+  EXPECT_EQ(read.sessions[0].name, "map");
+  EXPECT_EQ(read.sessions[0].kind, SessionKind::kMap);
+  EXPECT_EQ(read.sessions[1].name, "query");
+  EXPECT_EQ(read.sessions[1].kind, SessionKind::kQuery);
+  // random_map's frames 0-2 are map frames (sessions "map" and "map-2" in version 2), 3-4 queries.
+  ASSERT_EQ(read.frames.size(), 5u);
+  for (size_t f = 0; f < 5; ++f) EXPECT_EQ(read.frames[f].session, f < 3 ? 0 : 1) << f;
+  // Everything else is the same map.
+  map.sessions = read.sessions;
+  for (size_t f = 0; f < 5; ++f) map.frames[f].session = read.frames[f].session;
+  expect_equal(map, read);
+  // A version-1 map without query frames has the one session "map".
+  LandmarkMap no_query = random_map(4);
+  no_query.sessions.clear();
+  for (MapFrame& f : no_query.frames) f.is_query = false;
+  for (Landmark& l : no_query.landmarks) {
+    l.num_map_observations += l.num_query_observations;
+    l.num_query_observations = 0;
+  }
+  assign_sessions_from_query_flags(&no_query);
+  ASSERT_EQ(no_query.sessions.size(), 1u);
+  for (const MapFrame& f : no_query.frames) EXPECT_EQ(f.session, 0);
+  EXPECT_THROW(assign_sessions_from_query_flags(&no_query), Error);
+}
+
+TEST_F(MapH5Test, SessionErrorsNameTheField) {
+  auto write_error = [&](const LandmarkMap& map) {
+    try {
+      write_map_h5(map, dir_ / "bad.h5");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  LandmarkMap map = random_map(2);
+  map.frames[1].session = 3;
+  EXPECT_NE(write_error(map).find("frames[1].session: 3"), std::string::npos) << write_error(map);
+  map = random_map(2);
+  map.frames[4].session = 0;  // a query frame in a map session
+  EXPECT_NE(write_error(map).find("frames[4].is_query"), std::string::npos) << write_error(map);
+  map = random_map(2);
+  map.sessions[1].name = "map";
+  EXPECT_NE(write_error(map).find("sessions[1].name: 'map' is also the name of sessions[0]"), std::string::npos)
+      << write_error(map);
+  map = random_map(2);
+  map.sessions[2].name = "two words";
+  EXPECT_NE(write_error(map).find("sessions[2].name"), std::string::npos) << write_error(map);
+  map = random_map(2);
+  map.sessions.clear();
+  EXPECT_NE(write_error(map).find("sessions: none"), std::string::npos) << write_error(map);
+  // Frames of an outside session observe no landmark.
+  map = random_map(2);
+  map.sessions[2].kind = SessionKind::kOutside;
+  EXPECT_NE(write_error(map).find("outside session"), std::string::npos) << write_error(map);
+  EXPECT_TRUE(fs::is_empty(dir_));
+
+  const std::string kind = error_after_edit([](H5::H5File& f) {
+    H5::DataSet ds = f.openDataSet("/sessions/kind");
+    const uint8_t v[3] = {0, 7, 1};
+    ds.write(v, H5::PredType::NATIVE_UINT8);
+  });
+  EXPECT_NE(kind.find("/sessions/kind[1]: 7"), std::string::npos) << kind;
+  const std::string missing = error_after_edit([](H5::H5File& f) { f.unlink("/frames/session"); });
+  EXPECT_NE(missing.find("/frames/session"), std::string::npos) << missing;
+  EXPECT_NE(missing.find("missing"), std::string::npos) << missing;
 }
 
 TEST_F(MapH5Test, OverwritesAtomically) {
@@ -210,11 +298,11 @@ TEST_F(MapH5Test, HdfFileWithoutAttributes) {
 
 TEST_F(MapH5Test, OtherVersion) {
   const std::string msg = error_after_edit([](H5::H5File& f) {
-    const int v = 2;
+    const int v = 3;
     f.openAttribute("format_version").write(H5::PredType::NATIVE_INT, &v);
   });
   EXPECT_NE(msg.find("format_version"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("version 2"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("version 3"), std::string::npos) << msg;
 }
 
 TEST_F(MapH5Test, InconsistentShapes) {

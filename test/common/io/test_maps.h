@@ -11,7 +11,8 @@
 
 namespace lmb::test {
 
-// A random but self-consistent map: 2 cameras, 5 frames (2 queries), 40 keypoints, 6 landmarks.
+// A random but self-consistent map: 2 cameras, 3 sessions ("map": frames 0-1, "map-2": frame 2,
+// "query": frames 3-4), 5 frames, 40 keypoints, 6 landmarks.
 inline LandmarkMap random_map(uint64_t seed) {
   Rng rng(seed);
   LandmarkMap map;
@@ -28,12 +29,14 @@ inline LandmarkMap random_map(uint64_t seed) {
   b.height = 240;
   b.params = {300.0, 160.0, 120.0, 0.01};
   map.cameras = {a, b};
+  map.sessions = {{"map", SessionKind::kMap}, {"map-2", SessionKind::kMap}, {"query", SessionKind::kQuery}};
   const int num_landmarks = 6;
   map.landmarks.resize(num_landmarks);
   int64_t first = 0;
   for (int f = 0; f < 5; ++f) {
     MapFrame frame;
-    frame.name = (f < 3 ? "map/" : "query/") + std::to_string(f) + ".png";
+    frame.session = f < 2 ? 0 : f < 3 ? 1 : 2;
+    frame.name = map.sessions[frame.session].name + "/" + std::to_string(f) + ".png";
     frame.camera = f % 2;
     frame.cam_from_world.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(
         rng.uniform(-3, 3), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized()));

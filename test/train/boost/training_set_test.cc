@@ -1,5 +1,7 @@
 #include "train/boost/training_set.h"
 
+#include <cstdio>
+
 #include <gtest/gtest.h>
 
 #include "common/error.h"
@@ -102,6 +104,52 @@ TEST(TrainingSet, UnselectedLandmarksBecomeBackground) {
     }
   }
   EXPECT_EQ(bg_tracked, 3 + 4);  // landmarks 0 and 1 have 3 and 4 map observations
+}
+
+// A map of two map sessions (frames 0-4 and 5-9, every landmark seen in all ten) and a query
+// session: every map session trains, and the held-out observations are drawn from both (no
+// session is the validation set), about in proportion.
+TEST(TrainingSet, EveryMapSessionTrainsAndValidates) {
+  LandmarkMap map;
+  map.descriptor_bytes = 1;
+  map.cameras.resize(1);
+  map.sessions = {{"map", SessionKind::kMap}, {"map-2", SessionKind::kMap}, {"query", SessionKind::kQuery}};
+  const int num_landmarks = 300;
+  for (int l = 0; l < num_landmarks; ++l) {
+    Landmark lm;
+    lm.quality = 1.f;
+    map.landmarks.push_back(lm);
+  }
+  for (int f = 0; f < 11; ++f) {
+    MapFrame frame;
+    frame.session = f < 5 ? 0 : f < 10 ? 1 : 2;
+    frame.is_query = f == 10;
+    frame.first_keypoint = static_cast<int64_t>(map.keypoints.size());
+    for (int l = 0; l < num_landmarks + 2; ++l) {
+      map.keypoints.push_back({});
+      map.keypoint_landmark.push_back(l < num_landmarks ? l : kInvalidLandmarkId);
+      map.descriptors.push_back(0);
+    }
+    frame.num_keypoints = num_landmarks + 2;
+    map.frames.push_back(frame);
+  }
+  TrainingSetOptions o;
+  o.top_k_landmarks = num_landmarks;
+  o.validation_fraction = 0.2;  // 2 of 10 observations a class
+  const TrainingSet set = build_training_set(map, words_of(map), o);
+  int train[3] = {0, 0, 0}, validation[3] = {0, 0, 0};
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    if (set.sample_class[s] == set.background_class()) continue;
+    const int32_t session = map.frames[set.sample_frame[s]].session;
+    (set.sample_is_validation[s] ? validation : train)[session]++;
+  }
+  EXPECT_EQ(train[2] + validation[2], 0);  // the query session never
+  EXPECT_EQ(train[0] + validation[0], 5 * num_landmarks);
+  EXPECT_EQ(train[1] + validation[1], 5 * num_landmarks);
+  EXPECT_EQ(validation[0] + validation[1], 2 * num_landmarks);
+  std::printf("held-out observations by map session: %d, %d\n", validation[0], validation[1]);
+  EXPECT_GT(validation[0], 0.4 * 2 * num_landmarks);
+  EXPECT_GT(validation[1], 0.4 * 2 * num_landmarks);
 }
 
 TEST(TrainingSet, RejectsBadInput) {

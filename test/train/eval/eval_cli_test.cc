@@ -438,7 +438,10 @@ TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
                         "trained on another map");
   // A map without query frames.
   LandmarkMap no_query = map;
-  for (MapFrame& f : no_query.frames) f.is_query = false;
+  for (MapFrame& f : no_query.frames) {
+    f.is_query = false;
+    f.session = 0;  // every frame in the map session
+  }
   for (Landmark& l : no_query.landmarks) {
     l.num_map_observations += l.num_query_observations;
     l.num_query_observations = 0;

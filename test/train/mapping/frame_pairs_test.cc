@@ -46,6 +46,30 @@ TEST(SelectFramePairs, DistanceAngleAndSequence) {
   EXPECT_FALSE(has(seq, 11, 12));
 }
 
+// Sequence neighbours stay within a session; outside frames are never paired.
+TEST(SelectFramePairs, SessionsAndOutsideFrames) {
+  std::vector<PairFrame> frames;
+  for (int i = 0; i < 4; ++i) frames.push_back({test::look_along(Eigen::Vector3d(10.0 * i, 0, 1), 0.0), false, 0});
+  for (int i = 0; i < 4; ++i) frames.push_back({test::look_along(Eigen::Vector3d(10.0 * i + 5, 0, 1), 0.0), false, 1});
+  frames.push_back({test::look_along(Eigen::Vector3d(0.1, 0, 1), 0.0), true, 2, true});  // 8: outside, beside frame 0
+  frames.push_back({test::look_along(Eigen::Vector3d(0.2, 0, 1), 0.0), true, 3});        // 9: query, beside frame 0
+  PairOptions options;
+  options.max_center_distance = 1.0;
+  options.sequence_neighbors = 2;
+  const auto pairs = select_frame_pairs(frames, options);
+  EXPECT_TRUE(has(pairs, 0, 1));
+  EXPECT_TRUE(has(pairs, 0, 2));
+  EXPECT_TRUE(has(pairs, 2, 3));
+  EXPECT_TRUE(has(pairs, 4, 5));
+  EXPECT_TRUE(has(pairs, 0, 9));
+  EXPECT_FALSE(has(pairs, 3, 4));  // consecutive in the list, but in other sessions
+  for (const auto& [i, j] : pairs) {
+    EXPECT_NE(i, 8);
+    EXPECT_NE(j, 8);
+    EXPECT_EQ(frames[i].session == frames[j].session || i == 0, true) << i << "," << j;
+  }
+}
+
 TEST(SelectFramePairs, CapPerFrameKeepsClosest) {
   std::vector<PairFrame> frames;
   for (int i = 0; i < 20; ++i) frames.push_back({test::look_along(Eigen::Vector3d(0.1 * i, 0, 1), 0.0), false});

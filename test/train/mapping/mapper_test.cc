@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <fstream>
 #include <map>
 
@@ -141,6 +142,83 @@ TEST(BuildLandmarkMap, QueryOnlyTracksAreNotLandmarks) {
   const LandmarkMap map = build_landmark_map({s.camera}, frames, "BRISK", 64, options);
   EXPECT_TRUE(map.landmarks.empty());
   for (landmark_t l : map.keypoint_landmark) EXPECT_EQ(l, kInvalidLandmarkId);
+}
+
+// Sessions: the map frames in two map sessions (alternating, as two walks over the same places),
+// the query frames in a query session, and copies of the query frames in an outside session.
+// Tracks join both map sessions; outside frames are never matched, so none of their keypoints gets
+// a landmark; frames keep their session.
+TEST(BuildLandmarkMap, TracksJoinMapSessionsAndOutsideFramesStayBackground) {
+  test::SyntheticSceneOptions o;
+  o.num_points = 1200;
+  const test::SyntheticScene s = test::make_synthetic_scene(o);
+  const std::vector<MapSession> sessions = {{"walk-a", SessionKind::kMap}, {"walk-b", SessionKind::kMap},
+                                            {"query", SessionKind::kQuery}, {"elsewhere", SessionKind::kOutside}};
+  std::vector<MapperFrame> frames;
+  int map_index = 0;
+  for (const MapperFrame& f : s.frames) {
+    MapperFrame g = f;
+    g.session = f.is_query ? 2 : map_index++ % 2;
+    frames.push_back(std::move(g));
+  }
+  const size_t num_scene_frames = frames.size();
+  for (size_t i = 0; i < num_scene_frames; ++i) {
+    if (!frames[i].is_query) continue;
+    MapperFrame g = frames[i];
+    g.session = 3;
+    g.name = "elsewhere/" + g.name;
+    frames.push_back(std::move(g));
+  }
+  MapperOptions options;
+  MapperStats stats;
+  const LandmarkMap map = build_landmark_map({s.camera}, sessions, frames, "BRISK", 64, options, &stats);
+  validate_landmark_map(map, "mapped");
+  EXPECT_EQ(stats.num_sessions, 4);
+  EXPECT_EQ(stats.num_outside_frames, o.num_query_frames);
+  ASSERT_EQ(map.sessions.size(), 4u);
+  for (size_t i = 0; i < sessions.size(); ++i) {
+    EXPECT_EQ(map.sessions[i].name, sessions[i].name);
+    EXPECT_EQ(map.sessions[i].kind, sessions[i].kind);
+  }
+  std::vector<std::array<int, 2>> per_session(map.landmarks.size(), {0, 0});
+  int64_t outside_keypoints = 0;
+  for (size_t f = 0; f < map.frames.size(); ++f) {
+    EXPECT_EQ(map.frames[f].session, frames[f].session);
+    for (int k = 0; k < map.frames[f].num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[map.frames[f].first_keypoint + k];
+      if (map.frames[f].session == 3) {
+        ++outside_keypoints;
+        EXPECT_EQ(l, kInvalidLandmarkId);
+      } else if (l >= 0 && map.frames[f].session < 2) {
+        ++per_session[l][map.frames[f].session];
+      }
+    }
+  }
+  EXPECT_GT(outside_keypoints, 300);
+  int64_t both = 0;
+  for (const auto& c : per_session) both += c[0] > 0 && c[1] > 0;
+  std::printf("two map sessions: %lld of %zu landmarks observed in both\n", static_cast<long long>(both),
+              map.landmarks.size());
+  EXPECT_GT(both, static_cast<int64_t>(0.8 * static_cast<double>(map.landmarks.size())));
+  // Query keypoints still get their true landmark.
+  const Accuracy a = evaluate(s, [&] {
+    LandmarkMap first = map;  // evaluate() reads the scene's frames: drop the outside copies
+    first.frames.resize(num_scene_frames);
+    return first;
+  }());
+  EXPECT_GT(a.mean_purity, 0.99);
+  EXPECT_GT(a.query_label_accuracy, 0.98);
+
+  // A frame whose is_query disagrees with its session's kind, and a session index out of range.
+  auto bad = frames;
+  bad[0].session = 2;
+  EXPECT_THROW(build_landmark_map({s.camera}, sessions, bad, "BRISK", 64, options), Error);
+  bad = frames;
+  bad[0].session = 4;
+  EXPECT_THROW(build_landmark_map({s.camera}, sessions, bad, "BRISK", 64, options), Error);
+  auto twins = sessions;
+  twins[1].name = "walk-a";
+  EXPECT_THROW(build_landmark_map({s.camera}, twins, frames, "BRISK", 64, options), Error);
 }
 
 TEST(BuildLandmarkMap, RejectsInconsistentInput) {

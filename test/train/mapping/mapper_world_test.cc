@@ -2,11 +2,15 @@
 // against the world's exact depth maps.
 #include <unistd.h>
 
+#include <array>
 #include <cstdio>
+#include <fstream>
+#include <string>
 
 #include <gtest/gtest.h>
 
 #include "common/io/map_h5.h"
+#include "common/io/session_file.h"
 #include "train/mapping/depth_ground_truth.h"
 #include "train/mapping/descriptor_nn.h"
 #include "train/mapping/mapper.h"
@@ -50,6 +54,116 @@ TEST(MapperOnRenderedWorld, TinyWorldMatchesDepthGroundTruth) {
   EXPECT_GT(a.observation_purity, 0.95);
   EXPECT_LT(a.median_position_error_m, 0.03);
   EXPECT_LT(a.p90_position_error_m, 0.15);
+  fs::remove_all(dir);
+}
+
+// Two map sessions of the tiny world (same total map frames): tracks join the sessions, and the
+// map's landmarks stay as clean. Then the same sessions as two collections joined by
+// map_collections give the same map, frame for frame, with labelled names.
+TEST(MapperOnRenderedWorld, TwoMapSessionsJoinAndCollectionsJoinTheSame) {
+  const fs::path dir = fs::temp_directory_path() / ("lmb_mapper_sessions_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  WorldOptions world = world_preset("tiny");
+  world.seed = 1;
+  world.map_sessions = 2;
+  world.image_scale = 0.5;  // 320 x 240, as the default preset: a quarter of the pixels
+  world.map_frames = 60;    // 30 a session
+  write_world(world, dir / "world");
+
+  MapperOptions options;
+  MapperStats stats;
+  const LandmarkMap map = map_collection(dir / "world", options, &stats);
+  write_map_h5(map, dir / "map.h5");
+  const LandmarkMap reread = read_map_h5(dir / "map.h5");
+  ASSERT_EQ(reread.sessions.size(), 3u);
+  EXPECT_EQ(reread.sessions[0].name, "map");
+  EXPECT_EQ(reread.sessions[1].name, "map-2");
+  EXPECT_EQ(reread.sessions[2].name, "query");
+  EXPECT_EQ(reread.sessions[2].kind, SessionKind::kQuery);
+  std::vector<int> frames_per_session(3, 0);
+  for (const MapFrame& f : reread.frames) {
+    ++frames_per_session[static_cast<size_t>(f.session)];
+    EXPECT_EQ(f.name.substr(0, f.name.find('/')), reread.sessions[static_cast<size_t>(f.session)].name);
+  }
+  EXPECT_EQ(frames_per_session, (std::vector<int>{30, 30, world.query_frames}));
+
+  // Landmarks seen from both map sessions, and their accuracy against the depth maps.
+  std::vector<std::array<int, 2>> seen(reread.landmarks.size(), {0, 0});
+  for (const MapFrame& f : reread.frames) {
+    if (f.session > 1) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      if (reread.keypoint_landmark[k] >= 0) ++seen[reread.keypoint_landmark[k]][f.session];
+    }
+  }
+  int64_t both = 0;
+  for (const auto& c : seen) both += c[0] > 0 && c[1] > 0;
+  const MapAccuracy a = check_map_against_depth(reread, dir / "world");
+  std::printf("tiny world, 2 map sessions: %lld landmarks, %lld (%.1f%%) observed in both map sessions, %.2f map "
+              "obs/landmark, %lld query keypoints with a landmark; purity %.4f, position error median %.4f m, "
+              "p90 %.4f m\n",
+              static_cast<long long>(stats.num_landmarks), static_cast<long long>(both),
+              100.0 * static_cast<double>(both) / std::max<double>(1.0, static_cast<double>(stats.num_landmarks)),
+              stats.mean_map_observations, static_cast<long long>(stats.num_query_observations), a.mean_track_purity,
+              a.median_position_error_m, a.p90_position_error_m);
+  EXPECT_GT(stats.num_landmarks, 600);
+  EXPECT_GT(both, 0.4 * static_cast<double>(stats.num_landmarks));
+  EXPECT_GT(stats.num_query_observations, 300);
+  EXPECT_GT(a.mean_track_purity, 0.93);  // half resolution: less than the full-resolution test's 0.95
+  EXPECT_LT(a.median_position_error_m, 0.03);
+
+  // The sessions as two collections: "a" holds map, "b" holds map-2 and query (the same frame
+  // order), with links to the world's images. The image lines are copied as text: a pose read and
+  // written again may move by an ulp (the reader normalizes quaternions).
+  auto write_part = [&](const std::string& name, const std::vector<std::string>& session_names) {
+    const fs::path part = dir / name;
+    fs::create_directories(part / "images");
+    fs::create_directories(part / "sparse");
+    fs::copy_file(dir / "world" / "sparse" / "cameras.txt", part / "sparse" / "cameras.txt");
+    std::vector<MapSession> sessions;
+    for (const std::string& s : session_names) {
+      fs::create_symlink(dir / "world" / "images" / s, part / "images" / s);
+      sessions.push_back(reread.sessions[static_cast<size_t>(reread.find_session(s))]);
+    }
+    std::ifstream in(dir / "world" / "sparse" / "images.txt");
+    std::ofstream out(part / "sparse" / "images.txt");
+    std::string line, points;
+    while (std::getline(in, line)) {
+      if (line.empty() || line[0] == '#') continue;
+      std::getline(in, points);  // the image's 2D points line (empty here)
+      const std::string image_name = line.substr(line.rfind(' ') + 1);
+      for (const std::string& s : session_names) {
+        if (image_name.rfind(s + "/", 0) == 0) out << line << '\n' << points << '\n';
+      }
+    }
+    write_session_file(sessions, part / kSessionFileName);
+    return part;
+  };
+  const fs::path part_a = write_part("a", {"map"}), part_b = write_part("b", {"map-2", "query"});
+  MapperStats joined_stats;
+  const LandmarkMap joined = map_collections({{part_a, "", ""}, {part_b, "", ""}}, options, &joined_stats);
+  ASSERT_EQ(joined.sessions.size(), 3u);
+  EXPECT_EQ(joined.sessions[0].name, "a/map");
+  EXPECT_EQ(joined.sessions[1].name, "b/map-2");
+  EXPECT_EQ(joined.sessions[2].name, "b/query");
+  ASSERT_EQ(joined.frames.size(), map.frames.size());
+  EXPECT_EQ(joined.cameras.size(), 2u);  // one per collection
+  for (size_t f = 0; f < map.frames.size(); ++f) {
+    EXPECT_EQ(joined.frames[f].name, (f < 30 ? "a/" : "b/") + map.frames[f].name);
+    EXPECT_EQ(joined.frames[f].session, map.frames[f].session);
+    EXPECT_EQ(joined.frames[f].camera, f < 30 ? 0 : 1);
+    EXPECT_EQ(joined.frames[f].num_keypoints, map.frames[f].num_keypoints);
+  }
+  EXPECT_EQ(joined.descriptors, map.descriptors);
+  EXPECT_EQ(joined.keypoint_landmark, map.keypoint_landmark);
+  ASSERT_EQ(joined.landmarks.size(), map.landmarks.size());
+  for (size_t l = 0; l < map.landmarks.size(); ++l) {
+    EXPECT_EQ(joined.landmarks[l].position, map.landmarks[l].position);
+    EXPECT_EQ(joined.landmarks[l].num_map_observations, map.landmarks[l].num_map_observations);
+  }
+  // Labels: given ones replace the folder names; two collections with one label are refused.
+  const LandmarkMap labelled = map_collections({{part_a, "day1", ""}, {part_b, "day2", ""}}, options);
+  EXPECT_EQ(labelled.sessions[1].name, "day2/map-2");
+  EXPECT_THROW(map_collections({{part_a, "x", ""}, {part_b, "x", ""}}, options), Error);
   fs::remove_all(dir);
 }
 

@@ -11,6 +11,7 @@
 
 #include "common/error.h"
 #include "common/io/colmap_model.h"
+#include "common/io/session_file.h"
 
 namespace fs = std::filesystem;
 
@@ -54,7 +55,8 @@ TEST_F(WorldWriterTest, SameSeedGivesByteIdenticalFilesOtherSeedDiffers) {
   write_world(small(1), root_ / "b");
   write_world(small(2), root_ / "c");
   const auto a = read_tree(root_ / "a"), b = read_tree(root_ / "b"), c = read_tree(root_ / "c");
-  ASSERT_EQ(a.size(), 4u + 2 * 6u);  // world.json, 3 sparse files, 6 images, 6 depth maps
+  ASSERT_EQ(a.size(), 5u + 2 * 6u);  // world.json, sessions.txt, 3 sparse files, 6 images, 6 depth maps
+  EXPECT_EQ(a.at("sessions.txt").substr(a.at("sessions.txt").find("\nmap ")), "\nmap map\nquery query\n");
   EXPECT_EQ(a, b);
   int differing_images = 0;
   for (const auto& [name, bytes] : a) {
@@ -114,7 +116,62 @@ TEST_F(WorldWriterTest, CollectionReadsBackWithUprightCamerasAndMatchingFiles) {
   EXPECT_EQ(j["camera"]["model"], "OPENCV");
   EXPECT_TRUE(j["sessions"].contains("map"));
   EXPECT_TRUE(j["sessions"].contains("query"));
+  EXPECT_EQ(j["sessions"]["query"]["kind"], "query");
+  EXPECT_EQ(j["sessions"]["map"]["passes"].size(), 2u);
   EXPECT_NE(j["sessions"]["map"]["lighting"]["gain"], j["sessions"]["query"]["lighting"]["gain"]);
+}
+
+// Several map and query sessions: one image and depth folder each, listed in sessions.txt with
+// their kinds; the first map and query sessions are the same images as in a one-session world.
+TEST_F(WorldWriterTest, MultiSessionWorldWritesEverySessionAndKeepsTheFirst) {
+  WorldOptions o = small(4);
+  o.map_sessions = 2;
+  o.query_sessions = 2;
+  o.map_frames = 5;  // 3 + 2
+  o.query_frames = 1;
+  const WorldWriteStats s = write_world(o, root_ / "multi");
+  EXPECT_EQ(s.map_frames, 5);
+  EXPECT_EQ(s.query_frames, 2);
+  const std::vector<MapSession> sessions = read_session_file(root_ / "multi" / "sessions.txt");
+  ASSERT_EQ(sessions.size(), 4u);
+  const char* names[] = {"map", "map-2", "query", "query-2"};
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(sessions[i].name, names[i]);
+    EXPECT_EQ(sessions[i].kind, i < 2 ? SessionKind::kMap : SessionKind::kQuery);
+  }
+  const ColmapModel m = read_colmap_text(root_ / "multi" / "sparse");
+  std::vector<std::string> image_names;
+  for (const ColmapImage& im : m.images) image_names.push_back(im.name);
+  EXPECT_EQ(image_names, (std::vector<std::string>{"map/000000.png", "map/000001.png", "map/000002.png",
+                                                    "map-2/000000.png", "map-2/000001.png", "query/000000.png",
+                                                    "query-2/000000.png"}));
+  EXPECT_EQ(image_sessions(sessions, m, root_ / "multi" / "sessions.txt"),
+            (std::vector<int32_t>{0, 0, 0, 1, 1, 2, 3}));
+  std::ifstream f(root_ / "multi" / "world.json");
+  const nlohmann::json j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["counts"]["map_sessions"], 2);
+  EXPECT_EQ(j["sessions"]["map-2"]["kind"], "map");
+  EXPECT_EQ(j["sessions"]["map-2"]["frames"], 2);
+  EXPECT_NE(j["sessions"]["map-2"]["lighting"]["ambient"], j["sessions"]["map"]["lighting"]["ambient"]);
+
+  // The same seed with one map session of 3 frames and one query session: identical "map" and
+  // "query" images and poses.
+  WorldOptions one = small(4);
+  one.map_frames = 3;
+  one.query_frames = 1;
+  write_world(one, root_ / "one");
+  const auto multi_files = read_tree(root_ / "multi"), one_files = read_tree(root_ / "one");
+  for (const char* name : {"images/map/000000.png", "images/map/000002.png", "depth/map/000001.png",
+                           "images/query/000000.png"}) {
+    ASSERT_TRUE(multi_files.count(name)) << name;
+    EXPECT_EQ(multi_files.at(name), one_files.at(name)) << name;
+  }
+  EXPECT_NE(multi_files.at("images/map-2/000000.png"), one_files.at("images/map/000000.png"));
+  const ColmapModel m1 = read_colmap_text(root_ / "one" / "sparse");
+  EXPECT_EQ(m1.images[1].cam_from_world.translation, m.images[1].cam_from_world.translation);
+  // Rendering is deterministic for a seed.
+  write_world(o, root_ / "again");
+  EXPECT_EQ(read_tree(root_ / "again"), multi_files);
 }
 
 TEST_F(WorldWriterTest, ReplacesAPreviousWorldButNotForeignFolders) {

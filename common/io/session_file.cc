@@ -1,0 +1,88 @@
+#include "common/io/session_file.h"
+
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "common/error.h"
+
+namespace lmb {
+
+namespace fs = std::filesystem;
+
+void check_session_name(const std::string& name, const std::string& where) {
+  bool ok = !name.empty() && name != "." && name != "..";
+  for (char c : name) {
+    ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_' ||
+                c == '.');
+  }
+  LMB_CHECK(ok, where << ": session name '" << name
+                      << "' (expected letters, digits, '-', '_' or '.': the image folder of the session)");
+}
+
+std::vector<MapSession> read_session_file(const fs::path& path) {
+  std::ifstream in(path);
+  LMB_CHECK(in.good(), path.string() << ": cannot open sessions file");
+  std::vector<MapSession> sessions;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const std::string at = path.string() + " line " + std::to_string(number);
+    std::istringstream fields(line);
+    std::vector<std::string> tokens;
+    std::string token;
+    while (fields >> token) tokens.push_back(token);
+    LMB_CHECK(tokens.size() == 2, at << ": expected 2 fields (NAME KIND), got " << tokens.size());
+    check_session_name(tokens[0], at);
+    for (const MapSession& s : sessions) {
+      LMB_CHECK(s.name != tokens[0], at << ": duplicate session name " << tokens[0]);
+    }
+    sessions.push_back(MapSession{tokens[0], parse_session_kind(tokens[1], at)});
+  }
+  LMB_CHECK(!in.bad(), path.string() << ": read error");
+  LMB_CHECK(!sessions.empty(), path.string() << ": no session listed");
+  return sessions;
+}
+
+void write_session_file(const std::vector<MapSession>& sessions, const fs::path& path) {
+  for (size_t s = 0; s < sessions.size(); ++s) {
+    check_session_name(sessions[s].name, path.string());
+    for (size_t t = 0; t < s; ++t) {
+      LMB_CHECK(sessions[t].name != sessions[s].name, path.string() << ": duplicate session name " << sessions[s].name);
+    }
+  }
+  std::ofstream out(path, std::ios::trunc);
+  LMB_CHECK(out.good(), path.string() << ": cannot open for writing");
+  out << "# Sessions of this collection: an image belongs to the session named by its first folder.\n"
+      << "# KIND: map (builds the map, trains), query (held out, evaluated), outside (held out, not in the map).\n"
+      << "# NAME KIND\n";
+  for (const MapSession& s : sessions) out << s.name << ' ' << session_kind_name(s.kind) << '\n';
+  out.close();
+  LMB_CHECK(out.good(), path.string() << ": write failed");
+}
+
+std::vector<int32_t> image_sessions(const std::vector<MapSession>& sessions, const ColmapModel& model,
+                                    const fs::path& path) {
+  std::map<std::string, int32_t> index;
+  for (size_t s = 0; s < sessions.size(); ++s) index.emplace(sessions[s].name, static_cast<int32_t>(s));
+  std::vector<int32_t> out;
+  out.reserve(model.images.size());
+  for (const ColmapImage& im : model.images) {
+    const size_t slash = im.name.find('/');
+    LMB_CHECK(slash != std::string::npos,
+              path.string() << ": image " << im.name << " (image id " << im.image_id
+                            << ") is in no session folder (names must be SESSION/...)");
+    const auto it = index.find(im.name.substr(0, slash));
+    LMB_CHECK(it != index.end(), path.string() << ": image " << im.name << " (image id " << im.image_id
+                                               << "): its folder '" << im.name.substr(0, slash)
+                                               << "' is not a session of this file");
+    out.push_back(it->second);
+  }
+  return out;
+}
+
+}  // namespace lmb
