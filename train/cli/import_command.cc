@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
@@ -33,9 +34,10 @@ void print_gravity_agreement(const GravityAgreement& g, const std::string& world
 // Prints the visual time-offset scan (see train/import/visual_time_offset.h) of the sequence.
 void run_time_offset_scan(const TumImportOptions& options) {
   spdlog::info("import tum: scanning the image/ground-truth time offset from the images (takes a minute or two)");
-  const std::vector<TumImage> images = read_tum_image_list(options.data_dir / "rgb.txt");
-  const TumTrajectory trajectory = read_tum_trajectory(options.data_dir / "groundtruth.txt");
-  const TimeOffsetScan scan = scan_time_offset_visual(options.data_dir, images, trajectory,
+  const std::filesystem::path& dir = options.data_dirs.front();
+  const std::vector<TumImage> images = read_tum_image_list(dir / "rgb.txt");
+  const TumTrajectory trajectory = read_tum_trajectory(dir / "groundtruth.txt");
+  const TimeOffsetScan scan = scan_time_offset_visual(dir, images, trajectory,
                                                       parse_camera_line(options.camera), 0.05, 0.005, options.max_gap_s);
   std::printf("import: visual time offset scan over %d frame pairs (median relative-rotation disagreement):\n",
               scan.pairs);
@@ -47,15 +49,24 @@ void run_time_offset_scan(const TumImportOptions& options) {
 }
 
 void run_tum(const TumImportOptions& options, bool scan_offset) {
-  spdlog::info("import tum: {} -> {}", options.data_dir.string(), options.out_dir.string());
+  std::string sources;
+  for (const auto& d : options.data_dirs) sources += (sources.empty() ? "" : ", ") + d.string();
+  for (const auto& d : options.query_dirs) sources += (sources.empty() ? "" : ", ") + d.string() + " (query)";
+  spdlog::info("import tum: {} -> {}", sources, options.out_dir.string());
   const TumImportStats s = import_tum(options);
   std::printf("import: %d frames listed, %d imported (%d map, %d query), %d skipped without ground truth within "
               "%.0f ms, %d skipped without accelerometer\n",
               s.listed_frames, s.imported_frames, s.map_frames, s.query_frames, s.skipped_no_pose,
               options.max_gap_s * 1000, s.skipped_no_accelerometer);
+  std::string session_list;
+  for (size_t i = 0; i < s.sessions.size(); ++i) {
+    session_list += (i ? ", " : "") + s.sessions[i].name + " (" + session_kind_name(s.sessions[i].kind) + ", " +
+                    std::to_string(s.session_frames[i]) + " frames)";
+  }
+  std::printf("import: sessions: %s\n", session_list.c_str());
   if (s.gravity_agreement) print_gravity_agreement(*s.gravity_agreement, options.world_up);
-  std::printf("import: wrote %s (sparse/, images/ -> %s%s)\n", options.out_dir.string().c_str(),
-              options.data_dir.string().c_str(), options.gravity == "none" ? "" : ", gravity.txt");
+  std::printf("import: wrote %s (sparse/, sessions.txt, images/ -> %s%s)\n", options.out_dir.string().c_str(),
+              sources.c_str(), options.gravity == "none" ? "" : ", gravity.txt");
   if (scan_offset) run_time_offset_scan(options);
 }
 
@@ -97,15 +108,26 @@ void add_import_command(CLI::App& app) {
   cmd->require_subcommand(1);
 
   auto tum = std::make_shared<TumImportOptions>();
-  auto tum_data = std::make_shared<std::string>();
+  auto tum_data = std::make_shared<std::vector<std::string>>();
+  auto tum_query = std::make_shared<std::vector<std::string>>();
   auto tum_out = std::make_shared<std::string>();
-  auto* t = cmd->add_subcommand("tum", "A TUM RGB-D sequence (rgb.txt, groundtruth.txt, accelerometer.txt, rgb/)");
-  t->add_option("--data", *tum_data, "Sequence folder")->required();
+  auto* t = cmd->add_subcommand(
+      "tum", "TUM RGB-D sequences (rgb.txt, groundtruth.txt, accelerometer.txt, rgb/), one session each");
+  t->add_option("--data", *tum_data,
+                "Map sequence folder; repeat it to join several sequences of one place (each its own map "
+                "session, split by --split)")
+      ->required();
+  t->add_option("--query-data", *tum_query,
+                "Query sequence folder (repeatable): every frame a query frame, its own query session");
+  t->add_option("--names", tum->session_names,
+                "Session names, one per sequence (--data ones, then --query-data ones; default: the folders' "
+                "names, or map and query for a single sequence)")
+      ->delimiter(',');
   t->add_option("--out", *tum_out, "Collection folder to write (sparse/, images/ with symlinks, gravity.txt)")
       ->required();
   t->add_option("--split", tum->split,
-                "Map/query split over the imported frames: every:N (frames 0, N, 2N.. map), first:F, "
-                "time:A:B (seconds from the first frame), map-list:FILE (FILE names the map frames), "
+                "Map/query split of each map sequence's frames: every:N (frames 0, N, 2N.. map), first:F, "
+                "time:A:B (seconds from the sequence's first frame), map-list:FILE (FILE names the map frames), "
                 "query-list:FILE (FILE names the query frames); list:FILE = map-list:FILE")
       ->capture_default_str();
   t->add_option("--gravity", tum->gravity, "gravity.txt from: accelerometer, groundtruth-up, none")
@@ -121,13 +143,15 @@ void add_import_command(CLI::App& app) {
   t->add_option("--accel-window", tum->accel_half_window_s, "Half-width (s) of the accelerometer average")
       ->capture_default_str();
   t->add_option("--camera", tum->camera, "Camera as 'MODEL WIDTH HEIGHT PARAMS...' (COLMAP)")->capture_default_str();
-  t->add_flag("--overwrite", tum->overwrite, "Replace sparse/, images/ and gravity.txt of an existing output");
+  t->add_flag("--overwrite", tum->overwrite,
+              "Replace sparse/, images/, gravity.txt and sessions.txt of an existing output");
   auto scan_offset = std::make_shared<bool>(false);
   t->add_flag("--estimate-time-offset", *scan_offset,
               "Also measure the image/ground-truth time offset from the images (+-50 ms in 5 ms steps)");
-  t->callback([tum, tum_data, tum_out, scan_offset] {
+  t->callback([tum, tum_data, tum_query, tum_out, scan_offset] {
     TumImportOptions options = *tum;
-    options.data_dir = *tum_data;
+    options.data_dirs.assign(tum_data->begin(), tum_data->end());
+    options.query_dirs.assign(tum_query->begin(), tum_query->end());
     options.out_dir = *tum_out;
     run_tum(options, *scan_offset);
   });
@@ -148,7 +172,8 @@ void add_import_command(CLI::App& app) {
   c->add_option("--up", colmap->up,
                 "Or: the model's world up axis (+x, -x, +y, -y, +z, -z) for gravity.txt; 'auto' estimates it "
                 "from the cameras (minus their mean image down direction) and reports the nearest axis");
-  c->add_flag("--overwrite", colmap->overwrite, "Replace sparse/, images/ and gravity.txt of an existing output");
+  c->add_flag("--overwrite", colmap->overwrite,
+              "Replace sparse/, images/, gravity.txt and sessions.txt of an existing output");
   c->callback([colmap, paths] {
     ColmapImportOptions options = *colmap;
     options.sparse_dir = (*paths)[0];

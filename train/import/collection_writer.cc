@@ -4,13 +4,15 @@
 
 #include "common/error.h"
 #include "common/io/gravity_file.h"
+#include "common/io/session_file.h"
 
 namespace lmb {
 
 namespace fs = std::filesystem;
 
 void write_collection(const fs::path& out_dir, const std::map<int, Camera>& cameras,
-                      const std::vector<CollectionImage>& images, bool overwrite) {
+                      const std::vector<CollectionImage>& images, bool overwrite,
+                      const std::vector<MapSession>& sessions) {
   LMB_CHECK(!images.empty(), out_dir.string() << ": no image to write into the collection");
   size_t with_gravity = 0;
   std::set<std::string> names;
@@ -23,16 +25,22 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
     LMB_CHECK(cameras.count(im.image.camera_id), im.image.name << ": unknown camera " << im.image.camera_id);
     with_gravity += im.gravity_in_cam.has_value();
   }
+  if (!sessions.empty()) {
+    ColmapModel names;
+    for (const CollectionImage& im : images) names.images.push_back(im.image);
+    image_sessions(sessions, names, out_dir / kSessionFileName);
+  }
   LMB_CHECK(with_gravity == 0 || with_gravity == images.size(),
             out_dir.string() << ": gravity known for " << with_gravity << " of " << images.size()
                              << " images; it must be known for all or none");
 
   if (fs::exists(out_dir) && !fs::is_empty(out_dir)) {
     LMB_CHECK(overwrite, out_dir.string() << ": output folder exists and is not empty (use --overwrite to replace "
-                                             "its sparse/, images/ and gravity.txt)");
+                                             "its sparse/, images/, gravity.txt and sessions.txt)");
     fs::remove_all(out_dir / "sparse");
     fs::remove_all(out_dir / "images");
     fs::remove(out_dir / "gravity.txt");
+    fs::remove(out_dir / kSessionFileName);
   }
   // A failed write (a full disk) leaves no half collection: what this call created is removed.
   auto remove_outputs = [&] {
@@ -40,6 +48,7 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
     fs::remove_all(out_dir / "sparse", ec);
     fs::remove_all(out_dir / "images", ec);
     fs::remove(out_dir / "gravity.txt", ec);
+    fs::remove(out_dir / kSessionFileName, ec);
   };
   try {
     std::error_code ec;
@@ -59,6 +68,7 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
     }
     write_colmap_text(model, out_dir / "sparse");
     if (!gravity.empty()) write_gravity_file(gravity, out_dir / "gravity.txt");
+    if (!sessions.empty()) write_session_file(sessions, out_dir / kSessionFileName);
   } catch (...) {
     remove_outputs();
     throw;

@@ -2,6 +2,7 @@
 //   OUT/sparse/{cameras,images,points3D}.txt   COLMAP text model (no 2D points, no 3D points)
 //   OUT/images/<name>                          absolute symbolic links to the original files
 //   OUT/gravity.txt                            per-image gravity in the camera frame (optional)
+//   OUT/sessions.txt                           the sessions (optional; common/io/session_file.h)
 // The image data is never copied.
 #pragma once
 
@@ -14,6 +15,7 @@
 
 #include "common/camera.h"
 #include "common/io/colmap_model.h"
+#include "common/landmark_map.h"
 
 namespace lmb {
 
@@ -23,10 +25,13 @@ struct CollectionImage {
   std::optional<Eigen::Vector3d> gravity_in_cam;  // unit, down; required for all or none
 };
 
-// Writes the collection. An existing non-empty OUT is refused unless `overwrite`, which removes
-// only OUT/sparse, OUT/images and OUT/gravity.txt. Throws lmb::Error when a source file is
-// missing, a name is used twice, gravity is given for some images only, or a write fails.
+// Writes the collection, with sessions.txt when `sessions` is not empty (every image name must
+// then start with a session's folder). An existing non-empty OUT is refused unless `overwrite`,
+// which removes only OUT/sparse, OUT/images, OUT/gravity.txt and OUT/sessions.txt. Throws
+// lmb::Error when a source file is missing, a name is used twice, gravity is given for some images
+// only, an image is in no session, or a write fails.
 void write_collection(const std::filesystem::path& out_dir, const std::map<int, Camera>& cameras,
-                      const std::vector<CollectionImage>& images, bool overwrite);
+                      const std::vector<CollectionImage>& images, bool overwrite,
+                      const std::vector<MapSession>& sessions = {});
 
 }  // namespace lmb

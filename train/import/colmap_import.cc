@@ -173,7 +173,10 @@ ColmapImportStats import_colmap(const ColmapImportOptions& options) {
   }
   stats.images = static_cast<int>(images.size());
   stats.has_gravity = images.front().gravity_in_cam.has_value();
-  write_collection(options.out_dir, model.cameras, images, options.overwrite);
+  std::vector<MapSession> sessions;
+  if (stats.map_frames > 0) sessions.push_back(MapSession{"map", SessionKind::kMap});
+  if (stats.query_frames > 0) sessions.push_back(MapSession{"query", SessionKind::kQuery});
+  write_collection(options.out_dir, model.cameras, images, options.overwrite, sessions);
   return stats;
 }
 

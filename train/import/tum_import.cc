@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <set>
 #include <sstream>
 
 #include <Eigen/Geometry>
@@ -11,6 +13,7 @@
 #include "common/error.h"
 #include "common/io/colmap_model.h"
 #include "common/text_lines.h"
+#include "common/io/session_file.h"
 #include "train/import/collection_writer.h"
 #include "train/import/split_rule.h"
 
@@ -168,7 +171,13 @@ Eigen::Vector3d parse_axis(const std::string& text, const char* flag) {
 }
 
 void TumImportOptions::check() const {
-  LMB_CHECK(!data_dir.empty(), "--data: missing");
+  LMB_CHECK(!data_dirs.empty(), "--data: missing (at least one map sequence)");
+  for (const auto& d : data_dirs) LMB_CHECK(!d.empty(), "--data: empty folder name");
+  for (const auto& d : query_dirs) LMB_CHECK(!d.empty(), "--query-data: empty folder name");
+  LMB_CHECK(session_names.empty() || session_names.size() == data_dirs.size() + query_dirs.size(),
+            "--names: " << session_names.size() << " names for " << data_dirs.size() + query_dirs.size()
+                        << " sequences (give one per sequence: --data ones first, then --query-data ones)");
+  for (const std::string& n : session_names) check_session_name(n, "--names");
   LMB_CHECK(!out_dir.empty(), "--out: missing");
   LMB_CHECK(gravity == "accelerometer" || gravity == "groundtruth-up" || gravity == "none",
             "--gravity: '" << gravity << "' (expected accelerometer, groundtruth-up or none)");
@@ -186,75 +195,155 @@ void TumImportOptions::check() const {
             "cam_from_accel is not a rotation");
 }
 
+namespace {
+
+// A sequence folder's name: the last non-empty path component.
+std::string folder_name(const fs::path& dir) {
+  const fs::path normal = fs::absolute(dir).lexically_normal();
+  const std::string name = normal.filename().string();
+  return name.empty() ? normal.parent_path().filename().string() : name;
+}
+
+}  // namespace
+
 TumImportStats import_tum(const TumImportOptions& options) {
   options.check();
-  const fs::path& dir = options.data_dir;
-  LMB_CHECK(fs::is_directory(dir), dir.string() << ": TUM sequence folder does not exist");
-  const std::vector<TumImage> listed = read_tum_image_list(dir / "rgb.txt");
-  const TumTrajectory trajectory = read_tum_trajectory(dir / "groundtruth.txt");
-  const bool has_accel = fs::exists(dir / "accelerometer.txt");
-  LMB_CHECK(has_accel || options.gravity != "accelerometer",
-            (dir / "accelerometer.txt").string() << ": missing (needed by --gravity accelerometer)");
-  TumAccelerometer accel;
-  if (has_accel) accel = read_tum_accelerometer(dir / "accelerometer.txt");
   const Eigen::Vector3d up = parse_axis(options.world_up, "--world-up");
   const Camera camera = parse_camera_line(options.camera);
   const SplitRule rule = parse_split_rule(options.split);
+  const size_t num_map = options.data_dirs.size();
+  std::vector<fs::path> dirs = options.data_dirs;
+  dirs.insert(dirs.end(), options.query_dirs.begin(), options.query_dirs.end());
+  const bool legacy_names = options.session_names.empty() && num_map == 1 && options.query_dirs.empty();
+  std::vector<std::string> names = options.session_names;
+  if (names.empty()) {
+    for (const fs::path& d : dirs) names.push_back(legacy_names ? "map" : folder_name(d));
+  }
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    check_session_name(names[i], dirs[i].string() + ": session name (its folder's name; set --names)");
+  }
 
   TumImportStats stats;
-  stats.listed_frames = static_cast<int>(listed.size());
   struct Kept {
     const TumImage* image;
+    const TumTrajectory* trajectory;
     Rigid3d world_from_cam;
     std::optional<Eigen::Vector3d> accel;
   };
+  // Every sequence's inputs stay alive until the end (Kept points into them).
+  std::vector<std::vector<TumImage>> listed(dirs.size());
+  std::vector<TumTrajectory> trajectories(dirs.size());
   std::vector<Kept> kept;
-  for (const TumImage& im : listed) {
-    const std::optional<Rigid3d> pose = interpolate_pose(trajectory, im.time_s + options.time_offset_s, options.max_gap_s);
-    if (!pose) {
-      ++stats.skipped_no_pose;
-      continue;
-    }
-    std::optional<Eigen::Vector3d> a;
-    if (has_accel) a = accelerometer_at(accel, im.time_s, options.accel_half_window_s, options.max_gap_s);
-    if (options.gravity == "accelerometer" && (!a || a->norm() < 1e-6)) {
-      ++stats.skipped_no_accelerometer;
-      continue;
-    }
-    LMB_CHECK(fs::is_regular_file(dir / im.file), (dir / im.file).string() << ": image listed in rgb.txt is missing");
-    kept.push_back(Kept{&im, *pose, a});
-  }
-  LMB_CHECK(!kept.empty(), dir.string() << ": no frame has ground truth within " << options.max_gap_s * 1000
-                                        << " ms (" << stats.skipped_no_pose << " skipped)");
-
-  std::vector<SplitFrame> split_frames;
-  for (const Kept& k : kept) {
-    SplitFrame f;
-    f.keys = {k.image->timestamp, k.image->file, fs::path(k.image->file).filename().string()};
-    f.time_s = k.image->time_s;
-    split_frames.push_back(f);
-  }
-  const std::vector<bool> is_map = assign_map_frames(rule, split_frames, true);
-
   std::vector<CollectionImage> images;
-  for (size_t i = 0; i < kept.size(); ++i) {
-    const Kept& k = kept[i];
-    CollectionImage out;
-    out.image.image_id = static_cast<int>(i) + 1;
-    out.image.camera_id = 1;
-    out.image.name = std::string(is_map[i] ? "map/" : "query/") + k.image->timestamp +
-                     fs::path(k.image->file).extension().string();
-    out.image.cam_from_world = k.world_from_cam.inverse();
-    out.source = dir / k.image->file;
-    if (options.gravity == "accelerometer") {
-      out.gravity_in_cam = (-(options.cam_from_accel * *k.accel)).normalized();
-    } else if (options.gravity == "groundtruth-up") {
-      out.gravity_in_cam = (out.image.cam_from_world.rotation * (-up)).normalized();
+  std::set<std::string> list_entries_used;
+  bool any_accel = false;
+  for (size_t seq = 0; seq < dirs.size(); ++seq) {
+    const fs::path& dir = dirs[seq];
+    const bool map_sequence = seq < num_map;
+    LMB_CHECK(fs::is_directory(dir), dir.string() << ": TUM sequence folder does not exist");
+    listed[seq] = read_tum_image_list(dir / "rgb.txt");
+    trajectories[seq] = read_tum_trajectory(dir / "groundtruth.txt");
+    const bool has_accel = fs::exists(dir / "accelerometer.txt");
+    LMB_CHECK(has_accel || options.gravity != "accelerometer",
+              (dir / "accelerometer.txt").string() << ": missing (needed by --gravity accelerometer)");
+    TumAccelerometer accel;
+    if (has_accel) accel = read_tum_accelerometer(dir / "accelerometer.txt");
+    any_accel = any_accel || has_accel;
+    stats.listed_frames += static_cast<int>(listed[seq].size());
+
+    const size_t first_kept = kept.size();
+    int skipped_no_pose = 0;
+    for (const TumImage& im : listed[seq]) {
+      const std::optional<Rigid3d> pose =
+          interpolate_pose(trajectories[seq], im.time_s + options.time_offset_s, options.max_gap_s);
+      if (!pose) {
+        ++skipped_no_pose;
+        continue;
+      }
+      std::optional<Eigen::Vector3d> a;
+      if (has_accel) a = accelerometer_at(accel, im.time_s, options.accel_half_window_s, options.max_gap_s);
+      if (options.gravity == "accelerometer" && (!a || a->norm() < 1e-6)) {
+        ++stats.skipped_no_accelerometer;
+        continue;
+      }
+      LMB_CHECK(fs::is_regular_file(dir / im.file), (dir / im.file).string() << ": image listed in rgb.txt is missing");
+      kept.push_back(Kept{&im, &trajectories[seq], *pose, a});
     }
-    (is_map[i] ? stats.map_frames : stats.query_frames) += 1;
-    images.push_back(std::move(out));
+    stats.skipped_no_pose += skipped_no_pose;
+    LMB_CHECK(kept.size() > first_kept, dir.string() << ": no frame has ground truth within "
+                                                      << options.max_gap_s * 1000 << " ms (" << skipped_no_pose
+                                                      << " skipped)");
+
+    // The split: map sequences by the rule (a list rule over several map sequences: the entries
+    // naming this sequence's frames), query sequences all queries.
+    std::vector<bool> is_map(kept.size() - first_kept, false);
+    if (map_sequence) {
+      std::vector<SplitFrame> split_frames;
+      std::set<std::string> keys;
+      for (size_t i = first_kept; i < kept.size(); ++i) {
+        SplitFrame f;
+        f.keys = {kept[i].image->timestamp, kept[i].image->file, fs::path(kept[i].image->file).filename().string()};
+        f.time_s = kept[i].image->time_s;
+        keys.insert(f.keys.begin(), f.keys.end());
+        split_frames.push_back(f);
+      }
+      SplitRule sequence_rule = rule;
+      if (rule.kind == SplitRule::Kind::kList && num_map > 1) {
+        sequence_rule.list.clear();
+        for (const std::string& e : rule.list) {
+          if (!keys.count(e)) continue;
+          sequence_rule.list.push_back(e);
+          list_entries_used.insert(e);
+        }
+        // A map-list must give every map sequence map frames; a query-list may leave one all map.
+        LMB_CHECK(!sequence_rule.list.empty() || rule.list_names_queries,
+                  rule.list_file.string() << ": names no frame of map sequence " << dir.string());
+      }
+      is_map = assign_map_frames(sequence_rule, split_frames, true);
+    }
+
+    const std::string map_name = names[seq];
+    const std::string query_name = !map_sequence ? names[seq] : legacy_names ? "query" : names[seq] + "-query";
+    int map_count = 0, query_count = 0;
+    for (size_t i = first_kept; i < kept.size(); ++i) {
+      const Kept& k = kept[i];
+      const bool m = is_map[i - first_kept];
+      CollectionImage out;
+      out.image.image_id = static_cast<int>(images.size()) + 1;
+      out.image.camera_id = 1;
+      out.image.name = (m ? map_name : query_name) + "/" + k.image->timestamp + fs::path(k.image->file).extension().string();
+      out.image.cam_from_world = k.world_from_cam.inverse();
+      out.source = dir / k.image->file;
+      if (options.gravity == "accelerometer") {
+        out.gravity_in_cam = (-(options.cam_from_accel * *k.accel)).normalized();
+      } else if (options.gravity == "groundtruth-up") {
+        out.gravity_in_cam = (out.image.cam_from_world.rotation * (-up)).normalized();
+      }
+      (m ? map_count : query_count) += 1;
+      images.push_back(std::move(out));
+    }
+    stats.map_frames += map_count;
+    stats.query_frames += query_count;
+    auto add_session = [&](const std::string& name, SessionKind kind, int frames) {
+      if (frames == 0) return;
+      for (const MapSession& s : stats.sessions) {
+        LMB_CHECK(s.name != name, dir.string() << ": session name '" << name
+                                               << "' is already used by another sequence (set --names)");
+      }
+      stats.sessions.push_back(MapSession{name, kind});
+      stats.session_frames.push_back(frames);
+    };
+    add_session(map_name, SessionKind::kMap, map_count);
+    add_session(query_name, SessionKind::kQuery, query_count);
+  }
+  if (rule.kind == SplitRule::Kind::kList && num_map > 1) {
+    for (const std::string& e : rule.list) {
+      LMB_CHECK(list_entries_used.count(e), rule.list_file.string() << ": entry '" << e
+                                                                    << "' names no frame of the map sequences");
+    }
   }
   stats.imported_frames = static_cast<int>(images.size());
+  const bool has_accel = any_accel;
 
   // Gravity agreement between the accelerometer and the ground truth.
   if (has_accel) {
@@ -289,7 +378,8 @@ TumImportStats import_tum(const TumImportOptions& options) {
         std::vector<double> scan;
         for (const Kept& k : kept) {
           if (!k.accel || k.accel->norm() < 1e-6) continue;
-          const std::optional<Rigid3d> pose = interpolate_pose(trajectory, k.image->time_s + offset, options.max_gap_s);
+          const std::optional<Rigid3d> pose =
+              interpolate_pose(*k.trajectory, k.image->time_s + offset, options.max_gap_s);
           if (!pose) continue;
           scan.push_back(angle_deg(options.cam_from_accel * (-*k.accel).normalized(),
                                    pose->rotation.conjugate() * (-up)));
@@ -316,7 +406,7 @@ TumImportStats import_tum(const TumImportOptions& options) {
 
   std::map<int, Camera> cameras;
   cameras[1] = camera;
-  write_collection(options.out_dir, cameras, images, options.overwrite);
+  write_collection(options.out_dir, cameras, images, options.overwrite, stats.sessions);
   return stats;
 }
 

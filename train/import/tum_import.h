@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 
 #include "common/camera.h"
+#include "common/landmark_map.h"
 #include "common/rigid3.h"
 
 namespace lmb {
@@ -68,10 +69,21 @@ Camera parse_camera_line(const std::string& text);
 // Parses "+x", "-x", "+y", "-y", "+z", "-z".
 Eigen::Vector3d parse_axis(const std::string& text, const char* flag);
 
+// Sequences are imported into sessions of one collection (sessions.txt, common/io/session_file.h):
+//   - a map sequence (data_dirs) is split by `split` into its map frames, the map session NAME,
+//     and the rest, the query session NAME-query (same place, same recording: held-out frames);
+//   - a query sequence (query_dirs) is one query session NAME, all its frames queries.
+// NAME is session_names[i] (map sequences first, then query sequences) or, by default, the
+// sequence folder's name; a single map sequence without query sequences keeps the names "map" and
+// "query". Images are named NAME/<timestamp><extension>, sequence after sequence in time order. The
+// sequences' ground truth must share one motion-capture world (e.g. the freiburg1 sequences) and
+// one camera.
 struct TumImportOptions {
-  std::filesystem::path data_dir;  // the sequence folder (rgb.txt, groundtruth.txt, ...)
+  std::vector<std::filesystem::path> data_dirs;   // map sequences (rgb.txt, groundtruth.txt, ...), >= 1
+  std::vector<std::filesystem::path> query_dirs;  // query sequences
+  std::vector<std::string> session_names;         // empty, or one per sequence
   std::filesystem::path out_dir;   // the collection to write
-  std::string split = "every:3";   // see train/import/split_rule.h
+  std::string split = "every:3";   // see train/import/split_rule.h; applied to each map sequence
   // Gravity written to gravity.txt: "accelerometer" (per image, from accelerometer.txt),
   // "groundtruth-up" (R_cam_from_world * -world_up from the interpolated ground truth), "none".
   std::string gravity = "accelerometer";
@@ -105,17 +117,20 @@ struct GravityAgreement {
 };
 
 struct TumImportStats {
-  int listed_frames = 0;           // lines of rgb.txt
+  int listed_frames = 0;           // lines of the sequences' rgb.txt
   int imported_frames = 0;
   int map_frames = 0;
   int query_frames = 0;
   int skipped_no_pose = 0;         // no ground truth within max_gap_s
   int skipped_no_accelerometer = 0;  // gravity = accelerometer and no reading within max_gap_s
   std::optional<GravityAgreement> gravity_agreement;  // when accelerometer.txt exists
+  std::vector<MapSession> sessions;  // as written to sessions.txt (sessions with frames only)
+  std::vector<int> session_frames;   // frames of each session
 };
 
-// Imports the sequence. Throws lmb::Error for unreadable inputs or output (see the readers and
-// write_collection).
+// Imports the sequences. Throws lmb::Error for unreadable inputs or output (see the readers and
+// write_collection), session names that are invalid or used twice, a split leaving a map sequence
+// without map frames, or a list entry naming no frame of any map sequence.
 TumImportStats import_tum(const TumImportOptions& options);
 
 }  // namespace lmb

@@ -15,6 +15,7 @@
 #include "common/error.h"
 #include "common/io/colmap_model.h"
 #include "common/io/gravity_file.h"
+#include "common/io/session_file.h"
 
 namespace lmb {
 namespace {
@@ -81,7 +82,7 @@ class TumImportTest : public ::testing::Test {
 
   TumImportOptions options(const std::string& out) const {
     TumImportOptions o;
-    o.data_dir = data_;
+    o.data_dirs = {data_};
     o.out_dir = root_ / out;
     return o;
   }
@@ -115,6 +116,80 @@ TEST_F(TumImportTest, InterpolationKnownValues) {
   EXPECT_FALSE(interpolate_pose(trajectory, 100.2, 0.02));
   EXPECT_FALSE(interpolate_pose(trajectory, 100.139, 0.02).has_value());  // 100.40 is 261 ms away
   EXPECT_TRUE(interpolate_pose(trajectory, 100.139, 0.3).has_value());
+}
+
+// Several sequences into one collection: each map sequence a map session (and its split-off frames a
+// query session), each query sequence a query session; sessions.txt lists them; names default to
+// the folders' names, can be given, and must be unique.
+TEST_F(TumImportTest, JoinsSequencesIntoSessions) {
+  write_sequence();
+  for (const char* copy : {"seq_b", "seq_c"}) {
+    fs::create_directories(root_ / copy);
+    fs::copy(data_, root_ / copy, fs::copy_options::recursive);
+  }
+  TumImportOptions o = options("joined");
+  o.data_dirs = {data_, root_ / "seq_b"};
+  o.query_dirs = {root_ / "seq_c"};
+  o.gravity = "none";
+  o.split = "every:2";
+  const TumImportStats s = import_tum(o);
+  EXPECT_EQ(s.imported_frames, 24);
+  EXPECT_EQ(s.map_frames, 8);  // frames 0, 2, 4, 6 of each map sequence
+  EXPECT_EQ(s.query_frames, 16);
+  const std::vector<MapSession> sessions = read_session_file(o.out_dir / "sessions.txt");
+  const std::vector<std::string> names = {"seq", "seq-query", "seq_b", "seq_b-query", "seq_c"};
+  ASSERT_EQ(sessions.size(), names.size());
+  ASSERT_EQ(s.sessions.size(), names.size());
+  for (size_t i = 0; i < names.size(); ++i) {
+    EXPECT_EQ(sessions[i].name, names[i]);
+    EXPECT_EQ(sessions[i].kind, i % 2 == 0 && i < 4 ? SessionKind::kMap : SessionKind::kQuery) << names[i];
+  }
+  EXPECT_EQ(s.session_frames, (std::vector<int>{4, 4, 4, 4, 8}));
+  const ColmapModel m = read_colmap_text(o.out_dir / "sparse");
+  ASSERT_EQ(m.images.size(), 24u);
+  EXPECT_EQ(m.images[0].name, "seq/100.000.png");
+  EXPECT_EQ(m.images[1].name, "seq-query/100.013.png");
+  EXPECT_EQ(m.images[8].name, "seq_b/100.000.png");
+  EXPECT_EQ(m.images[16].name, "seq_c/100.000.png");
+  EXPECT_EQ(m.images[23].name, "seq_c/100.425.png");
+  EXPECT_TRUE(fs::equivalent(o.out_dir / "images" / m.images[16].name, root_ / "seq_c" / "rgb" / "100.000.png"));
+  for (size_t i = 0; i < 24; ++i) EXPECT_EQ(m.images[i].image_id, static_cast<int>(i) + 1);
+  EXPECT_EQ(image_sessions(sessions, m, o.out_dir / "sessions.txt").back(), 4);
+
+  // Given names; a time rule counts from each sequence's first frame.
+  o.out_dir = root_ / "named";
+  o.session_names = {"day1", "day2", "evening"};
+  o.split = "time:0:0.04";
+  const TumImportStats named = import_tum(o);
+  EXPECT_EQ(named.map_frames, 6);
+  EXPECT_EQ(named.sessions[2].name, "day2");
+  EXPECT_EQ(named.sessions[4].name, "evening");
+  // A list rule over several map sequences: each entry must name a frame of one of them.
+  o.out_dir = root_ / "listed";
+  o.split = "list:" + (root_ / "list.txt").string();
+  std::ofstream(root_ / "list.txt") << "100.013\n";
+  EXPECT_EQ(import_tum(o).map_frames, 2);  // the entry names a frame of both sequences: once each is fine
+  std::ofstream(root_ / "list.txt") << "100.013\n100.999\n";
+  o.out_dir = root_ / "listed2";
+  EXPECT_THROW(import_tum(o), Error);
+
+  // Two sequences whose folders share a name, a name list of the wrong size, a bad name.
+  o = options("clash");
+  fs::create_directories(root_ / "other");
+  fs::copy(data_, root_ / "other" / "seq", fs::copy_options::recursive);
+  o.data_dirs = {data_, root_ / "other" / "seq"};
+  o.gravity = "none";
+  try {
+    import_tum(o);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("session name 'seq' is already used"), std::string::npos) << e.what();
+  }
+  o.session_names = {"a"};
+  EXPECT_THROW(import_tum(o), Error);
+  o.session_names = {"a", "b c"};
+  EXPECT_THROW(import_tum(o), Error);
+  EXPECT_FALSE(fs::exists(root_ / "clash" / "sparse"));
 }
 
 TEST_F(TumImportTest, ImportsCountsSplitsAndLinks) {
@@ -271,7 +346,7 @@ TEST(TumImportRealData, Freiburg1RpyImportsAndReadsBack) {
   const fs::path out = fs::temp_directory_path() / ("lmb_tum_real_" + std::to_string(::getpid()));
   fs::remove_all(out);
   TumImportOptions o;
-  o.data_dir = data;
+  o.data_dirs = {data};
   o.out_dir = out;
   const TumImportStats s = import_tum(o);
   // 723 frames; 7 fall into the motion-capture dropouts around t = 1305031244.8-245.1 (gaps of
