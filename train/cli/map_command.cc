@@ -29,6 +29,7 @@ struct MapArgs {
 };
 
 void run_map(const MapArgs& args) {
+  check_writable_file(args.out, "--out");  // before the gravity choice and the mapping run
   MapperOptions options = args.options;
   const size_t n = args.collections.size();
   LMB_CHECK(args.labels.empty() || args.labels.size() == n,
@@ -56,7 +57,6 @@ void run_map(const MapArgs& args) {
     names += (k ? ", " : "") + args.collections[k];
   }
   options.check();
-  check_writable_file(args.out, "--out");  // before the mapping run, not after it
   spdlog::info("map: collection{} {} -> {}", n > 1 ? "s" : "", names, args.out);
   std::fflush(stdout);
   MapperStats stats;
