@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/file_io.h"
 
 namespace lmb {
 
@@ -55,14 +56,12 @@ void write_session_file(const std::vector<MapSession>& sessions, const fs::path&
       LMB_CHECK(sessions[t].name != sessions[s].name, path.string() << ": duplicate session name " << sessions[s].name);
     }
   }
-  std::ofstream out(path, std::ios::trunc);
-  LMB_CHECK(out.good(), path.string() << ": cannot open for writing");
+  std::ostringstream out;
   out << "# Sessions of this collection: an image belongs to the session named by its first folder.\n"
       << "# KIND: map (builds the map, trains), query (held out, evaluated), outside (held out, not in the map).\n"
       << "# NAME KIND\n";
   for (const MapSession& s : sessions) out << s.name << ' ' << session_kind_name(s.kind) << '\n';
-  out.close();
-  LMB_CHECK(out.good(), path.string() << ": write failed");
+  write_file_atomically(path, out.str());
 }
 
 std::vector<int32_t> image_sessions(const std::vector<MapSession>& sessions, const ColmapModel& model,
