@@ -5,6 +5,19 @@ namespace lmb {
 
 namespace {
 
+// The distance of one row to a query held as kWords 64-bit words; inlined into both wrappers of
+// each kernel below, so its popcount follows the wrapper's target.
+template <int kWords>
+inline __attribute__((always_inline)) int words_distance(const uint64_t* qw, const uint8_t* r) {
+  int d = 0;
+  for (int w = 0; w < kWords; ++w) {
+    uint64_t x;
+    std::memcpy(&x, r + 8 * w, 8);
+    d += __builtin_popcountll(x ^ qw[w]);
+  }
+  return d;
+}
+
 // Hamming distances of one query to n rows; the loop body is inlined into a popcnt-enabled and a
 // generic wrapper, chosen once at run time.
 template <int kWords>
@@ -14,13 +27,7 @@ inline __attribute__((always_inline)) void hamming_rows_body(const uint8_t* q, c
     uint64_t qw[kWords];
     std::memcpy(qw, q, sizeof(qw));
     for (int64_t i = 0; i < n; ++i) {
-      const uint8_t* r = rows + i * bytes;
-      int d = 0;
-      for (int w = 0; w < kWords; ++w) {
-        uint64_t x;
-        std::memcpy(&x, r + 8 * w, 8);
-        d += __builtin_popcountll(x ^ qw[w]);
-      }
+      const int d = words_distance<kWords>(qw, rows + i * bytes);
       out[i] = static_cast<uint16_t>(d);
     }
   } else {
@@ -48,13 +55,7 @@ inline __attribute__((always_inline)) int hamming_min_body(const uint8_t* q, con
     uint64_t qw[kWords];
     std::memcpy(qw, q, sizeof(qw));
     for (int64_t i = 0; i < n; ++i) {
-      const uint8_t* r = rows + i * bytes;
-      int d = 0;
-      for (int w = 0; w < kWords; ++w) {
-        uint64_t x;
-        std::memcpy(&x, r + 8 * w, 8);
-        d += __builtin_popcountll(x ^ qw[w]);
-      }
+      const int d = words_distance<kWords>(qw, rows + i * bytes);
       best = d < best ? d : best;
     }
   } else {
