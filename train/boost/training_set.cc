@@ -13,6 +13,26 @@ namespace lmb {
 namespace {
 constexpr uint64_t kHoldoutTag = 0x484F4C44;     // "HOLD"
 constexpr uint64_t kBackgroundTag = 0x424B4752;  // "BKGR"
+
+// The observations of one class landmark (its map keypoints) held out for validation: per landmark
+// with more than min_train_observations map observations, floor(validation_fraction * n) of them
+// (at least 1, leaving min_train_observations), those with the smallest seeded hashes; sorted.
+std::vector<int64_t> held_out_of_landmark(const std::vector<int64_t>& observations, const TrainingSetOptions& options) {
+  const int64_t n = static_cast<int64_t>(observations.size());
+  if (options.validation_fraction <= 0.0 || n <= options.min_train_observations) return {};
+  int64_t h = std::max<int64_t>(1, static_cast<int64_t>(std::floor(options.validation_fraction * n)));
+  h = std::min<int64_t>(h, n - options.min_train_observations);
+  std::vector<std::pair<uint64_t, int64_t>> keyed;
+  for (int64_t k : observations) {
+    keyed.emplace_back(counter_hash(options.seed, kHoldoutTag, static_cast<uint64_t>(k)), k);
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int64_t> held;
+  for (int64_t i = 0; i < h; ++i) held.push_back(keyed[i].second);
+  std::sort(held.begin(), held.end());
+  return held;
+}
+
 }  // namespace
 
 void TrainingSet::check() const {
@@ -86,12 +106,7 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
     }
   }
 
-  // Hold-out count per landmark, then qualification and top-K by quality.
-  auto holdout_count = [&](int64_t n) -> int64_t {
-    if (options.validation_fraction <= 0.0 || n <= options.min_train_observations) return 0;
-    int64_t h = std::max<int64_t>(1, static_cast<int64_t>(std::floor(options.validation_fraction * n)));
-    return std::min<int64_t>(h, n - options.min_train_observations);
-  };
+  // Qualification and top-K by quality.
   std::vector<landmark_t> candidates;
   for (landmark_t l = 0; l < num_landmarks; ++l) {
     if (static_cast<int64_t>(observations[l].size()) >= options.min_train_observations) {
@@ -148,13 +163,7 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
   };
   for (int32_t c = 0; c < set.num_classes; ++c) {
     const auto& obs = observations[candidates[c]];
-    const int64_t h = holdout_count(static_cast<int64_t>(obs.size()));
-    std::vector<std::pair<uint64_t, int64_t>> keyed;
-    for (int64_t k : obs) keyed.emplace_back(counter_hash(options.seed, kHoldoutTag, static_cast<uint64_t>(k)), k);
-    std::sort(keyed.begin(), keyed.end());
-    std::vector<uint8_t> held(obs.size(), 0);
-    std::vector<int64_t> held_keys;
-    for (int64_t i = 0; i < h; ++i) held_keys.push_back(keyed[i].second);
+    const std::vector<int64_t> held_keys = held_out_of_landmark(obs, options);
     for (size_t i = 0; i < obs.size(); ++i) {
       const bool v = std::find(held_keys.begin(), held_keys.end(), obs[i]) != held_keys.end();
       add_sample(obs[i], c, v);
@@ -179,6 +188,43 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
   permute(set.sample_is_validation);
   set.check();
   return set;
+}
+
+std::vector<int64_t> held_out_observations(const LandmarkMap& map, const std::vector<landmark_t>& class_landmarks,
+                                           const TrainingSetOptions& options) {
+  options.check();
+  const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
+  const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
+  LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_keypoints,
+            "map: keypoint_landmark has " << map.keypoint_landmark.size() << " entries for " << num_keypoints
+                                          << " keypoints");
+  std::vector<char> is_class(static_cast<size_t>(num_landmarks), 0);
+  for (landmark_t l : class_landmarks) {
+    LMB_CHECK(l >= 0 && l < num_landmarks, "held-out observations: class landmark " << l << " out of range [0, "
+                                                                                    << num_landmarks << ")");
+    is_class[static_cast<size_t>(l)] = 1;
+  }
+  std::vector<std::vector<int64_t>> observations(static_cast<size_t>(num_landmarks));
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    LMB_CHECK(frame.first_keypoint >= 0 && frame.num_keypoints >= 0 &&
+                  frame.first_keypoint + frame.num_keypoints <= num_keypoints,
+              "map: frame " << f << " (" << frame.name << ") keypoint range out of bounds");
+    if (frame.is_query) continue;
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
+                "map: keypoint " << k << " refers to landmark " << l << " of " << num_landmarks);
+      if (l != kInvalidLandmarkId && is_class[static_cast<size_t>(l)]) observations[l].push_back(k);
+    }
+  }
+  std::vector<int64_t> held;
+  for (const std::vector<int64_t>& obs : observations) {
+    const std::vector<int64_t> h = held_out_of_landmark(obs, options);
+    held.insert(held.end(), h.begin(), h.end());
+  }
+  std::sort(held.begin(), held.end());
+  return held;
 }
 
 }  // namespace lmb

@@ -51,4 +51,12 @@ struct TrainingSet {
 TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t>& keypoint_words,
                                const TrainingSetOptions& options);
 
+// The held-out map observations of a training set, from the map, its classes' landmarks and the
+// options alone: the keypoints build_training_set marks sample_is_validation when its classes are
+// `class_landmarks` (e.g. a trained model's), sorted. `lboost eval` ranks them: observations of
+// the training sessions that the model never trained on. Throws lmb::Error on a malformed map or
+// a landmark out of range.
+std::vector<int64_t> held_out_observations(const LandmarkMap& map, const std::vector<landmark_t>& class_landmarks,
+                                           const TrainingSetOptions& options);
+
 }  // namespace lmb

@@ -4,14 +4,17 @@
 // the results table.
 //
 //   lboost eval --model model.lbm --map map.h5 --report report.json [--run RUN_DIR]
-//               [--keypoint-ranks ranks.json] [--methods a,b,...] [--top-k 20] ...
+//               [--query-session NAME ...] [--keypoint-ranks ranks.json] [--methods a,b,...]
+//               [--top-k 20] ...
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
+#include "train/boost/train_config.h"
 #include "train/cli/commands.h"
 #include "train/eval/evaluation.h"
 #include "train/eval/report.h"
@@ -23,12 +26,20 @@ namespace {
 void run_eval(const EvalOptions& options, const std::string& report_path, const std::string& run_dir,
               const std::string& keypoint_ranks) {
   LMB_CHECK(!options.methods.empty(), "eval: --methods is empty");
-  EvalResult result = run_evaluation(options);
+  EvalOptions o = options;
+  if (!run_dir.empty()) {
+    // The run's held-out map observations are ranked beside the query sessions.
+    const std::filesystem::path config = std::filesystem::path(run_dir) / "config.toml";
+    LMB_CHECK(std::filesystem::exists(config),
+              "eval: --run " << run_dir << ": no config.toml (not a `lboost train` run dir)");
+    o.training_set = read_train_config(config).training_set;
+  }
+  EvalResult result = run_evaluation(o);
   if (!run_dir.empty()) attach_training_summary(result.report, run_dir);
   write_report(report_path, result.report);
   if (!keypoint_ranks.empty()) write_report(keypoint_ranks, result.keypoint_ranks);
-  std::printf("\n%s%s-> %s\n%s", result.heading.c_str(), result.table.c_str(), report_path.c_str(),
-              result.cpu_line.c_str());
+  std::printf("\n%s%s%s-> %s\n%s", result.heading.c_str(), result.table.c_str(), result.gap_table.c_str(),
+              report_path.c_str(), result.cpu_line.c_str());
 }
 
 }  // namespace
@@ -54,7 +65,13 @@ void add_eval_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--report", args->report, "Output report (JSON; every field is documented in docs/report.md)")
       ->required();
-  cmd->add_option("--run", args->run, "Training run dir: its summary.json is copied into the report");
+  cmd->add_option("--run", args->run,
+                  "Training run dir: its summary.json is copied into the report, and the observations it held "
+                  "out of the map sessions (config.toml) are ranked beside the query sessions");
+  cmd->add_option("--query-session", o.query_sessions,
+                  "Query sessions to evaluate, by name (repeat or comma-separate; default: every session of kind "
+                  "query; `lboost inspect` lists them)")
+      ->delimiter(',');
   cmd->add_option("--keypoint-ranks", args->keypoint_ranks,
                   "Side file: every query keypoint's rank of its true landmark, per method");
   cmd->add_option("--methods", o.methods, method_help)->delimiter(',')->capture_default_str();

@@ -31,7 +31,8 @@ void check_observations(const TrainingObservations& obs, const char* who) {
 }  // namespace
 
 TrainingObservations collect_training_observations(const LandmarkMap& map,
-                                                   const std::vector<landmark_t>& selected_landmarks) {
+                                                   const std::vector<landmark_t>& selected_landmarks,
+                                                   const std::vector<int64_t>& excluded_keypoints) {
   const int64_t num_kp = static_cast<int64_t>(map.keypoints.size());
   LMB_CHECK(map.descriptor_bytes > 0, "collect_training_observations: map descriptor_bytes is "
                                           << map.descriptor_bytes);
@@ -57,6 +58,7 @@ TrainingObservations collect_training_observations(const LandmarkMap& map,
       LMB_CHECK(l >= 0 && l < num_landmarks,
                 "collect_training_observations: keypoint " << k << " has landmark " << l << " out of range");
       if (!selected[static_cast<size_t>(l)]) continue;
+      if (std::binary_search(excluded_keypoints.begin(), excluded_keypoints.end(), k)) continue;
       obs.landmark.push_back(l);
       const uint8_t* d = map.descriptor(k);
       obs.descriptors.insert(obs.descriptors.end(), d, d + map.descriptor_bytes);

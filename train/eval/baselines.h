@@ -36,10 +36,12 @@ struct TrainingObservations {
 };
 
 // The keypoints of the map's non-query frames that observe a landmark in `selected_landmarks`
-// (empty = every landmark), in keypoint order. Throws lmb::Error on inconsistent map sizes or a
-// selected id out of range.
+// (empty = every landmark), in keypoint order, except the keypoints in `excluded_keypoints`
+// (sorted map keypoint indices, e.g. the held-out observations being ranked). Throws lmb::Error
+// on inconsistent map sizes or a selected id out of range.
 TrainingObservations collect_training_observations(const LandmarkMap& map,
-                                                   const std::vector<landmark_t>& selected_landmarks);
+                                                   const std::vector<landmark_t>& selected_landmarks,
+                                                   const std::vector<int64_t>& excluded_keypoints = {});
 
 // One nearest observation.
 struct Neighbor {

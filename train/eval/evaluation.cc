@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "common/error.h"
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
+#include "train/boost/training_set.h"
 #include "train/eval/pose_stage.h"
 #include "train/eval/report.h"
 #include "train/eval/timing.h"
@@ -20,28 +22,84 @@ namespace lmb {
 
 namespace {
 
-// The map's query frames, in map order.
-std::vector<EvalQuery> query_frames(const LandmarkMap& map, const std::vector<char>& is_class, const EvalOptions& a) {
+// The query sessions evaluated (indices into map.sessions, map order): the named ones, or every
+// session of kind query.
+std::vector<int32_t> selected_sessions(const LandmarkMap& map, const EvalOptions& a) {
+  std::string query_names;
+  std::vector<int32_t> all_query;
+  for (int32_t s = 0; s < static_cast<int32_t>(map.sessions.size()); ++s) {
+    if (map.sessions[s].kind != SessionKind::kQuery) continue;
+    all_query.push_back(s);
+    query_names += (query_names.empty() ? "" : ", ") + map.sessions[s].name;
+  }
+  if (query_names.empty()) query_names = "none";
+  if (a.query_sessions.empty()) {
+    LMB_CHECK(!all_query.empty(), a.map << ": no query session (map the query images jointly as a session of kind "
+                                           "query, see `lboost map --help`)");
+    return all_query;
+  }
+  std::vector<int32_t> out;
+  for (const std::string& name : a.query_sessions) {
+    const int32_t s = map.find_session(name);
+    LMB_CHECK(s >= 0, "eval: --query-session '" << name << "': " << a.map << " has no such session (query sessions: "
+                                                << query_names << ")");
+    LMB_CHECK(map.sessions[s].kind != SessionKind::kMap,
+              "eval: --query-session '" << name << "': a map session of " << a.map
+                                        << " (its frames trained the model; --run ranks its held-out observations)");
+    LMB_CHECK(map.sessions[s].kind == SessionKind::kQuery,
+              "eval: --query-session '" << name << "': an outside session of " << a.map
+                                        << " (recorded where the map has no landmarks: nothing to retrieve)");
+    out.push_back(s);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// A frame of the map as a query: its keypoints, and per keypoint `truth(k)` (k: map keypoint).
+template <typename Truth>
+EvalQuery frame_query(const LandmarkMap& map, frame_t f, Truth truth) {
+  const MapFrame& frame = map.frames[f];
+  EvalQuery q;
+  q.frame = f;
+  q.camera = &map.cameras[frame.camera];
+  q.keypoints.assign(map.keypoints.begin() + frame.first_keypoint,
+                     map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+  q.descriptors = map.descriptor(frame.first_keypoint);
+  q.gravity_in_cam = frame.gravity_in_cam;
+  q.true_cam_from_world = frame.cam_from_world;
+  for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+    q.truth.push_back(truth(k));
+  }
+  return q;
+}
+
+// The frames of the selected query sessions, in map order.
+std::vector<EvalQuery> query_frames(const LandmarkMap& map, const std::vector<char>& is_class,
+                                    const std::vector<int32_t>& sessions, const EvalOptions& a) {
+  std::vector<EvalQuery> out;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    if (!std::binary_search(sessions.begin(), sessions.end(), map.frames[f].session)) continue;
+    out.push_back(frame_query(map, f, [&](int64_t k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      return l != kInvalidLandmarkId && is_class[l] ? l : kInvalidLandmarkId;
+    }));
+  }
+  LMB_CHECK(!out.empty(), a.map << ": no query frames in the query sessions evaluated");
+  return out;
+}
+
+// The map frames holding held-out observations (sorted map keypoints of model classes), as
+// queries whose only keypoints with truth are the held-out ones.
+std::vector<EvalQuery> held_out_frames(const LandmarkMap& map, const std::vector<int64_t>& held) {
   std::vector<EvalQuery> out;
   for (frame_t f = 0; f < map.num_frames(); ++f) {
     const MapFrame& frame = map.frames[f];
-    if (!frame.is_query) continue;
-    EvalQuery q;
-    q.frame = f;
-    q.camera = &map.cameras[frame.camera];
-    q.keypoints.assign(map.keypoints.begin() + frame.first_keypoint,
-                       map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
-    q.descriptors = map.descriptor(frame.first_keypoint);
-    q.gravity_in_cam = frame.gravity_in_cam;
-    q.true_cam_from_world = frame.cam_from_world;
-    for (int32_t k = 0; k < frame.num_keypoints; ++k) {
-      const landmark_t l = map.keypoint_landmark[frame.first_keypoint + k];
-      q.truth.push_back(l != kInvalidLandmarkId && is_class[l] ? l : kInvalidLandmarkId);
-    }
-    out.push_back(std::move(q));
+    const auto first = std::lower_bound(held.begin(), held.end(), frame.first_keypoint);
+    if (first == held.end() || *first >= frame.first_keypoint + frame.num_keypoints) continue;
+    out.push_back(frame_query(map, f, [&](int64_t k) {
+      return std::binary_search(held.begin(), held.end(), k) ? map.keypoint_landmark[k] : kInvalidLandmarkId;
+    }));
   }
-  LMB_CHECK(!out.empty(), a.map << ": no query frames (frames with is_query set; map the query images jointly, "
-                                   "see `lboost map --help`)");
   return out;
 }
 
@@ -49,7 +107,8 @@ std::vector<EvalQuery> query_frames(const LandmarkMap& map, const std::vector<ch
 DatasetCounts count_dataset(const LandmarkMap& map, const std::vector<EvalQuery>& queries, int64_t* with_class_truth) {
   DatasetCounts counts;
   *with_class_truth = 0;
-  for (const MapFrame& f : map.frames) (f.is_query ? counts.query_frames : counts.map_frames) += 1;
+  for (const MapFrame& f : map.frames) counts.map_frames += !f.is_query;
+  counts.query_frames = static_cast<int64_t>(queries.size());
   counts.landmarks = static_cast<int64_t>(map.landmarks.size());
   for (const EvalQuery& q : queries) {
     const MapFrame& f = map.frames[q.frame];
@@ -62,8 +121,21 @@ DatasetCounts count_dataset(const LandmarkMap& map, const std::vector<EvalQuery>
   return counts;
 }
 
+// Adds the frames of `part` to `total` (same budgets and seeds, or `total` empty).
+void add_sweep(const PoseSweep& part, PoseSweep& total) {
+  if (total.frames_correct.empty()) {
+    total = part;
+    return;
+  }
+  for (size_t b = 0; b < total.frames_correct.size(); ++b) {
+    for (size_t s = 0; s < total.frames_correct[b].size(); ++s) total.frames_correct[b][s] += part.frames_correct[b][s];
+  }
+  total.num_frames += part.num_frames;
+}
+
 struct MethodRun {
-  MethodResult result;
+  MethodResult result;                      // all evaluated query frames
+  std::vector<MethodResult> sessions;       // per evaluated query session (no frames, for the report's summary)
   nlohmann::json parameters;                // the matcher's own parameters
   double build_seconds = 0.0;               // matcher construction (the baselines' index)
   std::vector<std::vector<int32_t>> ranks;  // per frame, per keypoint: 1-based rank of the truth, 0 absent
@@ -99,8 +171,9 @@ void evaluate_pose_stage(const EvalOptions& a, MethodResult& r) {
   }
 }
 
-MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context,
-                          const std::vector<EvalQuery>& queries) {
+// query_session[i]: the index in the evaluated sessions of queries[i]'s session.
+MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context, const std::vector<EvalQuery>& queries,
+                          const std::vector<size_t>& query_session, size_t num_sessions) {
   const EvalOptions& a = *context.options;
   MethodRun run;
   run.result.name = method.name;
@@ -108,10 +181,16 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
   const std::unique_ptr<Matcher> matcher = method.make(context);
   run.build_seconds = ms_since(t_build) / 1000.0;
   run.parameters = matcher->parameters();
-  run.result.sweep = start_pose_sweep(a.sweep, a.pose.seed);
-  std::vector<KeypointRanking> rankings;
-  std::vector<KeypointMatch> matches;
-  for (const EvalQuery& q : queries) {
+  struct Part {
+    std::vector<KeypointRanking> rankings;
+    std::vector<KeypointMatch> matches;
+    MethodResult result;  // frames and sweep
+  };
+  std::vector<Part> parts(num_sessions);
+  for (Part& p : parts) p.result.sweep = start_pose_sweep(a.sweep, a.pose.seed);
+  for (size_t i = 0; i < queries.size(); ++i) {
+    const EvalQuery& q = queries[i];
+    Part& part = parts[query_session[i]];
     FrameMatches m = matcher->match(q);
     LMB_CHECK(m.ranking.size() == q.keypoints.size(), "eval: " << method.name << " ranked " << m.ranking.size()
                                                                << " of " << q.keypoints.size() << " keypoints");
@@ -123,20 +202,51 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
     o.total_ms = m.match_ms + ms_since(t0);
     run.cpu_ms_per_frame += m.cpu_ms + thread_cpu_ms() - c0;
     run.result.frames.push_back(o);
-    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), run.result.sweep);
-    add_keypoint_matches(q, m.accepted, matches);
+    part.result.frames.push_back(o);
+    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), part.result.sweep);
+    add_keypoint_matches(q, m.accepted, part.matches);
     std::vector<int32_t> ranks;
     for (size_t k = 0; k < q.keypoints.size(); ++k) {
       ranks.push_back(q.truth[k] == kInvalidLandmarkId ? 0 : rank_of(m.ranking[k], q.truth[k]));
-      rankings.push_back(KeypointRanking{std::move(m.ranking[k]), q.truth[k]});
+      part.rankings.push_back(KeypointRanking{std::move(m.ranking[k]), q.truth[k]});
     }
     run.ranks.push_back(std::move(ranks));
   }
   run.cpu_ms_per_frame /= static_cast<double>(queries.size());
+  std::vector<KeypointRanking> rankings;
+  std::vector<KeypointMatch> matches;
+  for (Part& p : parts) {
+    p.result.name = method.name;
+    p.result.retrieval = evaluate_retrieval(p.rankings);
+    p.result.matches = evaluate_matches(p.matches);
+    evaluate_pose_stage(a, p.result);
+    add_sweep(p.result.sweep, run.result.sweep);
+    p.result.frames.clear();  // the session summary has no per-frame arrays
+    std::move(p.rankings.begin(), p.rankings.end(), std::back_inserter(rankings));
+    matches.insert(matches.end(), p.matches.begin(), p.matches.end());
+    run.sessions.push_back(std::move(p.result));
+  }
   run.result.retrieval = evaluate_retrieval(rankings);
   run.result.matches = evaluate_matches(matches);
   evaluate_pose_stage(a, run.result);
   return run;
+}
+
+// A method's precision@1 and MRR on the held-out map observations, its baselines searching the
+// map observations without them (context.excluded_keypoints).
+RetrievalMetrics rank_held_out(const EvalMethod& method, const MethodContext& context,
+                               const std::vector<EvalQuery>& queries) {
+  const std::unique_ptr<Matcher> matcher = method.make(context);
+  std::vector<KeypointRanking> rankings;
+  for (const EvalQuery& q : queries) {
+    FrameMatches m = matcher->match(q);
+    LMB_CHECK(m.ranking.size() == q.keypoints.size(), "eval: " << method.name << " ranked " << m.ranking.size()
+                                                               << " of " << q.keypoints.size() << " keypoints");
+    for (size_t k = 0; k < q.keypoints.size(); ++k) {
+      if (q.truth[k] != kInvalidLandmarkId) rankings.push_back(KeypointRanking{std::move(m.ranking[k]), q.truth[k]});
+    }
+  }
+  return evaluate_retrieval(rankings);
 }
 
 nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build, const nlohmann::json& parameters) {
@@ -204,7 +314,14 @@ EvalResult run_evaluation(const EvalOptions& a) {
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
   const std::vector<char> is_class = check_model_fits_map(*model, a.model, map, a.map);
-  const std::vector<EvalQuery> queries = query_frames(map, is_class, a);
+  const std::vector<int32_t> sessions = selected_sessions(map, a);
+  const std::vector<EvalQuery> queries = query_frames(map, is_class, sessions, a);
+  std::vector<size_t> query_session;
+  for (const EvalQuery& q : queries) {
+    const int32_t s = map.frames[q.frame].session;
+    const auto it = std::lower_bound(sessions.begin(), sessions.end(), s);
+    query_session.push_back(static_cast<size_t>(it - sessions.begin()));
+  }
   int64_t with_class_truth = 0;
   const DatasetCounts counts = count_dataset(map, queries, &with_class_truth);
   LMB_CHECK(with_class_truth > 0, a.map << ": none of the " << counts.query_keypoints
@@ -218,23 +335,45 @@ EvalResult run_evaluation(const EvalOptions& a) {
                counts.query_frames, counts.query_keypoints, counts.query_keypoints_with_truth, with_class_truth,
                model->num_classes(), model->data().stumps.size(), method_list);
 
+  // The held-out map observations of the model's training run (the validation column).
+  std::vector<int64_t> held;
+  std::vector<EvalQuery> held_queries;
+  if (a.training_set) {
+    std::vector<landmark_t> classes;
+    for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
+    held = held_out_observations(map, classes, *a.training_set);
+    held_queries = held_out_frames(map, held);
+    spdlog::info("eval: {} held-out map observations in {} map frames (validation_fraction {}, seed {})", held.size(),
+                 held_queries.size(), a.training_set->validation_fraction, a.training_set->seed);
+  }
+
   const MethodContext context{model, &map, &a};
+  const MethodContext held_context{model, &map, &a, &held};
   std::vector<MethodResult> results;
+  std::vector<std::vector<MethodResult>> session_results(sessions.size());
   nlohmann::json build = nlohmann::json::object(), ranks = nlohmann::json::object();
   nlohmann::json cpu = nlohmann::json::object(), parameters = nlohmann::json::object();
+  nlohmann::json held_methods = nlohmann::json::object();
   for (const std::string& name : names) {
     const Clock::time_point t0 = Clock::now();
-    MethodRun run = evaluate_method(find_eval_method(name), context, queries);
+    const EvalMethod& method = find_eval_method(name);
+    MethodRun run = evaluate_method(method, context, queries, query_session, sessions.size());
     spdlog::info("eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
                  "correct, {:.2f} ms/frame matching ({:.1f} s)",
                  name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr,
                  run.result.matches.match_precision, run.result.matches.match_recall, run.result.pose.num_correct,
                  run.result.pose.num_frames, run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
+    if (!held.empty()) {
+      const RetrievalMetrics r = rank_held_out(method, held_context, held_queries);
+      held_methods[name] = {{"precision_at_1", r.precision_at_1}, {"mrr", r.mrr}};
+      spdlog::info("eval: {}: held-out map observations P@1 {:.4f}, MRR {:.4f}", name, r.precision_at_1, r.mrr);
+    }
     build[name] = run.build_seconds;
     ranks[name] = run.ranks;
     cpu[name] = run.cpu_ms_per_frame;
     parameters[name] = run.parameters;
     results.push_back(std::move(run.result));
+    for (size_t i = 0; i < sessions.size(); ++i) session_results[i].push_back(std::move(run.sessions[i]));
   }
 
   EvalResult out;
@@ -243,6 +382,30 @@ EvalResult run_evaluation(const EvalOptions& a) {
   out.report["dataset"]["model_classes"] = model->num_classes();
   out.report["dataset"]["query_keypoints_with_class_truth"] = with_class_truth;
   out.report["settings"] = settings_json(a, build, parameters);
+  nlohmann::json session_names = nlohmann::json::array(), session_reports = nlohmann::json::array();
+  for (size_t i = 0; i < sessions.size(); ++i) {
+    const MapSession& session = map.sessions[static_cast<size_t>(sessions[i])];
+    session_names.push_back(session.name);
+    nlohmann::json r = {{"name", session.name},
+                        {"kind", session_kind_name(session.kind)},
+                        {"frames", session_results[i].front().pose.num_frames},
+                        {"keypoints_with_class_truth", session_results[i].front().retrieval.num_with_truth},
+                        {"methods", nlohmann::json::object()}};
+    for (const MethodResult& m : session_results[i]) r["methods"][m.name] = session_method_report(m);
+    session_reports.push_back(r);
+  }
+  out.report["dataset"]["query_sessions"] = session_names;
+  out.report["sessions"] = session_reports;
+  if (a.training_set) {
+    out.report["held_out_map_observations"] = {
+        {"frames", held_queries.size()},
+        {"keypoints", held.size()},
+        {"validation_fraction", a.training_set->validation_fraction},
+        {"min_train_observations", a.training_set->min_train_observations},
+        {"seed", a.training_set->seed},
+        {"methods", held_methods}};
+  }
+  out.report["generalization_gap"] = generalization_gap(out.report);
   nlohmann::json frame_names = nlohmann::json::array();
   for (const EvalQuery& q : queries) frame_names.push_back(map.frames[q.frame].name);
   out.report["query_frame_names"] = frame_names;
@@ -259,6 +422,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
                 model->num_classes(), machine_info().summary().c_str());
   out.heading = heading;
   out.table = format_results_table(out.report);
+  out.gap_table = format_generalization_gap(out.report);
   out.cpu_line = cpu_line(cpu);
   return out;
 }

@@ -3,17 +3,25 @@
 // (docs/report.md) and the results table. The CLI (train/cli/eval_command.cc) parses the flags
 // into EvalOptions, calls run_evaluation and writes the files.
 //
-// Protocol. Query frames are the map's frames marked is_query; a query keypoint's true landmark
-// is its joint-mapping landmark when that landmark is one of the model's classes (the K landmarks
-// the classifier was trained on), otherwise the keypoint is background for the metrics. The
-// descriptor baselines search the same classes' observations in the map's non-query frames (the
-// observations training used). Each method (train/eval/methods.h) ranks at most top_k distinct
-// landmarks per keypoint (without rejection) and accepts at most one match a keypoint (after its
-// own rejection); every method's accepted matches go to the same pose stage
+// Protocol. Query frames are the frames of the map's query sessions (every session of kind query,
+// or those named by EvalOptions::query_sessions; outside sessions are never evaluated); metrics are
+// reported over all of them and per session. A query keypoint's true landmark is its joint-mapping
+// landmark when that landmark is one of the model's classes (the K landmarks the classifier was
+// trained on), otherwise the keypoint is background for the metrics. The descriptor baselines
+// search the same classes' observations in the map's non-query frames (all of the map sessions'
+// observations, those training held out included). Each method (train/eval/methods.h) ranks at
+// most top_k distinct landmarks per keypoint (without rejection) and accepts at most one match a
+// keypoint (after its own rejection); every method's accepted matches go to the same pose stage
 // (train/eval/pose_stage.h: P3P RANSAC with the same options and seed; no voting or clustering),
 // then to the same RANSAC at each budget and seed of the sweep. Times are single-thread, one
 // frame at a time (OpenCV and faiss limited to one thread): match = the method's timed matching,
 // total = match + pose (the sweep is not timed).
+//
+// Held-out map observations (with EvalOptions::training_set): the class observations in map frames
+// that the training run held out (never trained on). Every method ranks them in their own frames
+// (the classifier sees the frame's other keypoints as context, as in training), the descriptor
+// baselines searching the map observations without them; precision@1 and MRR over them stand
+// beside each query session's in report["generalization_gap"].
 #pragma once
 
 #include <filesystem>
@@ -33,10 +41,14 @@ struct EvalResult {
   std::string heading;
   std::string table;
   std::string cpu_line;
+  // The generalization gap (format_generalization_gap): P@1 on the held-out map observations beside
+  // P@1 and pose recall on each query session.
+  std::string gap_table;
 };
 
-// Runs every selected method on the map's query frames. Throws lmb::Error on invalid options, a
-// model of another map, a map without query frames or without query keypoints of a model class.
+// Runs every selected method on the query sessions' frames (and the held-out map observations).
+// Throws lmb::Error on invalid options, a model of another map, an unknown, map or outside session
+// named in query_sessions, no query frame, or no query keypoint of a model class.
 EvalResult run_evaluation(const EvalOptions& options);
 
 // The model and the map must describe the same landmarks (lboost eval and lboost localize): the

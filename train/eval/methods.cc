@@ -78,6 +78,12 @@ void EvalOptions::check() const {
     find_eval_method(m);
     LMB_CHECK(seen.insert(m).second, "eval: --methods: '" << m << "' given twice");
   }
+  std::set<std::string> sessions;
+  for (const std::string& s : query_sessions) {
+    LMB_CHECK(!s.empty(), "eval: --query-session: empty session name");
+    LMB_CHECK(sessions.insert(s).second, "eval: --query-session: '" << s << "' given twice");
+  }
+  if (training_set) training_set->check();
   pose.check();
 }
 
@@ -91,7 +97,8 @@ std::vector<std::string> EvalOptions::method_names() const {
 TrainingObservations MethodContext::class_observations() const {
   std::vector<landmark_t> classes;
   for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
-  TrainingObservations obs = collect_training_observations(*map, classes);
+  TrainingObservations obs =
+      collect_training_observations(*map, classes, excluded_keypoints ? *excluded_keypoints : std::vector<int64_t>());
   LMB_CHECK(obs.size() > 0, options->map << ": the model's " << classes.size()
                                          << " landmarks have no observation in non-query frames");
   return obs;

@@ -4,12 +4,14 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/landmark_map.h"
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
+#include "train/boost/boost_options.h"
 #include "train/eval/baselines.h"
 #include "train/eval/faiss_index.h"
 #include "train/eval/matcher.h"
@@ -35,6 +37,12 @@ struct EvalOptions {
   int pca_dims = 16;                  // projected_kdtree
   double ratio = 0.8;                 // the ratio-test methods: Lowe's ratio, in (0, 1]
   FaissHnswOptions faiss;             // faiss_hnsw_ratio
+  // The query sessions evaluated, by name (sessions of kind query); empty = every query session.
+  std::vector<std::string> query_sessions;
+  // The training-set options of the model's training run (RUN_DIR/config.toml). When set, the
+  // held-out map observations of that run (train/boost/training_set.h, held_out_observations) are
+  // ranked too, beside the query sessions: the generalization gap.
+  std::optional<TrainingSetOptions> training_set;
 
   // Throws lmb::Error naming the flag (e.g. "eval: --top-k 0 must be in 1..10000").
   void check() const;
@@ -47,8 +55,12 @@ struct MethodContext {
   std::shared_ptr<const Model> model;
   const LandmarkMap* map = nullptr;
   const EvalOptions* options = nullptr;
+  // Map keypoints (sorted) the descriptor baselines leave out of their index: the held-out map
+  // observations when those are the queries. Null = none.
+  const std::vector<int64_t>* excluded_keypoints = nullptr;
   // The training observations the descriptor baselines search: every observation of a model
-  // class's landmark in the map's non-query frames. Throws lmb::Error when there is none.
+  // class's landmark in the map's non-query frames, except excluded_keypoints. Throws lmb::Error
+  // when there is none.
   TrainingObservations class_observations() const;
   // The map's landmark positions by landmark id.
   std::vector<Eigen::Vector3d> landmark_positions() const;

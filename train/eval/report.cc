@@ -147,6 +147,49 @@ nlohmann::json build_report(const DatasetCounts& dataset, const std::vector<Meth
   return report;
 }
 
+nlohmann::json session_method_report(const MethodResult& r) {
+  nlohmann::json m = {{"precision_at_1", number(r.retrieval.precision_at_1)},
+                      {"mrr", number(r.retrieval.mrr)},
+                      {"pose_recall_20cm_5deg", number(r.pose.recall_20cm_5deg)},
+                      {"frames_localized", r.pose.num_localized},
+                      {"frames_correct", r.pose.num_correct}};
+  if (!r.sweep.iterations.empty()) {
+    nlohmann::json sweep = sweep_report(r.sweep);
+    sweep.erase("recall");
+    sweep.erase("seeds");
+    m["pose_recall_sweep"] = sweep;
+  }
+  return m;
+}
+
+nlohmann::json generalization_gap(const nlohmann::json& report) {
+  nlohmann::json p1 = nlohmann::json::object(), pose = nlohmann::json::object();
+  const auto held = report.find("held_out_map_observations");
+  const auto sessions = report.find("sessions");
+  const auto methods = report.find("methods");
+  if (methods == report.end() || !methods->is_object()) {
+    return {{"precision_at_1", p1}, {"pose_recall_20cm_5deg", pose}};
+  }
+  for (const auto& [name, m] : methods->items()) {
+    nlohmann::json row = {{"held_out_map_observations", nullptr}, {"sessions", nlohmann::json::object()}};
+    nlohmann::json pose_row = nlohmann::json::object();
+    if (held != report.end() && held->contains("methods") && held->at("methods").contains(name)) {
+      row["held_out_map_observations"] = held->at("methods").at(name).at("precision_at_1");
+    }
+    if (sessions != report.end() && sessions->is_array()) {
+      for (const nlohmann::json& s : *sessions) {
+        const auto sm = s.at("methods").find(name);
+        if (sm == s.at("methods").end()) continue;
+        row["sessions"][s.at("name").get<std::string>()] = sm->at("precision_at_1");
+        pose_row[s.at("name").get<std::string>()] = sm->at("pose_recall_20cm_5deg");
+      }
+    }
+    p1[name] = row;
+    pose[name] = pose_row;
+  }
+  return {{"precision_at_1", p1}, {"pose_recall_20cm_5deg", pose}};
+}
+
 void write_report(const std::filesystem::path& path, const nlohmann::json& report) {
   const std::string text = report.dump(2) + "\n";
   write_file_atomically(path, text.data(), text.size());
@@ -258,6 +301,58 @@ std::string format_results_table(const nlohmann::json& report) {
     out += line;
   }
   return out + format_thresholds_table(*methods) + format_sweep_table(*methods);
+}
+
+std::string format_generalization_gap(const nlohmann::json& report) {
+  const auto gap = report.find("generalization_gap");
+  if (gap == report.end() || !gap->contains("precision_at_1")) return "";
+  const nlohmann::json& p1 = gap->at("precision_at_1");
+  const nlohmann::json& pose = gap->at("pose_recall_20cm_5deg");
+  std::vector<std::string> sessions;
+  const auto reported = report.find("sessions");
+  if (reported != report.end() && reported->is_array()) {
+    for (const nlohmann::json& s : *reported) sessions.push_back(s.at("name").get<std::string>());
+  }
+  const auto value = [](const nlohmann::json& v) { return v.is_number() ? v.get<double>() : std::nan(""); };
+  char cell[512];
+  std::string out;
+  const auto held = report.find("held_out_map_observations");
+  if (held != report.end() && held->is_object()) {
+    std::snprintf(cell, sizeof(cell),
+                  "\ngeneralization gap: held-out map observations (%lld keypoints in %lld map frames, never "
+                  "trained on) vs each unseen query session; P@1, pose recall at 20 cm / 5 deg:\n",
+                  held->value("keypoints", 0LL), held->value("frames", 0LL));
+  } else {
+    std::snprintf(cell, sizeof(cell),
+                  "\ngeneralization gap (held-out map observations: pass --run RUN_DIR); P@1, pose recall at "
+                  "20 cm / 5 deg:\n");
+  }
+  out += cell;
+  std::snprintf(cell, sizeof(cell), "%-24s %12s", "method", "held-out P@1");
+  out += cell;
+  for (const std::string& s : sessions) {
+    std::snprintf(cell, sizeof(cell), " %16s %7s", (s + " P@1").c_str(), "pose");
+    out += cell;
+  }
+  out += "\n";
+  for (const auto& [name, row] : p1.items()) {
+    const double h = value(row.at("held_out_map_observations"));
+    if (std::isnan(h)) {
+      std::snprintf(cell, sizeof(cell), "%-24s %12s", name.c_str(), "-");
+    } else {
+      std::snprintf(cell, sizeof(cell), "%-24s %12.4f", name.c_str(), h);
+    }
+    out += cell;
+    for (const std::string& s : sessions) {
+      const auto p = row.at("sessions").find(s);
+      const double v = p == row.at("sessions").end() ? std::nan("") : value(*p);
+      const double r = pose.contains(name) && pose.at(name).contains(s) ? value(pose.at(name).at(s)) : std::nan("");
+      std::snprintf(cell, sizeof(cell), " %16.4f %7.4f", v, r);
+      out += cell;
+    }
+    out += "\n";
+  }
+  return out;
 }
 
 }  // namespace lmb

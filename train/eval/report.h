@@ -54,6 +54,17 @@ nlohmann::json method_report(const MethodResult& result);
 // frames are neither empty nor as many as its pose metrics' frames.
 nlohmann::json build_report(const DatasetCounts& dataset, const std::vector<MethodResult>& methods);
 
+// One query session's share of a method's run (report["sessions"][i]["methods"][name]):
+// precision_at_1, mrr, pose_recall_20cm_5deg, frames_localized, frames_correct and, when the
+// result has a sweep, pose_recall_sweep {ransac_iterations, mean, min, max}.
+nlohmann::json session_method_report(const MethodResult& result);
+
+// report["generalization_gap"] from the report's "sessions" and "held_out_map_observations":
+//   {"precision_at_1": {METHOD: {"held_out_map_observations": p or null, "sessions": {NAME: p}}},
+//    "pose_recall_20cm_5deg": {METHOD: {NAME: r}}}
+// (null where the report has no held-out observations: eval without --run).
+nlohmann::json generalization_gap(const nlohmann::json& report);
+
 // Writes the report (2-space indent) via a temp file + rename. Throws lmb::Error on I/O failure.
 void write_report(const std::filesystem::path& path, const nlohmann::json& report);
 
@@ -63,5 +74,10 @@ void write_report(const std::filesystem::path& path, const nlohmann::json& repor
 // then, when the report has pose_recall_sweep, the pose recall over the seeds (mean [min, max]) at
 // each RANSAC budget. docs/report.md explains every column.
 std::string format_results_table(const nlohmann::json& report);
+
+// The generalization gap as a table, one row per method: P@1 on the held-out map observations ("-"
+// without them), then P@1 and pose recall on each query session. Empty when the report has no
+// "generalization_gap".
+std::string format_generalization_gap(const nlohmann::json& report);
 
 }  // namespace lmb

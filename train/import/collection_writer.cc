@@ -26,9 +26,9 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
     with_gravity += im.gravity_in_cam.has_value();
   }
   if (!sessions.empty()) {
-    ColmapModel names;
-    for (const CollectionImage& im : images) names.images.push_back(im.image);
-    image_sessions(sessions, names, out_dir / kSessionFileName);
+    ColmapModel named;
+    for (const CollectionImage& im : images) named.images.push_back(im.image);
+    image_sessions(sessions, named, out_dir / kSessionFileName);
   }
   LMB_CHECK(with_gravity == 0 || with_gravity == images.size(),
             out_dir.string() << ": gravity known for " << with_gravity << " of " << images.size()

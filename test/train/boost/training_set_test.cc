@@ -1,5 +1,6 @@
 #include "train/boost/training_set.h"
 
+#include <algorithm>
 #include <cstdio>
 
 #include <gtest/gtest.h>
@@ -150,6 +151,31 @@ TEST(TrainingSet, EveryMapSessionTrainsAndValidates) {
   std::printf("held-out observations by map session: %d, %d\n", validation[0], validation[1]);
   EXPECT_GT(validation[0], 0.4 * 2 * num_landmarks);
   EXPECT_GT(validation[1], 0.4 * 2 * num_landmarks);
+}
+
+// held_out_observations recomputes the training set's held-out observations from the map, the
+// classes and the options (what `lboost eval --run` ranks), for several options.
+TEST(TrainingSet, HeldOutObservationsAreTheValidationSamples) {
+  const LandmarkMap map = make_map(40);
+  for (const double fraction : {0.0, 0.1, 0.25, 0.5}) {
+    for (const uint64_t seed : {1u, 7u}) {
+      TrainingSetOptions o;
+      o.top_k_landmarks = 25;
+      o.validation_fraction = fraction;
+      o.seed = seed;
+      const TrainingSet set = build_training_set(map, words_of(map), o);
+      std::vector<int64_t> validation;
+      for (int64_t s = 0; s < set.num_samples(); ++s) {
+        if (set.sample_is_validation[s]) validation.push_back(set.sample_keypoint[s]);
+      }
+      std::sort(validation.begin(), validation.end());
+      EXPECT_EQ(held_out_observations(map, set.class_landmark, o), validation) << fraction << " " << seed;
+      if (fraction > 0) {
+        EXPECT_GE(validation.size(), 25u);  // at least one a class
+      }
+    }
+  }
+  EXPECT_THROW(held_out_observations(map, {40}, TrainingSetOptions()), Error);
 }
 
 TEST(TrainingSet, RejectsBadInput) {

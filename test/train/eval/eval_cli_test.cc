@@ -22,6 +22,8 @@
 #include "common/hamming.h"
 #include "common/io/map_h5.h"
 #include "infer/model.h"
+#include "train/boost/train_config.h"
+#include "train/boost/training_set.h"
 
 namespace lmb {
 namespace {
@@ -47,14 +49,21 @@ RunResult run(const std::string& args, const fs::path& dir) {
   return RunResult{WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
 }
 
-// The field paths of a report: objects' keys joined by '.', method names as <method>, arrays of
-// objects as [], the copied training summary as one field.
+// The field paths of a report: objects' keys joined by '.', method names as <method>, session
+// names as <session>, arrays of objects as [], the copied training summary as one field.
 void report_paths(const nlohmann::json& j, const std::string& path, std::set<std::string>& out) {
-  static const std::set<std::string> by_method = {"methods", "settings.index_build_seconds",
-                                                  "settings.method_parameters"};
+  static const std::set<std::string> by_method = {"methods",
+                                                  "settings.index_build_seconds",
+                                                  "settings.method_parameters",
+                                                  "sessions[].methods",
+                                                  "held_out_map_observations.methods",
+                                                  "generalization_gap.precision_at_1",
+                                                  "generalization_gap.pose_recall_20cm_5deg"};
+  static const std::set<std::string> by_session = {"generalization_gap.precision_at_1.<method>.sessions",
+                                                   "generalization_gap.pose_recall_20cm_5deg.<method>"};
   if (j.is_object() && path != "training") {
     for (const auto& [key, value] : j.items()) {
-      const std::string k = by_method.count(path) ? "<method>" : key;
+      const std::string k = by_method.count(path) ? "<method>" : by_session.count(path) ? "<session>" : key;
       report_paths(value, path.empty() ? k : path + "." + k, out);
     }
   } else if (j.is_array() && !j.empty() && j.front().is_object()) {
@@ -426,6 +435,190 @@ TEST_F(EvalCliTest, ReportSchemaIsDocumented) {
   }
 }
 
+// The classes of the model and the training observations of a map (every observation of a class
+// landmark in a map frame), less `excluded` (sorted keypoints).
+std::vector<char> class_flags(const LandmarkMap& map, const Model& model) {
+  std::vector<char> is_class(map.landmarks.size(), 0);
+  for (int32_t c = 0; c < model.num_classes(); ++c) is_class[model.class_landmark(c)] = 1;
+  return is_class;
+}
+std::vector<int64_t> class_observations(const LandmarkMap& map, const std::vector<char>& is_class,
+                                        const std::vector<int64_t>& excluded) {
+  std::vector<int64_t> out;
+  for (const MapFrame& f : map.frames) {
+    if (f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l >= 0 && is_class[l] && !std::binary_search(excluded.begin(), excluded.end(), k)) out.push_back(k);
+    }
+  }
+  return out;
+}
+// Precision@1 of exact Hamming 1-NN (ties: the first observation in map order) of `queries` (map
+// keypoints whose true landmark is a class) against the observations `train`.
+double hamming_p1(const LandmarkMap& map, const std::vector<int64_t>& queries, const std::vector<int64_t>& train) {
+  int64_t correct = 0;
+  for (int64_t k : queries) {
+    int best = 1 << 30;
+    landmark_t best_landmark = -1;
+    for (int64_t t : train) {
+      const int d = hamming_distance(map.descriptor(k), map.descriptor(t), map.descriptor_bytes);
+      if (d < best) {
+        best = d;
+        best_landmark = map.keypoint_landmark[t];
+      }
+    }
+    correct += best_landmark == map.keypoint_landmark[k];
+  }
+  return static_cast<double>(correct) / static_cast<double>(queries.size());
+}
+// The keypoints of the frames of `session` whose true landmark is a class.
+std::vector<int64_t> session_keypoints(const LandmarkMap& map, const std::vector<char>& is_class, int32_t session) {
+  std::vector<int64_t> out;
+  for (const MapFrame& f : map.frames) {
+    if (f.session != session) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l >= 0 && is_class[l]) out.push_back(k);
+    }
+  }
+  return out;
+}
+
+// With --run, the observations the run held out of training (its config.toml) are ranked:
+// exactly held_out_observations' keypoints, bruteforce_hamming searching the map observations
+// without them (equal to a nearest neighbour computed here), next to the query session in
+// generalization_gap and in the printed table.
+TEST_F(EvalCliTest, HeldOutMapObservationsBesideTheQuerySession) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  const LandmarkMap map = read_map_h5(map_);
+  const std::shared_ptr<const Model> model = Model::load(dir_ / "model.lbm");
+  const std::vector<char> is_class = class_flags(map, *model);
+  std::vector<landmark_t> classes;
+  for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
+  const TrainingSetOptions options = read_train_config(dir_ / "run" / "config.toml").training_set;
+  const std::vector<int64_t> held = held_out_observations(map, classes, options);
+  ASSERT_GT(held.size(), 10u);
+  std::set<frame_t> held_frames;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    for (int64_t k : held) {
+      if (k >= frame.first_keypoint && k < frame.first_keypoint + frame.num_keypoints) {
+        EXPECT_FALSE(frame.is_query);
+        held_frames.insert(f);
+      }
+    }
+  }
+  const nlohmann::json& h = report.at("held_out_map_observations");
+  EXPECT_EQ(h.at("keypoints").get<size_t>(), held.size());
+  EXPECT_EQ(h.at("frames").get<size_t>(), held_frames.size());
+  EXPECT_EQ(h.at("validation_fraction").get<double>(), options.validation_fraction);
+  EXPECT_EQ(h.at("methods").size(), 7u);
+  const double reference = hamming_p1(map, held, class_observations(map, is_class, held));
+  EXPECT_DOUBLE_EQ(h.at("methods").at("bruteforce_hamming").at("precision_at_1").get<double>(), reference);
+  // Searching the held-out observations themselves would find each at distance 0.
+  EXPECT_LT(reference, 1.0);
+  const nlohmann::json& gap = report.at("generalization_gap").at("precision_at_1");
+  for (const auto& [name, m] : report.at("methods").items()) {
+    SCOPED_TRACE(name);
+    EXPECT_EQ(gap.at(name).at("held_out_map_observations"), h.at("methods").at(name).at("precision_at_1"));
+    EXPECT_EQ(gap.at(name).at("sessions").at("query"), m.at("precision_at_1"));
+  }
+  EXPECT_NE(eval_.out.find("generalization gap: held-out map observations (" + std::to_string(held.size()) +
+                           " keypoints"),
+            std::string::npos)
+      << eval_.out;
+}
+
+// The tiny map's query frames split into two query sessions (alternate frames) and an empty
+// outside session: the methods' figures over both equal those of the unsplit map, each session's
+// figures equal a reference computed on its frames alone, --query-session evaluates one session,
+// and naming a map, outside or unknown session is a one-line error.
+TEST_F(EvalCliTest, QuerySessionsAreReportedAndSelectedByName) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  LandmarkMap map = read_map_h5(map_);
+  const int32_t query = map.find_session("query");
+  ASSERT_GE(query, 0);
+  map.sessions.push_back({"query-b", SessionKind::kQuery});
+  map.sessions.push_back({"elsewhere", SessionKind::kOutside});
+  int64_t frames_a = 0, frames_b = 0, n = 0;
+  for (MapFrame& f : map.frames) {
+    if (f.session != query) continue;
+    if (n++ % 2 == 1) {
+      f.session = static_cast<int32_t>(map.sessions.size()) - 2;
+      ++frames_b;
+    } else {
+      ++frames_a;
+    }
+  }
+  ASSERT_GT(frames_b, 0);
+  const fs::path split = dir_ / "split.h5";
+  write_map_h5(map, split);
+  const std::string common = "eval --model " + (dir_ / "model.lbm").string() + " --map " + split.string() +
+                             " --methods bruteforce_hamming,landmarkboost --report ";
+  const RunResult both = run(common + (dir_ / "split_report.json").string(), dir_);
+  ASSERT_EQ(both.exit_code, 0) << both.err;
+  const nlohmann::json r = nlohmann::json::parse(slurp(dir_ / "split_report.json"));
+  const nlohmann::json whole = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  EXPECT_EQ(r.at("dataset").at("query_sessions"), nlohmann::json({"query", "query-b"}));
+  const nlohmann::json& sessions = r.at("sessions");
+  ASSERT_EQ(sessions.size(), 2u);
+  EXPECT_EQ(sessions[0].at("name"), "query");
+  EXPECT_EQ(sessions[1].at("name"), "query-b");
+  EXPECT_EQ(sessions[0].at("frames").get<int64_t>(), frames_a);
+  EXPECT_EQ(sessions[1].at("frames").get<int64_t>(), frames_b);
+  EXPECT_FALSE(r.contains("held_out_map_observations"));  // no --run
+  const std::shared_ptr<const Model> model = Model::load(dir_ / "model.lbm");
+  const std::vector<char> is_class = class_flags(map, *model);
+  const std::vector<int64_t> train = class_observations(map, is_class, {});
+  for (const char* name : {"bruteforce_hamming", "landmarkboost"}) {
+    SCOPED_TRACE(name);
+    const nlohmann::json& m = r.at("methods").at(name);
+    const nlohmann::json& w = whole.at("methods").at(name);
+    EXPECT_NEAR(m.at("precision_at_1").get<double>(), w.at("precision_at_1").get<double>(), 1e-12);
+    EXPECT_NEAR(m.at("mrr").get<double>(), w.at("mrr").get<double>(), 1e-12);
+    EXPECT_EQ(m.at("frames_correct"), w.at("frames_correct"));
+    EXPECT_EQ(m.at("pose_recall_sweep").at("recall"), w.at("pose_recall_sweep").at("recall"));
+    int64_t correct = 0, localized = 0;
+    for (const nlohmann::json& s : sessions) {
+      correct += s.at("methods").at(name).at("frames_correct").get<int64_t>();
+      localized += s.at("methods").at(name).at("frames_localized").get<int64_t>();
+      const nlohmann::json& gap = r.at("generalization_gap").at("precision_at_1").at(name);
+      EXPECT_EQ(gap.at("sessions").at(s.at("name").get<std::string>()), s.at("methods").at(name).at("precision_at_1"));
+      EXPECT_TRUE(gap.at("held_out_map_observations").is_null());
+    }
+    EXPECT_EQ(correct, m.at("frames_correct").get<int64_t>());
+    EXPECT_EQ(localized, m.at("frames_localized").get<int64_t>());
+  }
+  for (int i = 0; i < 2; ++i) {
+    const int32_t session = map.find_session(sessions[i].at("name").get<std::string>());
+    const std::vector<int64_t> keypoints = session_keypoints(map, is_class, session);
+    EXPECT_EQ(sessions[i].at("keypoints_with_class_truth").get<size_t>(), keypoints.size());
+    EXPECT_DOUBLE_EQ(sessions[i].at("methods").at("bruteforce_hamming").at("precision_at_1").get<double>(),
+                     hamming_p1(map, keypoints, train));
+  }
+  EXPECT_NE(both.out.find("query-b P@1"), std::string::npos) << both.out;
+
+  // One session by name: its figures are that session's above.
+  const RunResult one = run(common + (dir_ / "one_report.json").string() + " --query-session query-b", dir_);
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  const nlohmann::json o = nlohmann::json::parse(slurp(dir_ / "one_report.json"));
+  EXPECT_EQ(o.at("dataset").at("query_sessions"), nlohmann::json({"query-b"}));
+  EXPECT_EQ(o.at("dataset").at("query_frames").get<int64_t>(), frames_b);
+  for (const char* name : {"bruteforce_hamming", "landmarkboost"}) {
+    EXPECT_EQ(o.at("methods").at(name).at("precision_at_1"), sessions[1].at("methods").at(name).at("precision_at_1"));
+    EXPECT_EQ(o.at("methods").at(name).at("frames_correct"), sessions[1].at("methods").at(name).at("frames_correct"));
+  }
+
+  const std::string bad = common + (dir_ / "bad_report.json").string() + " --query-session ";
+  expect_one_error_line(run(bad + "map", dir_), "'map': a map session");
+  expect_one_error_line(run(bad + "elsewhere", dir_), "'elsewhere': an outside session");
+  expect_one_error_line(run(bad + "nowhere", dir_), "'nowhere': " + split.string() + " has no such session");
+  expect_one_error_line(run(bad + "query,query", dir_), "'query' given twice");
+  EXPECT_FALSE(fs::exists(dir_ / "bad_report.json"));
+}
+
 TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
   LandmarkMap map = read_map_h5(map_);
   const std::string model = " --model " + (dir_ / "model.lbm").string();
@@ -438,9 +631,11 @@ TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
                         "trained on another map");
   // A map without query frames.
   LandmarkMap no_query = map;
+  ASSERT_EQ(no_query.sessions.front().kind, SessionKind::kMap);
+  no_query.sessions.resize(1);
   for (MapFrame& f : no_query.frames) {
     f.is_query = false;
-    f.session = 0;  // every frame in the map session
+    f.session = 0;
   }
   for (Landmark& l : no_query.landmarks) {
     l.num_map_observations += l.num_query_observations;
@@ -448,7 +643,7 @@ TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
   }
   write_map_h5(no_query, dir_ / "no_query.h5");
   expect_one_error_line(run("eval" + model + " --map " + (dir_ / "no_query.h5").string() + report, dir_),
-                        "no query frames");
+                        "no query session");
   // An unknown method.
   expect_one_error_line(run("eval" + model + " --map " + map_.string() + report + " --methods landmarkboost,faiss",
                             dir_),

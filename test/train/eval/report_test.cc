@@ -96,6 +96,43 @@ TEST(BuildReport, TableShowsRecallAtEachThresholdPair) {
       << table;
 }
 
+// The generalization gap puts each method's held-out P@1 beside its P@1 and pose recall on each
+// query session, from the report's own fields; without held-out observations the column is null
+// and the table shows "-".
+TEST(GeneralizationGap, SideBySideFromTheReportsSessions) {
+  nlohmann::json report = build_report(DatasetCounts(), {sample_method("a"), sample_method("b")});
+  MethodResult query = sample_method("a");  // P@1 0.5, pose recall 0.5
+  nlohmann::json sessions = nlohmann::json::array();
+  sessions.push_back({{"name", "query"}, {"methods", {{"a", session_method_report(query)}}}});
+  sessions.push_back({{"name", "night"},
+                      {"methods", {{"a", {{"precision_at_1", 0.25}, {"pose_recall_20cm_5deg", 0.125}}}}}});
+  report["sessions"] = sessions;
+  EXPECT_EQ(session_method_report(query).at("precision_at_1").get<double>(), 0.5);
+  EXPECT_EQ(session_method_report(query).at("frames_correct").get<int64_t>(), query.pose.num_correct);
+
+  nlohmann::json gap = generalization_gap(report);
+  EXPECT_TRUE(gap.at("precision_at_1").at("a").at("held_out_map_observations").is_null());
+  EXPECT_EQ(gap.at("precision_at_1").at("a").at("sessions"), nlohmann::json({{"query", 0.5}, {"night", 0.25}}));
+  EXPECT_EQ(gap.at("pose_recall_20cm_5deg").at("a").at("night").get<double>(), 0.125);
+  EXPECT_TRUE(gap.at("precision_at_1").at("b").at("sessions").empty());  // in no session
+  report["generalization_gap"] = gap;
+  std::string table = format_generalization_gap(report);
+  EXPECT_NE(table.find("pass --run"), std::string::npos) << table;
+  EXPECT_NE(table.find("query P@1"), std::string::npos) << table;
+  EXPECT_NE(table.find("night P@1"), std::string::npos) << table;
+  EXPECT_NE(table.find("0.2500  0.1250"), std::string::npos) << table;
+
+  report["held_out_map_observations"] = {
+      {"frames", 3}, {"keypoints", 40}, {"methods", {{"a", {{"precision_at_1", 0.75}}}}}};
+  gap = generalization_gap(report);
+  EXPECT_EQ(gap.at("precision_at_1").at("a").at("held_out_map_observations").get<double>(), 0.75);
+  report["generalization_gap"] = gap;
+  table = format_generalization_gap(report);
+  EXPECT_NE(table.find("(40 keypoints in 3 map frames"), std::string::npos) << table;
+  EXPECT_NE(table.find("0.7500"), std::string::npos) << table;
+  EXPECT_EQ(format_generalization_gap(nlohmann::json::object()), "");
+}
+
 TEST(BuildReport, RejectsBadMethods) {
   EXPECT_THROW(build_report({}, {sample_method("a"), sample_method("a")}), Error);
   EXPECT_THROW(build_report({}, {sample_method("")}), Error);
