@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "lboost 0.1.0");
   lmb::cli::add_world_command(app);
   lmb::cli::add_map_command(app);
+  lmb::cli::add_areas_command(app);
   lmb::cli::add_inspect_command(app);
   lmb::cli::add_vocab_command(app);
   lmb::cli::add_train_command(app);

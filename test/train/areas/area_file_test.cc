@@ -1,0 +1,133 @@
+#include "train/areas/area_file.h"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+#include "common/file_io.h"
+#include "test/train/areas/area_test_map.h"
+
+namespace lmb {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir() {
+  const fs::path dir = fs::temp_directory_path() / ("lmb_area_file_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir;
+}
+
+AreaFile corridor_areas() {
+  AreaSplitOptions options;
+  options.max_classes = 100;
+  options.overlap = 0.5;
+  AreaFile file;
+  const LandmarkMap map = test::corridor_map();
+  file.split = split_map_into_areas(map, options);
+  file.map_fingerprint = 0x0123456789ABCDEFull;
+  file.map_landmarks = static_cast<int64_t>(map.landmarks.size());
+  return file;
+}
+
+TEST(AreaFile, RoundTripsExactly) {
+  const AreaFile file = corridor_areas();
+  const fs::path path = temp_dir() / "areas.txt";
+  write_area_file(path, file, "test corridor");
+  const AreaFile back = read_area_file(path);
+  EXPECT_EQ(back.map_fingerprint, file.map_fingerprint);
+  EXPECT_EQ(back.map_landmarks, file.map_landmarks);
+  EXPECT_EQ(back.split.options.max_classes, 100);
+  EXPECT_EQ(back.split.options.overlap, 0.5);
+  EXPECT_EQ(back.split.options.reach, file.split.options.reach);
+  EXPECT_GT(back.split.options.reach, 0.0);
+  EXPECT_EQ(back.split.num_eligible, file.split.num_eligible);
+  ASSERT_EQ(back.split.areas.size(), file.split.areas.size());
+  for (size_t i = 0; i < file.split.areas.size(); ++i) {
+    const Area& a = file.split.areas[i];
+    const Area& b = back.split.areas[i];
+    EXPECT_EQ(b.id, a.id);
+    EXPECT_EQ(b.landmarks, a.landmarks);
+    EXPECT_EQ(b.cell.lo, a.cell.lo);  // bit-exact, infinities included
+    EXPECT_EQ(b.cell.hi, a.cell.hi);
+    EXPECT_EQ(b.bounds.lo, a.bounds.lo);
+    EXPECT_EQ(b.bounds.hi, a.bounds.hi);
+    EXPECT_EQ(b.num_core, a.num_core);
+    EXPECT_EQ(b.num_truncated, a.num_truncated);
+  }
+  // The same text again: the writer is a function of the split.
+  EXPECT_EQ(area_file_text(back, "test corridor"), read_file(path));
+  fs::remove_all(path.parent_path());
+}
+
+// Replaces the first occurrence of `from` in the file's text by `to`; expects the reader to fail
+// with a message containing `needle`.
+void expect_rejected(const std::string& from, const std::string& to, const std::string& needle) {
+  std::string text = area_file_text(corridor_areas(), "");
+  const size_t start = from.rfind("lmb-areas", 0) == 0 ? 0 : text.find("map_fingerprint");  // past the comments
+  const size_t at = text.find(from, start);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+  const fs::path path = temp_dir() / "bad_areas.txt";
+  write_file_atomically(path, text);
+  try {
+    read_area_file(path);
+    ADD_FAILURE() << "accepted: " << from << " -> " << to;
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path.string()), std::string::npos) << what;
+    EXPECT_NE(what.find(needle), std::string::npos) << "expected '" << needle << "' in: " << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  fs::remove_all(path.parent_path());
+}
+
+TEST(AreaFile, RejectsMalformedFilesNamingTheLine) {
+  expect_rejected("lmb-areas 1", "lmb-areas 2", "format version 2");
+  expect_rejected("map_fingerprint 0123456789abcdef", "map_fingerprint 0123xyz", "16 hex digits");
+  expect_rejected("max_classes 100", "max_classes 0", "max_classes 0 is outside");
+  expect_rejected("overlap 0.5", "overlap nan", "overlap is not");
+  expect_rejected("area 1 ", "area 2 ", "line 12: area id 2 is outside [1, 1]");
+  expect_rejected(" bounds ", " bound ", "expected 'bounds'");
+  expect_rejected("members 0 ", "members 0 1 ", "landmarks");  // one more id than its count
+  expect_rejected(" core ", " core 7 ", "expected 'area' and 21 value(s)");  // wrong field count
+  // Out-of-order and out-of-range landmark ids.
+  const AreaFile file = corridor_areas();
+  const std::string first = std::to_string(file.split.areas[0].landmarks[0]);
+  const std::string second = std::to_string(file.split.areas[0].landmarks[1]);
+  expect_rejected("members 0 " + first + " " + second, "members 0 " + second + " " + first, "ascending");
+  expect_rejected("members 0 " + first, "members 0 400", "landmark id 400 is outside [0, 399]");
+}
+
+TEST(AreaFile, RejectsTruncatedAndMissingFiles) {
+  std::string text = area_file_text(corridor_areas(), "");
+  text.resize(text.rfind("members"));
+  const fs::path path = temp_dir() / "short_areas.txt";
+  write_file_atomically(path, text);
+  try {
+    read_area_file(path);
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("ends before the members of area"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(read_area_file(path.parent_path() / "missing.txt"), Error);
+  fs::remove_all(path.parent_path());
+}
+
+TEST(AreaFile, ParsesAreaReferences) {
+  std::string file;
+  int32_t id = -1;
+  parse_area_reference("runs/a:b/areas.txt:12", "--area", &file, &id);
+  EXPECT_EQ(file, "runs/a:b/areas.txt");
+  EXPECT_EQ(id, 12);
+  EXPECT_THROW(parse_area_reference("areas.txt", "--area", &file, &id), Error);
+  EXPECT_THROW(parse_area_reference("areas.txt:", "--area", &file, &id), Error);
+  EXPECT_THROW(parse_area_reference("areas.txt:-1", "--area", &file, &id), Error);
+  EXPECT_THROW(parse_area_reference("areas.txt:1x", "--area", &file, &id), Error);
+}
+
+}  // namespace
+}  // namespace lmb

@@ -1,0 +1,178 @@
+#include "train/areas/area_file.h"
+
+#include <cerrno>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <vector>
+#include <sstream>
+
+#include "common/error.h"
+#include "common/file_io.h"
+#include "common/text_lines.h"
+#include "common/text_parse.h"
+
+namespace lmb {
+
+namespace {
+
+std::string number_text(double v) {
+  if (std::isinf(v)) return v < 0 ? "-inf" : "inf";
+  if (v == 0.0) v = 0.0;  // no "-0"
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+// A number that may be -inf / inf (cell ends), never NaN.
+double parse_bound(const std::string& token, const std::string& where, const std::string& field) {
+  if (token == "inf") return std::numeric_limits<double>::infinity();
+  if (token == "-inf") return -std::numeric_limits<double>::infinity();
+  return parse_finite_number(token, where, field);
+}
+
+int64_t parse_integer(const std::string& token, const std::string& where, const std::string& field, int64_t lo,
+                      int64_t hi) {
+  const char* begin = token.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const long long v = token.empty() ? 0 : std::strtoll(begin, &end, 10);
+  LMB_CHECK(!token.empty() && end == begin + token.size() && errno != ERANGE,
+            where << ": " << field << " is not an integer: '" << token << "'");
+  LMB_CHECK(v >= lo && v <= hi, where << ": " << field << " " << v << " is outside [" << lo << ", " << hi << "]");
+  return v;
+}
+
+}  // namespace
+
+std::string area_file_text(const AreaFile& file, const std::string& source) {
+  const AreaSplit& s = file.split;
+  std::ostringstream os;
+  os << "lmb-areas 1\n";
+  if (!source.empty()) os << "# " << source << "\n";
+  os << "# area ID landmarks N core N truncated N cell LO_X LO_Y LO_Z HI_X HI_Y HI_Z "
+        "bounds LO_X LO_Y LO_Z HI_X HI_Y HI_Z; then per area: members ID LANDMARK_ID...\n";
+  char hex[24];
+  std::snprintf(hex, sizeof(hex), "%016" PRIx64, file.map_fingerprint);
+  os << "map_fingerprint " << hex << "\n";
+  os << "map_landmarks " << file.map_landmarks << "\n";
+  os << "max_classes " << s.options.max_classes << "\n";
+  os << "min_observations " << s.options.min_observations << "\n";
+  os << "overlap " << number_text(s.options.overlap) << "\n";
+  os << "reach " << number_text(s.options.reach) << "\n";
+  os << "eligible " << s.num_eligible << "\n";
+  os << "areas " << s.areas.size() << "\n";
+  for (const Area& a : s.areas) {
+    os << "area " << a.id << " landmarks " << a.landmarks.size() << " core " << a.num_core << " truncated "
+       << a.num_truncated << " cell";
+    for (int i = 0; i < 3; ++i) os << " " << number_text(a.cell.lo[i]);
+    for (int i = 0; i < 3; ++i) os << " " << number_text(a.cell.hi[i]);
+    os << " bounds";
+    for (int i = 0; i < 3; ++i) os << " " << number_text(a.bounds.lo[i]);
+    for (int i = 0; i < 3; ++i) os << " " << number_text(a.bounds.hi[i]);
+    os << "\n";
+  }
+  for (const Area& a : s.areas) {
+    os << "members " << a.id;
+    for (landmark_t l : a.landmarks) os << " " << l;
+    os << "\n";
+  }
+  return os.str();
+}
+
+void write_area_file(const std::filesystem::path& path, const AreaFile& file, const std::string& source) {
+  write_file_atomically(path, area_file_text(file, source));
+}
+
+AreaFile read_area_file(const std::filesystem::path& path) {
+  TextLineReader in(path);
+  AreaFile file;
+  AreaSplit& s = file.split;
+  // The next data line, which must be "<key> <values...>" with `count` values.
+  auto expect = [&](const char* key, size_t count) {
+    LMB_CHECK(in.next(), path.string() << ": ends before the '" << key << "' line");
+    std::vector<std::string> t = in.tokens();
+    LMB_CHECK(!t.empty() && t[0] == key && t.size() == count + 1,
+              in.where() << ": expected '" << key << "' and " << count << " value(s), found '" << in.line() << "'");
+    t.erase(t.begin());
+    return t;
+  };
+  {
+    const auto t = expect("lmb-areas", 1);
+    LMB_CHECK(t[0] == "1", in.where() << ": format version " << t[0] << " is not supported (this build reads 1)");
+  }
+  {
+    const auto t = expect("map_fingerprint", 1);
+    char* end = nullptr;
+    errno = 0;
+    file.map_fingerprint = std::strtoull(t[0].c_str(), &end, 16);
+    LMB_CHECK(t[0].size() == 16 && end == t[0].c_str() + t[0].size() && errno != ERANGE,
+              in.where() << ": map_fingerprint is not 16 hex digits: '" << t[0] << "'");
+  }
+  file.map_landmarks = parse_integer(expect("map_landmarks", 1)[0], in.where(), "map_landmarks", 1, INT32_MAX);
+  s.options.max_classes =
+      static_cast<int32_t>(parse_integer(expect("max_classes", 1)[0], in.where(), "max_classes", 1, INT32_MAX));
+  s.options.min_observations = static_cast<int32_t>(
+      parse_integer(expect("min_observations", 1)[0], in.where(), "min_observations", 1, INT32_MAX));
+  s.options.overlap = parse_finite_number(expect("overlap", 1)[0], in.where(), "overlap");
+  LMB_CHECK(s.options.overlap >= 0.0, in.where() << ": overlap " << s.options.overlap << " is negative");
+  s.options.reach = parse_finite_number(expect("reach", 1)[0], in.where(), "reach");
+  LMB_CHECK(s.options.reach >= 0.0, in.where() << ": reach " << s.options.reach << " is negative");
+  s.num_eligible = parse_integer(expect("eligible", 1)[0], in.where(), "eligible", 1, file.map_landmarks);
+  const int64_t num_areas = parse_integer(expect("areas", 1)[0], in.where(), "areas", 1, 1000000);
+  s.areas.resize(static_cast<size_t>(num_areas));
+  std::vector<int64_t> counts(s.areas.size());
+  for (int64_t i = 0; i < num_areas; ++i) {
+    const auto t = expect("area", 21);
+    const std::string w = in.where();
+    Area& a = s.areas[static_cast<size_t>(i)];
+    a.id = static_cast<int32_t>(parse_integer(t[0], w, "area id", i, i));
+    const char* names[5] = {"landmarks", "core", "truncated", "cell", "bounds"};
+    const int at[5] = {1, 3, 5, 7, 14};
+    for (int k = 0; k < 5; ++k) {
+      LMB_CHECK(t[at[k]] == names[k], w << ": expected '" << names[k] << "', found '" << t[at[k]] << "'");
+    }
+    counts[static_cast<size_t>(i)] = parse_integer(t[2], w, "landmarks", 1, s.options.max_classes);
+    a.num_core = parse_integer(t[4], w, "core", 0, INT64_MAX);
+    a.num_truncated = parse_integer(t[6], w, "truncated", 0, INT64_MAX);
+    for (int k = 0; k < 3; ++k) a.cell.lo[k] = parse_bound(t[8 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.cell.hi[k] = parse_bound(t[11 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.bounds.lo[k] = parse_finite_number(t[15 + k], w, "bounds");
+    for (int k = 0; k < 3; ++k) a.bounds.hi[k] = parse_finite_number(t[18 + k], w, "bounds");
+    for (int k = 0; k < 3; ++k) {
+      LMB_CHECK(a.cell.lo[k] <= a.cell.hi[k], w << ": cell lower end above its upper end on axis " << k);
+    }
+  }
+  for (int64_t i = 0; i < num_areas; ++i) {
+    LMB_CHECK(in.next(), path.string() << ": ends before the members of area " << i);
+    const std::vector<std::string> t = in.tokens();
+    const std::string w = in.where();
+    LMB_CHECK(t.size() >= 2 && t[0] == "members", w << ": expected 'members " << i << " ...'");
+    parse_integer(t[1], w, "members area id", i, i);
+    Area& a = s.areas[static_cast<size_t>(i)];
+    LMB_CHECK(static_cast<int64_t>(t.size()) - 2 == counts[static_cast<size_t>(i)],
+              w << ": area " << i << " lists " << t.size() - 2 << " landmarks, its area line says "
+                << counts[static_cast<size_t>(i)]);
+    a.landmarks.reserve(t.size() - 2);
+    for (size_t k = 2; k < t.size(); ++k) {
+      const auto l = static_cast<landmark_t>(parse_integer(t[k], w, "landmark id", 0, file.map_landmarks - 1));
+      LMB_CHECK(a.landmarks.empty() || l > a.landmarks.back(),
+                w << ": landmark ids must be ascending and distinct (" << l << " after " << a.landmarks.back() << ")");
+      a.landmarks.push_back(l);
+    }
+  }
+  LMB_CHECK(!in.next(), in.where() << ": unexpected line after the last area's members");
+  return file;
+}
+
+void parse_area_reference(const std::string& text, const std::string& what, std::string* file, int32_t* id) {
+  const size_t colon = text.rfind(':');
+  LMB_CHECK(colon != std::string::npos && colon > 0 && colon + 1 < text.size(),
+            what << " '" << text << "': expected FILE:ID (an areas file of lboost areas and an area id)");
+  *file = text.substr(0, colon);
+  *id = static_cast<int32_t>(parse_integer(text.substr(colon + 1), what + " '" + text + "'", "area id", 0, INT32_MAX));
+}
+
+}  // namespace lmb
