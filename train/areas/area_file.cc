@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/feature_space.h"
 #include "common/file_io.h"
 #include "common/text_lines.h"
 #include "common/text_parse.h"
@@ -165,6 +166,30 @@ AreaFile read_area_file(const std::filesystem::path& path) {
   }
   LMB_CHECK(!in.next(), in.where() << ": unexpected line after the last area's members");
   return file;
+}
+
+uint64_t landmark_list_hash(const std::vector<landmark_t>& landmarks) {
+  uint64_t h = 0xcbf29ce484222325ull;
+  for (landmark_t l : landmarks) {
+    const auto v = static_cast<uint32_t>(l);
+    for (int b = 0; b < 4; ++b) h = (h ^ ((v >> (8 * b)) & 0xFFu)) * 0x100000001b3ull;
+  }
+  return h;
+}
+
+std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, int32_t id, const LandmarkMap& map) {
+  AreaFile file = read_area_file(path);
+  LMB_CHECK(id >= 0 && static_cast<size_t>(id) < file.split.areas.size(),
+            path.string() << ": has no area " << id << " (it has " << file.split.areas.size() << ", ids 0.."
+                          << file.split.areas.size() - 1 << ")");
+  const uint64_t fingerprint = fingerprint_map(map);
+  char want[24], got[24];
+  std::snprintf(want, sizeof(want), "%016" PRIx64, fingerprint);
+  std::snprintf(got, sizeof(got), "%016" PRIx64, file.map_fingerprint);
+  LMB_CHECK(file.map_fingerprint == fingerprint,
+            path.string() << ": made from another map (map_fingerprint " << got << ", this map's is " << want
+                          << "); run lboost areas on this map");
+  return std::move(file.split.areas[static_cast<size_t>(id)].landmarks);
 }
 
 void parse_area_reference(const std::string& text, const std::string& what, std::string* file, int32_t* id) {

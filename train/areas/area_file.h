@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "train/areas/area_split.h"
 
@@ -40,6 +41,15 @@ void write_area_file(const std::filesystem::path& path, const AreaFile& file, co
 // inconsistent line (area ids out of order, more than max_classes landmarks, unsorted or
 // out-of-range landmark ids, a members line that does not match its area's count).
 AreaFile read_area_file(const std::filesystem::path& path);
+
+// A 64-bit hash of a landmark id list (FNV-1a over the ids as little-endian int32): the same list
+// gives the same value on every platform.
+uint64_t landmark_list_hash(const std::vector<landmark_t>& landmarks);
+
+// The landmarks of area `id` of the areas file at `path`, for training on `map`. Throws lmb::Error
+// naming the file when it cannot be read, has no area `id`, or was made from another map (its
+// map_fingerprint is not fingerprint_map(map)).
+std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, int32_t id, const LandmarkMap& map);
 
 // "FILE:ID" of `lboost train --area`: splits at the last ':'. Throws lmb::Error naming `what`.
 void parse_area_reference(const std::string& text, const std::string& what, std::string* file, int32_t* id);

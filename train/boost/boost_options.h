@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/types.h"
 #include "train/boost/settings.h"
 #include "train/boost/sharing_set.h"
 
@@ -23,6 +24,9 @@ struct TrainingSetOptions {
   int64_t background_cap = 40000;     // at most this many background samples (untracked keypoints
                                       // and observations of landmarks not selected); 0 = none
   uint64_t seed = 1;                  // deterministic hold-out and background sampling
+  // Non-empty: the classes are exactly these landmarks (an area's, docs/areas.md; ascending,
+  // distinct), top_k_landmarks is not used. Not a config key: set from TrainConfig::area.
+  std::vector<landmark_t> class_landmarks;
   void check() const;                 // throws lmb::Error naming the field
 };
 

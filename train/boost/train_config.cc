@@ -1,7 +1,10 @@
 #include "train/boost/train_config.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <type_traits>
 #include <utility>
@@ -105,6 +108,47 @@ void put_value(toml::table& t, const std::string& key, const SettingRef& ref) {
       ref);
 }
 
+// The [area] table into `area`: every key required, no other key.
+void apply_area_table(const toml::node& node, const std::string& what, AreaReference* area) {
+  const toml::table* t = node.as_table();
+  LMB_CHECK(t != nullptr, what << ": [area] must be a table");
+  AreaReference a;
+  bool has_file = false, has_id = false, has_landmarks = false, has_hash = false;
+  for (const auto& [key_node, value] : *t) {
+    const std::string key(key_node.str());
+    const std::string where = what + ": area." + key;
+    if (key == "file") {
+      LMB_CHECK(value.is_string() && !value.value<std::string>()->empty(), where << ": expected a non-empty string");
+      a.file = *value.value<std::string>();
+      has_file = true;
+    } else if (key == "id" || key == "landmarks") {
+      LMB_CHECK(value.is_integer(), where << ": expected an integer");
+      const int64_t v = *value.value<int64_t>();
+      if (key == "id") {
+        LMB_CHECK(v >= 0 && v <= std::numeric_limits<int32_t>::max(), where << ": " << v << " is out of range");
+        a.id = static_cast<int32_t>(v);
+        has_id = true;
+      } else {
+        LMB_CHECK(v >= 1, where << ": " << v << " must be >= 1");
+        a.landmarks = v;
+        has_landmarks = true;
+      }
+    } else if (key == "landmarks_hash") {
+      const std::optional<std::string> text = value.value<std::string>();
+      char* end = nullptr;
+      LMB_CHECK(value.is_string() && text->size() == 16, where << ": expected 16 hex digits");
+      a.landmarks_hash = std::strtoull(text->c_str(), &end, 16);
+      LMB_CHECK(end == text->c_str() + 16, where << ": expected 16 hex digits");
+      has_hash = true;
+    } else {
+      LMB_FAIL(what << ": unknown key area." << key);
+    }
+  }
+  LMB_CHECK(has_file && has_id && has_landmarks && has_hash,
+            what << ": [area] needs file, id, landmarks and landmarks_hash");
+  *area = a;
+}
+
 }  // namespace
 
 const std::vector<ConfigKey>& train_config_schema() {
@@ -140,6 +184,10 @@ void TrainConfig::check() const {
     LMB_CHECK(k.range.contains(setting_as_double(ref)),
               "config: " << k.name() << " must be " << k.range.text() << ", got " << setting_value_text(ref));
   }
+  if (area.set()) {
+    LMB_CHECK(area.id >= 0, "config: area.id must be >= 0, got " << area.id);
+    LMB_CHECK(area.landmarks >= 1, "config: area.landmarks must be >= 1, got " << area.landmarks);
+  }
   // Seeds are written to config.toml as TOML integers (int64).
   constexpr uint64_t kMaxSeed = static_cast<uint64_t>(std::numeric_limits<int64_t>::max());
   for (const auto& [name, seed] : {std::pair{"training_set.seed", training_set.seed},
@@ -160,6 +208,10 @@ void apply_train_config_toml(const std::string& text, const std::string& what, T
   const std::vector<ConfigKey>& schema = train_config_schema();
   for (const auto& [table_key, node] : doc) {
     const std::string table(table_key.str());
+    if (table == "area") {
+      apply_area_table(node, what, &config->area);
+      continue;
+    }
     LMB_CHECK(std::any_of(schema.begin(), schema.end(), [&](const ConfigKey& k) { return k.table == table; }),
               what << ": unknown table [" << table << "]");
     const toml::table* t = node.as_table();
@@ -200,6 +252,16 @@ std::string train_config_toml(const TrainConfig& config) {
     for (; j < keys.size() && keys[j]->table == keys[i]->table; ++j) put_value(t, keys[j]->key, keys[j]->ref(copy));
     doc.insert_or_assign(keys[i]->table, std::move(t));
     i = j;
+  }
+  if (config.area.set()) {
+    char hash[24];
+    std::snprintf(hash, sizeof(hash), "%016llx", static_cast<unsigned long long>(config.area.landmarks_hash));
+    toml::table t;
+    t.insert_or_assign("file", config.area.file);
+    t.insert_or_assign("id", static_cast<int64_t>(config.area.id));
+    t.insert_or_assign("landmarks", config.area.landmarks);
+    t.insert_or_assign("landmarks_hash", std::string(hash));
+    doc.insert_or_assign("area", std::move(t));
   }
   std::ostringstream os;
   os << doc << '\n';

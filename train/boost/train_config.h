@@ -4,7 +4,8 @@
 //
 // Tables: [training_set] (TrainingSetOptions), [boost] (BoostOptions), [regions]
 // (ContextRegionOptions), [features] threads, [checkpoint] interval, keep
-// (train/checkpoint/checkpoint_h5.h; not compared on resume). Every key is named once, in the
+// (train/checkpoint/checkpoint_h5.h; not compared on resume), and, for a run of one area only,
+// [area] file, id, landmarks, landmarks_hash (AreaReference; outside the schema: not a number each). Every key is named once, in the
 // schema (train_config_schema(), built from the options' own schemas in
 // train/boost/boost_options.h), which reads, writes, checks and describes the config.
 #pragma once
@@ -20,6 +21,17 @@
 
 namespace lmb {
 
+// The area a run trains (`lboost train --area FILE:ID`, docs/areas.md): its classes are exactly the
+// area's landmarks instead of the top-K. Written as the [area] table of config.toml only when set
+// (file non-empty), so the configs of other runs and their checkpoints are unchanged.
+struct AreaReference {
+  std::string file;             // the areas file (lboost areas), absolute; empty = no area
+  int32_t id = -1;              // the area's id in it
+  int64_t landmarks = 0;        // its landmark count, checked when the file is read again
+  uint64_t landmarks_hash = 0;  // landmark_list_hash of its landmarks, checked likewise
+  bool set() const { return !file.empty(); }
+};
+
 struct TrainConfig {
   TrainingSetOptions training_set;
   BoostOptions boost;
@@ -27,6 +39,7 @@ struct TrainConfig {
   int feature_threads = 1;
   int32_t checkpoint_interval = 100;  // rounds between checkpoints (0 = only on a signal and at the end)
   int32_t checkpoint_keep = 3;        // newest checkpoints kept
+  AreaReference area;
   void check() const;  // every part's check() and seeds in 0..2^63-1; throws lmb::Error naming the field
 };
 

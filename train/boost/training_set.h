@@ -40,8 +40,9 @@ struct TrainingSet {
 };
 
 // Builds the training set from the map's non-query frames:
-//  - classes: the top_k_landmarks landmarks by quality (ties: smaller id) among those with at least
-//    min_train_observations + (1 if any is held out) map observations, ordered by landmark id;
+//  - classes: options.class_landmarks when given (each needs min_train_observations map
+//    observations), else the top_k_landmarks landmarks by quality (ties: smaller id) among those
+//    with at least min_train_observations map observations; ordered by landmark id;
 //  - validation: per class, floor(validation_fraction * n) observations (at least 1 when
 //    validation_fraction > 0 and n > min_train_observations), chosen by a seeded hash;
 //  - background: untracked keypoints and observations of unselected landmarks, at most

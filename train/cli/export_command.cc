@@ -23,6 +23,7 @@
 #include "common/vocabulary.h"
 #include "infer/model.h"
 #include "train/boost/boost_model.h"
+#include "train/areas/area_training.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
 #include "train/cli/commands.h"
@@ -110,8 +111,10 @@ void run_export(const ExportArgs& a) {
                                   "give --fusion off with --boost-model");
     const TrainConfig config = read_train_config(std::filesystem::path(a.run_dir) / "config.toml");
     const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary);
+    TrainingSetOptions set_options = config.training_set;
+    if (config.area.set()) set_options.class_landmarks = area_class_landmarks(config.area, map);
     const TrainingSet set = build_training_set(map, std::vector<int32_t>(words8.begin(), words8.end()),
-                                               config.training_set);
+                                               set_options);
     const Model plain(data);
     DescriptorFusionStats fs;
     data.fusion = fit_descriptor_fusion(plain, map, set, a.fusion_options, &fs);

@@ -2,7 +2,7 @@
 // ranks (`mpirun -n R lboost train ...`, `srun --mpi=pmix lboost train ...`; train/dist/).
 //   lboost train --map map.h5 --vocab vocab.lbv --out RUN_DIR [--config cfg.toml] [--rounds N]
 //                [--dims-per-round N] [--top-k N] [--seed S] [--threads N]
-//                [--checkpoint-interval N] [--checkpoint-keep K]
+//                [--checkpoint-interval N] [--checkpoint-keep K] [--area AREAS_FILE:ID]
 //   lboost train --synthetic small|medium|paper --out RUN_DIR ...   (synthetic problem of
 //                train/boost/synthetic_problem.h instead of a map: tests, job tests, benchmarks)
 // Rank 0 locks RUN_DIR (RUN_DIR/.train.lock, flock: a second trainer of the folder fails at once)
@@ -42,6 +42,7 @@
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "common/vocabulary.h"
+#include "train/areas/area_training.h"
 #include "train/boost/round_log.h"
 #include "train/boost/stump_learner.h"
 #include "train/boost/synthetic_problem.h"
@@ -73,6 +74,7 @@ struct TrainArgs {
   std::optional<int32_t> checkpoint_interval;
   std::optional<int32_t> checkpoint_keep;
   std::string synthetic;
+  std::string area;  // --area FILE:ID
 };
 
 // Precision@1 of exact Hamming nearest-neighbour matching (descriptor only) of the held-out
@@ -164,7 +166,13 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
     const Vocabulary vocabulary = Vocabulary::load(a.vocab);
     const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary, config.feature_threads);
     const std::vector<int32_t> words(words8.begin(), words8.end());
-    d.set = build_training_set(map, words, config.training_set);
+    TrainingSetOptions set_options = config.training_set;
+    if (config.area.set()) {
+      set_options.class_landmarks = area_class_landmarks(config.area, map);
+      spdlog::info("train: area {} of {}: {} landmark classes (training_set.top_k_landmarks not used)",
+                   config.area.id, config.area.file, set_options.class_landmarks.size());
+    }
+    d.set = build_training_set(map, words, set_options);
     const ContextRegions regions(config.regions);
     FeatureBuildOptions feature_options;
     feature_options.num_threads = config.feature_threads;
@@ -343,6 +351,10 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   summary["samples"] = data.set.num_samples();
   summary["dims"] = data.features.num_dims;
   summary["data"] = data.source;
+  if (config.area.set()) {
+    summary["area"] = config.area.id;
+    summary["area_file"] = config.area.file;
+  }
   summary["rounds"] = learner.rounds_done();
   summary["ranks"] = comm.size();
   summary["machine"] = machine_info().summary();
@@ -380,6 +392,12 @@ void run_train(const TrainArgs& a) {
   if (a.threads) config.feature_threads = *a.threads;
   if (a.checkpoint_interval) config.checkpoint_interval = *a.checkpoint_interval;
   if (a.checkpoint_keep) config.checkpoint_keep = *a.checkpoint_keep;
+  if (!a.area.empty()) {
+    LMB_CHECK(a.synthetic.empty(), "--area trains an area of a map: give --map, not --synthetic");
+    config.area = make_area_reference(a.area, "--area");
+  }
+  LMB_CHECK(!config.area.set() || a.synthetic.empty(),
+            a.config << ": [area] trains an area of a map: give --map, not --synthetic");
   config.check();
 
   // From the start, not only once training runs: a SIGTERM / SIGUSR1 while the ranks load the
@@ -425,6 +443,9 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--rounds", args->rounds, key("boost.num_rounds"));
   cmd->add_option("--dims-per-round", args->dims_per_round, key("boost.dims_per_round") + ", at most the feature dimension");
   cmd->add_option("--top-k", args->top_k, key("training_set.top_k_landmarks"));
+  cmd->add_option("--area", args->area,
+                  "FILE:ID: train area ID of the areas file FILE (lboost areas): its landmarks are the classes "
+                  "(recorded as [area] in config.toml and checked on resume; docs/areas.md)");
   cmd->add_option("--seed", args->seed, "boost.seed and training_set.seed (default " +
                                             std::to_string(TrainConfig().boost.seed) + ")");
   cmd->add_option("--threads", args->threads, key("features.threads"));

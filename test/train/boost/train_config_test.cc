@@ -35,6 +35,46 @@ TEST(TrainConfig, FileOverridesDefaultsAndRoundTrips) {
   EXPECT_EQ(d.regions.num_regions, 64);
 }
 
+TEST(TrainConfig, AreaTableRoundTripsOnlyWhenSet) {
+  TrainConfig c;
+  EXPECT_EQ(train_config_toml(c).find("[area]"), std::string::npos);  // other runs' configs unchanged
+  c.area.file = "/runs/areas.txt";
+  c.area.id = 3;
+  c.area.landmarks = 7311;
+  c.area.landmarks_hash = 0x00ab00cd00ef0012ull;
+  const std::string text = train_config_toml(c);
+  EXPECT_NE(text.find("[area]"), std::string::npos) << text;
+  EXPECT_NE(text.find("landmarks_hash = '00ab00cd00ef0012'"), std::string::npos) << text;
+  TrainConfig d;
+  apply_train_config_toml(text, "config.toml", &d);
+  d.check();
+  EXPECT_EQ(d.area.file, c.area.file);
+  EXPECT_EQ(d.area.id, 3);
+  EXPECT_EQ(d.area.landmarks, 7311);
+  EXPECT_EQ(d.area.landmarks_hash, c.area.landmarks_hash);
+  EXPECT_EQ(train_config_toml(d), text);
+  auto message = [](const std::string& toml) {
+    TrainConfig e;
+    try {
+      apply_train_config_toml(toml, "cfg.toml", &e);
+    } catch (const Error& err) {
+      return std::string(err.what());
+    }
+    return std::string("no error");
+  };
+  const std::string full = "[area]\nfile = 'a.txt'\nid = 1\nlandmarks = 5\nlandmarks_hash = '0000000000000001'\n";
+  EXPECT_EQ(message(full), "no error");
+  EXPECT_EQ(message("[area]\nfile = 'a.txt'\nid = 1\n"),
+            "cfg.toml: [area] needs file, id, landmarks and landmarks_hash");
+  EXPECT_EQ(message(full + "extra = 1\n"), "cfg.toml: unknown key area.extra");
+  EXPECT_EQ(message("[area]\nfile = 'a.txt'\nid = -1\nlandmarks = 5\nlandmarks_hash = '0000000000000001'\n"),
+            "cfg.toml: area.id: -1 is out of range");
+  EXPECT_EQ(message("[area]\nfile = 'a.txt'\nid = 1\nlandmarks = 5\nlandmarks_hash = 'xyz'\n"),
+            "cfg.toml: area.landmarks_hash: expected 16 hex digits");
+  EXPECT_EQ(message("[area]\nfile = ''\nid = 1\nlandmarks = 5\nlandmarks_hash = '0000000000000001'\n"),
+            "cfg.toml: area.file: expected a non-empty string");
+}
+
 TEST(TrainConfig, RejectsUnknownKeysWrongTypesAndSyntax) {
   TrainConfig c;
   auto message = [&](const std::string& text) {

@@ -91,6 +91,42 @@ TEST(TrainingSet, SelectsTopKHoldsOutAndSamplesBackground) {
   EXPECT_EQ(again.sample_is_validation, set.sample_is_validation);
 }
 
+TEST(TrainingSet, GivenClassLandmarksAreExactlyTheClasses) {
+  const LandmarkMap map = make_map(20);
+  TrainingSetOptions o;
+  o.top_k_landmarks = 3;  // not used with class_landmarks
+  o.class_landmarks = {1, 4, 7, 8, 19};
+  o.background_cap = 1000;
+  const TrainingSet set = build_training_set(map, words_of(map), o);
+  ASSERT_EQ(set.num_classes, 5);
+  EXPECT_EQ(set.class_landmark, o.class_landmarks);
+  int64_t background_of_landmarks = 0;
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    const landmark_t l = map.keypoint_landmark[set.sample_keypoint[s]];
+    if (set.sample_class[s] < 5) {
+      EXPECT_EQ(l, o.class_landmarks[set.sample_class[s]]);
+    } else if (l != kInvalidLandmarkId) {
+      // Observations of landmarks outside the area are background, as unselected ones are.
+      EXPECT_FALSE(std::binary_search(o.class_landmarks.begin(), o.class_landmarks.end(), l));
+      ++background_of_landmarks;
+    }
+  }
+  EXPECT_GT(background_of_landmarks, 0);
+  // Bad lists: out of range, unsorted, too few observations.
+  o.class_landmarks = {1, 20};
+  EXPECT_THROW(build_training_set(map, words_of(map), o), Error);
+  o.class_landmarks = {4, 1};
+  EXPECT_THROW(build_training_set(map, words_of(map), o), Error);
+  o.class_landmarks = {1, 2};
+  o.min_train_observations = 5;  // landmark 1 has 4 map observations
+  try {
+    build_training_set(map, words_of(map), o);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("class landmark 1 has 4 map observations"), std::string::npos) << e.what();
+  }
+}
+
 TEST(TrainingSet, UnselectedLandmarksBecomeBackground) {
   const LandmarkMap map = make_map(4);
   TrainingSetOptions o;

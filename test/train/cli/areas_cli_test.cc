@@ -1,0 +1,211 @@
+// `lboost areas` and `lboost train --area` on the tiny rendered world (docs/areas.md): the split
+// covers every eligible landmark; an area's run trains exactly its landmarks, bit-identical on 1,
+// 2 and 3 MPI ranks; the area is recorded in config.toml and a resume with another area or a
+// changed areas file is refused; bad --area values fail with one line.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/file_io.h"
+#include "common/io/map_h5.h"
+#include "train/areas/area_file.h"
+#include "train/areas/area_split.h"
+#include "train/boost/boost_model.h"
+
+namespace lmb {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exit_code = 0;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Runs `prefix lboost args` in `dir`, capturing both streams.
+RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
+  static int counter = 0;
+  const std::string tag = std::to_string(++counter);
+  const fs::path out = dir / ("stdout_" + tag + ".txt"), err = dir / ("stderr_" + tag + ".txt");
+  const std::string command = prefix + LMB_LBOOST + " " + args + " > " + out.string() + " 2> " + err.string();
+  const int status = std::system(command.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  fs::remove(out);
+  fs::remove(err);
+  return r;
+}
+
+void expect_one_error(const RunResult& r, const std::string& command, const std::string& needle) {
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("lboost " + command + ": error: ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.err;
+}
+
+class AreasCliTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const char* map = std::getenv("LMB_TINY_MAP");
+    if (map == nullptr || !fs::exists(map)) return;
+    dir_ = fs::temp_directory_path() / ("lmb_areas_cli_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    map_ = map;
+    const fs::path images = fs::path(map).parent_path() / "collection" / "images";
+    ok_ = run("vocab --words 16 --max-descriptors 20000 --images " + images.string() + " --seed 7 --out " +
+                  (dir_ / "vocab.lbv").string(),
+              dir_)
+              .exit_code == 0;
+    // K: a third of the eligible landmarks, so that the map splits into several areas.
+    const LandmarkMap m = read_map_h5(map_);
+    const std::vector<int32_t> counts = map_observation_counts(m);
+    eligible_ = std::count_if(counts.begin(), counts.end(), [](int32_t c) { return c >= 3; });
+    max_classes_ = static_cast<int32_t>(eligible_ / 3);
+    const RunResult a = run("areas --map " + map_.string() + " --out " + (dir_ / "areas.txt").string() +
+                                " --min-observations 3 --overlap 0.2 --prior-noise 0.5 --max-classes " +
+                                std::to_string(max_classes_),
+                            dir_);
+    areas_out_ = a.out;
+    ok_ = ok_ && a.exit_code == 0;
+    if (!ok_) std::fprintf(stderr, "setup failed: %s\n", a.err.c_str());
+  }
+  static void TearDownTestSuite() {
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+  void SetUp() override {
+    if (map_.empty()) GTEST_SKIP() << "LMB_TINY_MAP (a map.h5 of `lboost world --preset tiny`) is not available";
+    ASSERT_TRUE(ok_) << "the shared setup failed";
+  }
+  static std::string train_args(const std::string& area, const fs::path& out) {
+    return "train --map " + map_.string() + " --vocab " + (dir_ / "vocab.lbv").string() +
+           " --rounds 6 --dims-per-round 64 --checkpoint-interval 3 --area " + area + " --out " + out.string();
+  }
+  static fs::path dir_;
+  static fs::path map_;
+  static bool ok_;
+  static int64_t eligible_;
+  static int32_t max_classes_;
+  static std::string areas_out_;
+};
+fs::path AreasCliTest::dir_;
+fs::path AreasCliTest::map_;
+bool AreasCliTest::ok_ = false;
+int64_t AreasCliTest::eligible_ = 0;
+int32_t AreasCliTest::max_classes_ = 0;
+std::string AreasCliTest::areas_out_;
+
+TEST_F(AreasCliTest, SplitCoversEveryEligibleLandmark) {
+  const AreaFile file = read_area_file(dir_ / "areas.txt");
+  EXPECT_EQ(file.split.num_eligible, eligible_);
+  EXPECT_GE(file.split.areas.size(), 3u);
+  std::set<landmark_t> covered;
+  for (const Area& a : file.split.areas) {
+    EXPECT_LE(static_cast<int32_t>(a.landmarks.size()), max_classes_);
+    covered.insert(a.landmarks.begin(), a.landmarks.end());
+  }
+  EXPECT_EQ(static_cast<int64_t>(covered.size()), eligible_);
+  EXPECT_NE(areas_out_.find(" 0 uncovered"), std::string::npos) << areas_out_;
+  EXPECT_NE(areas_out_.find("prior noise 0.5 m:"), std::string::npos) << areas_out_;
+  // Deterministic: the same command writes the same bytes.
+  const fs::path again = dir_ / "areas_again.txt";
+  ASSERT_EQ(run("areas --map " + map_.string() + " --out " + again.string() +
+                    " --min-observations 3 --overlap 0.2 --max-classes " + std::to_string(max_classes_),
+                dir_)
+                .exit_code,
+            0);
+  EXPECT_EQ(slurp(again), slurp(dir_ / "areas.txt"));
+}
+
+TEST_F(AreasCliTest, AnAreaTrainsExactlyItsLandmarksOnAnyRankCount) {
+  const AreaFile file = read_area_file(dir_ / "areas.txt");
+  const std::vector<landmark_t>& want = file.split.areas[1].landmarks;
+  const std::string area = (dir_ / "areas.txt").string() + ":1";
+  const fs::path serial = dir_ / "area1_serial";
+  const RunResult r = run(train_args(area, serial), dir_);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const TrainedModel model = load_trained_model(serial / "model.bin");
+  EXPECT_EQ(model.model.class_landmark, want);
+  const nlohmann::json summary = nlohmann::json::parse(slurp(serial / "summary.json"));
+  EXPECT_EQ(summary["classes"].get<int64_t>(), static_cast<int64_t>(want.size()));
+  EXPECT_EQ(summary["area"].get<int>(), 1);
+  const std::string config = slurp(serial / "config.toml");
+  EXPECT_NE(config.find("[area]"), std::string::npos) << config;
+  EXPECT_NE(config.find("id = 1"), std::string::npos) << config;
+  EXPECT_NE(config.find("landmarks = " + std::to_string(want.size())), std::string::npos) << config;
+  for (int ranks : {2, 3}) {
+    const fs::path dir = dir_ / ("area1_ranks" + std::to_string(ranks));
+    const RunResult m = run(train_args(area, dir), dir_, std::string(LMB_MPIEXEC) + " -n " + std::to_string(ranks) + " ");
+    ASSERT_EQ(m.exit_code, 0) << m.err;
+    EXPECT_EQ(slurp(dir / "model.bin"), slurp(serial / "model.bin")) << ranks << " ranks";
+  }
+  // The exported model (with the fitted fusion, which rebuilds the area's training set).
+  const RunResult e = run("export --run " + serial.string() + " --map " + map_.string() + " --vocab " +
+                              (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "area1.lbm").string(),
+                          dir_);
+  EXPECT_EQ(e.exit_code, 0) << e.err;
+}
+
+TEST_F(AreasCliTest, ResumeChecksTheArea) {
+  const fs::path run_dir = dir_ / "area0";
+  const std::string areas = (dir_ / "areas.txt").string();
+  ASSERT_EQ(run(train_args(areas + ":0", run_dir), dir_).exit_code, 0);
+  // Another area into the same folder: refused, naming the setting.
+  expect_one_error(run(train_args(areas + ":2", run_dir), dir_), "train",
+                   "the config differs from the checkpoint's in area.id (checkpoint 0, now 2)");
+  // The run's own config.toml, but the areas file changed under it: refused, naming the file.
+  const std::string original = slurp(areas);
+  AreaFile changed = read_area_file(areas);
+  changed.split.areas[0].landmarks.pop_back();
+  write_area_file(areas, changed, "");
+  const RunResult r = run("train --map " + map_.string() + " --vocab " + (dir_ / "vocab.lbv").string() + " --config " +
+                              (run_dir / "config.toml").string() + " --rounds 9 --out " + run_dir.string(),
+                          dir_);
+  write_file_atomically(areas, original);
+  expect_one_error(r, "train", areas + ": area 0 now has ");
+}
+
+TEST_F(AreasCliTest, BadAreaArgumentsFailWithOneLine) {
+  const fs::path out = dir_ / "bad";
+  const std::string areas = (dir_ / "areas.txt").string();
+  expect_one_error(run(train_args(areas, out), dir_), "train", "expected FILE:ID");
+  expect_one_error(run(train_args(areas + ":99", out), dir_), "train", "has no area 99");
+  expect_one_error(run(train_args((dir_ / "missing.txt").string() + ":0", out), dir_), "train", "missing.txt");
+  expect_one_error(run("train --synthetic small --rounds 2 --area " + areas + ":0 --out " + out.string(), dir_),
+                   "train", "--area trains an area of a map");
+  // An areas file of another map.
+  AreaFile other = read_area_file(areas);
+  other.map_fingerprint ^= 1;
+  write_area_file(dir_ / "other_areas.txt", other, "");
+  expect_one_error(run(train_args((dir_ / "other_areas.txt").string() + ":0", out), dir_), "train",
+                   "made from another map");
+  EXPECT_FALSE(fs::exists(out / "config.toml"));
+  expect_one_error(run("areas --map " + map_.string() + " --out " + (dir_ / "x.txt").string() + " --max-classes 0", dir_),
+                   "areas", "--max-classes 0: must be >= 1");
+  expect_one_error(run("areas --map " + map_.string() + " --out " + (dir_ / "x.txt").string() + " --prior-noise -1", dir_),
+                   "areas", "--prior-noise -1: must be finite and >= 0");
+}
+
+}  // namespace
+}  // namespace lmb
