@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
   lmb::cli::add_world_command(app);
   lmb::cli::add_map_command(app);
   lmb::cli::add_areas_command(app);
+  lmb::cli::add_bundle_command(app);
   lmb::cli::add_inspect_command(app);
   lmb::cli::add_vocab_command(app);
   lmb::cli::add_train_command(app);

@@ -21,6 +21,9 @@
 #include "common/io/map_h5.h"
 #include "train/areas/area_file.h"
 #include "train/areas/area_split.h"
+#include "infer/area_bundle.h"
+#include "infer/localizer.h"
+#include "infer/model.h"
 #include "train/boost/boost_model.h"
 
 namespace lmb {
@@ -184,6 +187,65 @@ TEST_F(AreasCliTest, ResumeChecksTheArea) {
                           dir_);
   write_file_atomically(areas, original);
   expect_one_error(r, "train", areas + ": area 0 now has ");
+}
+
+TEST_F(AreasCliTest, ABundleOfOneAreaLocalizesAsItsModel) {
+  // One area holding every eligible landmark, trained, exported and bundled.
+  const fs::path one = dir_ / "one_area.txt";
+  ASSERT_EQ(run("areas --map " + map_.string() + " --out " + one.string() + " --min-observations 3 --max-classes " +
+                    std::to_string(eligible_),
+                dir_)
+                .exit_code,
+            0);
+  ASSERT_EQ(read_area_file(one).split.areas.size(), 1u);
+  const fs::path models = dir_ / "one_bundle";
+  fs::create_directories(models);
+  const RunResult t = run(train_args(one.string() + ":0", dir_ / "one_run"), dir_);
+  ASSERT_EQ(t.exit_code, 0) << t.err;
+  const RunResult e = run("export --run " + (dir_ / "one_run").string() + " --map " + map_.string() + " --vocab " +
+                              (dir_ / "vocab.lbv").string() + " --out " + (models / "area-0.lbm").string(),
+                          dir_);
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  const RunResult b = run("bundle --areas " + one.string() + " --models " + models.string(), dir_);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const auto bundle = AreaBundle::open(models / "bundle.txt");
+  ASSERT_EQ(bundle->areas().size(), 1u);
+  EXPECT_EQ(bundle->reach(), read_area_file(one).split.options.reach);
+  const Localizer single(Model::load(models / "area-0.lbm"));
+  const LandmarkMap map = read_map_h5(map_);
+  int frames = 0, localized = 0;
+  for (const MapFrame& f : map.frames) {
+    if (!f.is_query) continue;
+    const std::vector<Keypoint> keypoints(map.keypoints.begin() + f.first_keypoint,
+                                          map.keypoints.begin() + f.first_keypoint + f.num_keypoints);
+    const LocalizeResult want = single.localize(map.cameras[f.camera], keypoints, map.descriptor(f.first_keypoint),
+                                                f.gravity_in_cam);
+    PositionPrior prior;
+    prior.position = f.cam_from_world.center();
+    prior.radius = 1.0;
+    const PositionPrior* no_prior = nullptr;
+    const PositionPrior* with_prior = &prior;
+    for (const PositionPrior* p : {no_prior, with_prior}) {
+      const BundleLocalizeResult got = localize_in_bundle(*bundle, map.cameras[f.camera], keypoints,
+                                                          map.descriptor(f.first_keypoint), f.gravity_in_cam, p);
+      EXPECT_EQ(got.scored, std::vector<int32_t>{0});
+      ASSERT_EQ(got.area, want.pose.success ? 0 : -1);
+      if (want.pose.success) {
+        EXPECT_EQ(got.result.pose.num_inliers, want.pose.num_inliers);
+        EXPECT_EQ(got.result.pose.cam_from_world.translation, want.pose.cam_from_world.translation);
+      }
+    }
+    ++frames;
+    localized += want.pose.success;
+  }
+  EXPECT_GT(frames, 0);
+  EXPECT_GT(localized, 0);
+  // The split of several areas has no models in that folder: one line naming the first area.
+  expect_one_error(run("bundle --areas " + (dir_ / "areas.txt").string() + " --models " + models.string(), dir_),
+                   "bundle", "area-0.lbm (area 0): ");
+  fs::remove(models / "area-0.lbm");
+  expect_one_error(run("bundle --areas " + one.string() + " --models " + models.string(), dir_), "bundle",
+                   "area 0: " + (models / "area-0.lbm").string());
 }
 
 TEST_F(AreasCliTest, BadAreaArgumentsFailWithOneLine) {

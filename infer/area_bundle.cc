@@ -1,0 +1,210 @@
+#include "infer/area_bundle.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <sstream>
+
+#include "common/error.h"
+#include "common/file_container.h"
+#include "common/file_io.h"
+#include "common/text_lines.h"
+#include "common/text_parse.h"
+
+namespace lmb {
+
+namespace {
+
+std::string number_text(double v) {
+  if (std::isinf(v)) return v < 0 ? "-inf" : "inf";
+  if (v == 0.0) v = 0.0;  // no "-0"
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+double parse_bound(const std::string& token, const std::string& where, const std::string& field) {
+  if (token == "inf") return std::numeric_limits<double>::infinity();
+  if (token == "-inf") return -std::numeric_limits<double>::infinity();
+  return parse_finite_number(token, where, field);
+}
+
+uint64_t parse_unsigned(const std::string& token, const std::string& where, const std::string& field, int base,
+                        uint64_t max) {
+  const char* begin = token.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const unsigned long long v = token.empty() || token[0] == '-' ? 0 : std::strtoull(begin, &end, base);
+  LMB_CHECK(!token.empty() && token[0] != '-' && end == begin + token.size() && errno != ERANGE && v <= max,
+            where << ": " << field << " is not a number in 0.." << max << ": '" << token << "'");
+  return v;
+}
+
+}  // namespace
+
+double BundleArea::distance(const Eigen::Vector3d& p) const {
+  double sq = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double d = p[a] < cell_lo[a] ? cell_lo[a] - p[a] : (p[a] > cell_hi[a] ? p[a] - cell_hi[a] : 0.0);
+    sq += d * d;
+  }
+  return std::sqrt(sq);
+}
+
+void write_bundle_index(const std::filesystem::path& path, double reach, const std::vector<BundleArea>& areas) {
+  LMB_CHECK(std::isfinite(reach) && reach >= 0.0, path.string() << ": reach " << reach << " must be finite and >= 0");
+  std::ostringstream os;
+  os << "lmb-bundle 1\n";
+  os << "# area ID file FILE bytes N crc32 HEX landmarks N cell LO_X LO_Y LO_Z HI_X HI_Y HI_Z\n";
+  os << "reach " << number_text(reach) << "\n";
+  os << "areas " << areas.size() << "\n";
+  for (size_t i = 0; i < areas.size(); ++i) {
+    const BundleArea& a = areas[i];
+    LMB_CHECK(a.id == static_cast<int32_t>(i), path.string() << ": area " << i << " has id " << a.id);
+    LMB_CHECK(!a.file.empty() && a.file.find_first_of(" \t\n\r") == std::string::npos,
+              path.string() << ": area " << i << ": file name '" << a.file << "' is empty or has white space");
+    char crc[16];
+    std::snprintf(crc, sizeof(crc), "%08x", a.crc32);
+    os << "area " << a.id << " file " << a.file << " bytes " << a.bytes << " crc32 " << crc << " landmarks "
+       << a.landmarks << " cell";
+    for (int k = 0; k < 3; ++k) os << " " << number_text(a.cell_lo[k]);
+    for (int k = 0; k < 3; ++k) os << " " << number_text(a.cell_hi[k]);
+    os << "\n";
+  }
+  write_file_atomically(path, os.str());
+}
+
+std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index) {
+  TextLineReader in(index);
+  auto bundle = std::shared_ptr<AreaBundle>(new AreaBundle());
+  bundle->index_ = index;
+  auto expect = [&](const char* key, size_t count) {
+    LMB_CHECK(in.next(), index.string() << ": ends before the '" << key << "' line");
+    std::vector<std::string> t = in.tokens();
+    LMB_CHECK(!t.empty() && t[0] == key && t.size() == count + 1,
+              in.where() << ": expected '" << key << "' and " << count << " value(s), found '" << in.line() << "'");
+    t.erase(t.begin());
+    return t;
+  };
+  {
+    const auto t = expect("lmb-bundle", 1);
+    LMB_CHECK(t[0] == "1", in.where() << ": format version " << t[0] << " is not supported (this build reads 1)");
+  }
+  bundle->reach_ = parse_finite_number(expect("reach", 1)[0], in.where(), "reach");
+  LMB_CHECK(bundle->reach_ >= 0.0, in.where() << ": reach " << bundle->reach_ << " is negative");
+  const uint64_t num_areas = parse_unsigned(expect("areas", 1)[0], in.where(), "areas", 10, 1000000);
+  LMB_CHECK(num_areas >= 1, in.where() << ": a bundle needs at least one area");
+  for (uint64_t i = 0; i < num_areas; ++i) {
+    const auto t = expect("area", 16);
+    const std::string w = in.where();
+    BundleArea a;
+    a.id = static_cast<int32_t>(parse_unsigned(t[0], w, "area id", 10, 1000000));
+    LMB_CHECK(static_cast<uint64_t>(a.id) == i, w << ": area id " << a.id << ", expected " << i);
+    const char* names[5] = {"file", "bytes", "crc32", "landmarks", "cell"};
+    const int at[5] = {1, 3, 5, 7, 9};
+    for (int k = 0; k < 5; ++k) {
+      LMB_CHECK(t[at[k]] == names[k], w << ": expected '" << names[k] << "', found '" << t[at[k]] << "'");
+    }
+    a.file = t[2];
+    LMB_CHECK(std::filesystem::path(a.file).is_relative(), w << ": file '" << a.file << "' must be relative");
+    a.bytes = parse_unsigned(t[4], w, "bytes", 10, UINT64_MAX);
+    LMB_CHECK(t[6].size() == 8, w << ": crc32 is not 8 hex digits: '" << t[6] << "'");
+    a.crc32 = static_cast<uint32_t>(parse_unsigned(t[6], w, "crc32", 16, UINT32_MAX));
+    a.landmarks = static_cast<int64_t>(parse_unsigned(t[8], w, "landmarks", 10, INT32_MAX));
+    for (int k = 0; k < 3; ++k) a.cell_lo[k] = parse_bound(t[10 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.cell_hi[k] = parse_bound(t[13 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) {
+      LMB_CHECK(a.cell_lo[k] <= a.cell_hi[k], w << ": cell lower end above its upper end on axis " << k);
+      LMB_CHECK(a.cell_lo[k] < std::numeric_limits<double>::infinity() &&
+                    a.cell_hi[k] > -std::numeric_limits<double>::infinity(),
+                w << ": cell on axis " << k << " lies at infinity");
+    }
+    bundle->areas_.push_back(std::move(a));
+  }
+  LMB_CHECK(!in.next(), in.where() << ": unexpected line after the last area");
+  bundle->models_.resize(bundle->areas_.size());
+  return bundle;
+}
+
+std::vector<int32_t> AreaBundle::select(const PositionPrior* prior) const {
+  std::vector<int32_t> ids;
+  if (prior != nullptr) {
+    LMB_CHECK(prior->position.allFinite(), "position prior: the position is not finite");
+    LMB_CHECK(std::isfinite(prior->radius) && prior->radius >= 0.0,
+              "position prior: radius " << prior->radius << " must be finite and >= 0");
+  }
+  for (const BundleArea& a : areas_) {
+    if (prior == nullptr || a.distance(prior->position) <= prior->radius + reach_) ids.push_back(a.id);
+  }
+  return ids;
+}
+
+std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
+  LMB_CHECK(id >= 0 && static_cast<size_t>(id) < areas_.size(),
+            index_.string() << ": no area " << id << " (the bundle has " << areas_.size() << ")");
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (models_[static_cast<size_t>(id)]) return models_[static_cast<size_t>(id)];
+  }
+  const BundleArea& a = areas_[static_cast<size_t>(id)];
+  const std::filesystem::path path = index_.parent_path() / a.file;
+  const std::string what = index_.parent_path().string() + ": area " + std::to_string(id) + " (" + a.file + ")";
+  std::string image;
+  try {
+    image = read_file(path, a.bytes + 1);
+  } catch (const Error& e) {
+    LMB_FAIL(what << ": " << e.what());
+  }
+  LMB_CHECK(image.size() == a.bytes,
+            what << ": " << image.size() << " bytes, the bundle index says " << a.bytes << " (a different or damaged file)");
+  const uint32_t crc = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
+  LMB_CHECK(crc == a.crc32, what << ": CRC-32 mismatch with the bundle index (a different or damaged file)");
+  std::shared_ptr<const Model> model =
+      Model::from_bytes(reinterpret_cast<const uint8_t*>(image.data()), image.size(), what);
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!models_[static_cast<size_t>(id)]) models_[static_cast<size_t>(id)] = std::move(model);
+  return models_[static_cast<size_t>(id)];
+}
+
+bool AreaBundle::loaded(int32_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return id >= 0 && static_cast<size_t>(id) < models_.size() && models_[static_cast<size_t>(id)] != nullptr;
+}
+
+void AreaBundle::release_except(const std::vector<int32_t>& keep) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (size_t i = 0; i < models_.size(); ++i) {
+    if (std::find(keep.begin(), keep.end(), static_cast<int32_t>(i)) == keep.end()) models_[i].reset();
+  }
+}
+
+BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                        const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                        const PositionPrior* prior, const LocalizerOptions& options) {
+  options.check();
+  BundleLocalizeResult out;
+  for (int32_t id : bundle.select(prior)) {
+    std::shared_ptr<const Model> model;
+    try {
+      model = bundle.model(id);
+    } catch (const Error& e) {
+      out.errors.push_back(e.what());
+      continue;
+    }
+    const Localizer localizer(model, options);
+    LocalizeResult r = localizer.localize(camera, keypoints, descriptors, gravity_in_cam, options);
+    const int inliers = r.pose.success ? r.pose.num_inliers : 0;
+    out.scored.push_back(id);
+    out.inliers.push_back(inliers);
+    if (r.pose.success && (out.area < 0 || inliers > out.result.pose.num_inliers)) {
+      out.area = id;
+      out.result = std::move(r);
+    }
+  }
+  return out;
+}
+
+}  // namespace lmb

@@ -1,0 +1,212 @@
+// AreaBundle: the index, lazy loading and release, a damaged or missing area failing alone, prior
+// selection against a brute force, and localization through the bundle (one area = the single
+// model's result; several areas = the one that holds the frame's landmarks wins).
+#include "infer/area_bundle.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+#include "common/file_container.h"
+#include "common/file_io.h"
+#include "common/random.h"
+#include "test/infer/test_models.h"
+
+namespace lmb {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+class AreaBundleTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("lmb_area_bundle_test_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Writes `model` as FILE in the bundle folder; the index entry with the given cell along x.
+  BundleArea add(const Model& model, int32_t id, double x_lo, double x_hi) {
+    BundleArea a;
+    a.id = id;
+    a.file = "area-" + std::to_string(id) + ".lbm";
+    model.save(dir_ / a.file);
+    const std::string image = read_file(dir_ / a.file);
+    a.bytes = image.size();
+    a.crc32 = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
+    a.landmarks = model.num_classes();
+    a.cell_lo = Eigen::Vector3d(x_lo, -kInf, -kInf);
+    a.cell_hi = Eigen::Vector3d(x_hi, kInf, kInf);
+    return a;
+  }
+  fs::path dir_;
+};
+
+TEST_F(AreaBundleTest, OpensLazilyLoadsOnFirstUseAndReleases) {
+  const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  std::vector<BundleArea> areas = {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, 10.0), add(model, 2, 10.0, kInf)};
+  write_bundle_index(dir_ / "bundle.txt", 2.5, areas);
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  ASSERT_EQ(bundle->areas().size(), 3u);
+  EXPECT_EQ(bundle->reach(), 2.5);
+  EXPECT_EQ(bundle->areas()[1].bytes, areas[1].bytes);
+  EXPECT_EQ(bundle->areas()[2].cell_hi.x(), kInf);
+  for (int32_t id = 0; id < 3; ++id) EXPECT_FALSE(bundle->loaded(id));
+  const auto m1 = bundle->model(1);
+  EXPECT_TRUE(bundle->loaded(1));
+  EXPECT_FALSE(bundle->loaded(0));
+  EXPECT_EQ(bundle->model(1), m1);  // loaded once
+  EXPECT_EQ(m1->num_classes(), model.num_classes());
+  bundle->model(2);
+  bundle->release_except({2});
+  EXPECT_FALSE(bundle->loaded(1));
+  EXPECT_TRUE(bundle->loaded(2));
+  EXPECT_EQ(m1->num_classes(), model.num_classes());  // the caller's copy lives on
+}
+
+TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
+  const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  write_bundle_index(dir_ / "bundle.txt", 1.0,
+                     {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, 10.0), add(model, 2, 10.0, kInf)});
+  // Area 1: one byte flipped; area 2: missing.
+  std::string image = read_file(dir_ / "area-1.lbm");
+  image[image.size() / 2] ^= 0x10;
+  write_file_atomically(dir_ / "area-1.lbm", image);
+  fs::remove(dir_ / "area-2.lbm");
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_NO_THROW(bundle->model(0));
+  for (int32_t id : {1, 2}) {
+    try {
+      bundle->model(id);
+      ADD_FAILURE() << "area " << id << " loaded";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(": area " + std::to_string(id) + " (area-" + std::to_string(id) + ".lbm): "),
+                std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+      if (id == 1) {
+        EXPECT_NE(what.find("CRC-32 mismatch"), std::string::npos) << what;
+      }
+    }
+  }
+  EXPECT_TRUE(bundle->loaded(0));
+  // localize_in_bundle scores the good area and reports the others.
+  const test::TestFrame& f = world.frame;
+  const BundleLocalizeResult r =
+      localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+  EXPECT_EQ(r.scored, std::vector<int32_t>{0});
+  EXPECT_EQ(r.errors.size(), 2u);
+  EXPECT_EQ(r.area, 0);
+}
+
+TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
+  const test::TestWorld world = test::make_test_world(10, 8, 2, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  write_bundle_index(dir_ / "bundle.txt", 1.0, {add(model, 0, -kInf, kInf)});
+  const std::string good = read_file(dir_ / "bundle.txt");
+  auto expect_rejected = [&](const std::string& from, const std::string& to, const std::string& needle) {
+    std::string text = good;
+    const size_t at = text.find(from, text.find("reach"));
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+    write_file_atomically(dir_ / "bad.txt", text);
+    try {
+      AreaBundle::open(dir_ / "bad.txt");
+      ADD_FAILURE() << "accepted " << to;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find((dir_ / "bad.txt").string()), std::string::npos) << e.what();
+    }
+  };
+  expect_rejected("reach 1", "reach -1", "reach -1 is negative");
+  expect_rejected("areas 1", "areas 2", "ends before the 'area' line");
+  expect_rejected(" crc32 ", " crc ", "expected 'crc32'");
+  expect_rejected("file area-0.lbm", "file /abs/area-0.lbm", "must be relative");
+  expect_rejected(" cell -inf", " cell inf", "cell on axis 0 lies at infinity");
+
+  EXPECT_THROW(AreaBundle::open(dir_ / "missing.txt"), Error);
+}
+
+TEST_F(AreaBundleTest, PriorSelectsTheAreasWithinRadiusPlusReach) {
+  const test::TestWorld world = test::make_test_world(10, 8, 2, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  std::vector<BundleArea> areas;
+  const std::vector<double> cuts = {-kInf, 0.0, 4.0, 8.0, 12.0, kInf};
+  for (int32_t i = 0; i < 5; ++i) areas.push_back(add(model, i, cuts[i], cuts[i + 1]));
+  write_bundle_index(dir_ / "bundle.txt", 1.5, areas);
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_EQ(bundle->select(nullptr), (std::vector<int32_t>{0, 1, 2, 3, 4}));
+  PositionPrior prior;
+  prior.position = Eigen::Vector3d(6.0, 0.0, 0.0);
+  prior.radius = 0.0;
+  EXPECT_EQ(bundle->select(&prior), (std::vector<int32_t>{2}));  // 2 m from both borders > reach
+  prior.radius = 1.0;
+  EXPECT_EQ(bundle->select(&prior), (std::vector<int32_t>{1, 2, 3}));
+  Rng rng(3);
+  for (int trial = 0; trial < 500; ++trial) {
+    prior.position = Eigen::Vector3d(rng.uniform(-5, 17), rng.uniform(-3, 3), rng.uniform(-3, 3));
+    prior.radius = rng.uniform(0, 5);
+    std::vector<int32_t> want;  // brute force along x (the cells are slabs)
+    for (int32_t i = 0; i < 5; ++i) {
+      const double x = prior.position.x();
+      const double d = x < cuts[i] ? cuts[i] - x : (x > cuts[i + 1] ? x - cuts[i + 1] : 0.0);
+      if (d <= prior.radius + 1.5) want.push_back(i);
+    }
+    EXPECT_EQ(bundle->select(&prior), want);
+  }
+  prior.radius = -1.0;
+  EXPECT_THROW(bundle->select(&prior), Error);
+}
+
+TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const auto model = std::make_shared<const Model>(test::make_code_model_data(world.positions));
+  // Another world's model: its landmarks are elsewhere, the frame's keypoints match few of them.
+  const test::TestWorld other = test::make_test_world(101, 60, 140, 99);
+  std::vector<Eigen::Vector3d> far = other.positions;
+  for (auto& p : far) p += Eigen::Vector3d(50, 0, 0);
+  const Model far_model(test::make_code_model_data(far, 7));
+  const test::TestFrame& f = world.frame;
+  write_bundle_index(dir_ / "one.txt", 1.0, {add(*model, 0, -kInf, kInf)});
+  const auto one = AreaBundle::open(dir_ / "one.txt");
+  const BundleLocalizeResult b =
+      localize_in_bundle(*one, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+  const LocalizeResult single = Localizer(model).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  ASSERT_EQ(b.area, 0);
+  ASSERT_TRUE(single.pose.success);
+  EXPECT_EQ(b.result.pose.num_inliers, single.pose.num_inliers);
+  EXPECT_EQ(b.result.pose.inlier_mask, single.pose.inlier_mask);
+  EXPECT_EQ(b.result.pose.cam_from_world.translation, single.pose.cam_from_world.translation);
+  EXPECT_EQ(b.result.pose.cam_from_world.rotation.coeffs(), single.pose.cam_from_world.rotation.coeffs());
+  EXPECT_EQ(b.result.correspondence_keypoint, single.correspondence_keypoint);
+  // Two areas: the far one first, then the frame's own; the own area wins on inliers. With a prior
+  // near the far area only, only it is scored.
+  write_bundle_index(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
+  const auto two = AreaBundle::open(dir_ / "two.txt");
+  const BundleLocalizeResult both =
+      localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+  EXPECT_EQ(both.scored, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(both.area, 1);
+  EXPECT_EQ(both.inliers[1], single.pose.num_inliers);
+  EXPECT_LT(both.inliers[0], both.inliers[1]);
+  PositionPrior prior;
+  prior.position = Eigen::Vector3d(50, 0, 0);
+  prior.radius = 5.0;
+  const BundleLocalizeResult far_only =
+      localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
+  EXPECT_EQ(far_only.scored, std::vector<int32_t>{0});
+}
+
+}  // namespace
+}  // namespace lmb
