@@ -148,34 +148,14 @@ int32_t fused_first(const std::vector<FitEntry>& entries, const FitSample& s, co
   return best_cls;
 }
 
-}  // namespace
-
-DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& map, const TrainingSet& set,
-                                       const DescriptorFusionOptions& options, DescriptorFusionStats* stats) {
-  options.check();
-  const int32_t C = model.num_classes();
-  LMB_CHECK(set.num_classes == C && set.class_landmark.size() == static_cast<size_t>(C),
-            "descriptor fusion: the training set has " << set.num_classes << " classes, the model " << C);
-  for (int32_t c = 0; c < C; ++c) {
-    LMB_CHECK(set.class_landmark[c] == model.class_landmark(c),
-              "descriptor fusion: class " << c << " is landmark " << set.class_landmark[c]
-                                          << " in the training set but " << model.class_landmark(c)
-                                          << " in the model (another run's model?)");
-  }
-  LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
-            "descriptor fusion: the map has " << map.descriptor_bytes << "-byte descriptors, the model "
-                                              << model.descriptor_bytes());
-  const int bytes = map.descriptor_bytes;
-  const int32_t max_distance = 8 * bytes;
-  std::vector<int32_t> class_of_landmark(map.landmarks.size(), -1);
-  for (int32_t c = 0; c < C; ++c) {
-    LMB_CHECK(set.class_landmark[c] >= 0 && set.class_landmark[c] < static_cast<landmark_t>(map.landmarks.size()),
-              "descriptor fusion: class " << c << " landmark " << set.class_landmark[c] << " is not in the map");
-    class_of_landmark[set.class_landmark[c]] = c;
-  }
-  const Exemplars ex = collect_exemplars(map, class_of_landmark, C);
-
-  // 1. The likelihood ratio of the distance from training observations (leave-one-out).
+// Step 1: g(d) at every distance 0..8 * bytes (and at the bin centres, *g_bins) from the
+// training observations whose class has a second exemplar (leave-one-out). Returns g; *used: the
+// observations behind it.
+std::vector<double> distance_log_ratio(const Exemplars& ex, const LandmarkMap& map, const TrainingSet& set,
+                                       const DescriptorFusionOptions& options, std::vector<double>* g_bins,
+                                       int64_t* used) {
+  const int32_t C = set.num_classes;
+  const int32_t max_distance = 8 * map.descriptor_bytes;
   std::vector<int64_t> train_samples, train_keypoints;
   for (int64_t s = 0; s < set.num_samples(); ++s) {
     const int32_t c = set.sample_class[s];
@@ -186,6 +166,7 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   LMB_CHECK(!train_samples.empty(), "descriptor fusion: no training observation has a second one of its class");
   const std::vector<int64_t> distance_samples =
       hash_subset(train_samples, train_keypoints, options.max_distance_samples, options.seed, kDistanceTag);
+  *used = static_cast<int64_t>(distance_samples.size());
   const int32_t w = options.bin_width;
   const int32_t num_bins = max_distance / w + 1;
   std::vector<double> positives(static_cast<size_t>(num_bins), 0.0), negatives(positives);
@@ -209,7 +190,7 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
                std::log((negatives[b] + 0.5) / (total_n + 0.5 * num_bins));
     weight[b] = positives[b] + negatives[b] + 1.0;
   }
-  const std::vector<double> g_bins = non_increasing_fit(ratio, weight);
+  *g_bins = non_increasing_fit(ratio, weight);
   std::vector<double> g(static_cast<size_t>(max_distance) + 1);
   for (int32_t d = 0; d <= max_distance; ++d) {
     // Linear between bin centres (b * w + (w - 1) / 2), constant beyond the first and last.
@@ -217,11 +198,25 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
     const int32_t b0 = std::clamp(static_cast<int32_t>(std::floor(x)), 0, num_bins - 1);
     const int32_t b1 = std::min(b0 + 1, num_bins - 1);
     const double t = std::clamp(x - b0, 0.0, 1.0);
-    g[d] = x <= 0.0 ? g_bins[0] : (1.0 - t) * g_bins[b0] + t * g_bins[b1];
+    g[d] = x <= 0.0 ? (*g_bins)[0] : (1.0 - t) * (*g_bins)[b0] + t * (*g_bins)[b1];
   }
+  return g;
+}
 
-  // 2. The weight from held-out observations: their exact stump sums H of every class, batch by
-  // batch of Classifier::kBatch samples (the classifier's kernels, so the same doubles).
+// The held-out map observations scored for step 2.
+struct HeldOutScores {
+  std::vector<FitSample> samples;
+  std::vector<FitEntry> entries;
+  int64_t hamming_hits = 0;  // samples whose nearest exemplar's class (ties: larger H) is the truth
+};
+
+// Step 2's inputs: the held-out observations' exact stump sums H of every class, batch by batch of
+// Classifier::kBatch samples (the classifier's kernels, so the same doubles), reduced per sample to
+// the entries fused_first reads.
+HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const TrainingSet& set,
+                             const Exemplars& ex, const DescriptorFusionOptions& options) {
+  const int32_t C = model.num_classes();
+  const int32_t max_distance = 8 * map.descriptor_bytes;
   std::vector<int64_t> fit_all, fit_keypoints;
   for (int64_t s = 0; s < set.num_samples(); ++s) {
     if (set.sample_class[s] >= C || !set.sample_is_validation[s]) continue;
@@ -248,20 +243,19 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   std::vector<uint8_t> values(U * kBatch, 0), one(U);
   std::vector<uint32_t> fire(stumps.size());
   std::vector<double> lane_scores(static_cast<size_t>(C) * kBatch);
-  std::vector<FitSample> samples;
-  std::vector<FitEntry> entries;
+  HeldOutScores out;
   std::vector<double> best_score(static_cast<size_t>(max_distance) + 1);
   std::vector<int32_t> best_cls(static_cast<size_t>(max_distance) + 1);
-  int64_t hamming_hits = 0;
+  std::vector<uint16_t> scratch, dist;
   std::vector<int64_t> batch;
   frame_t indexed = kInvalidFrameId;
   auto flush = [&]() {
     const int32_t n = static_cast<int32_t>(batch.size());
     detail::fire_masks(stumps.data(), stumps.size(), values.data(), kBatch, fire.data());
-    double out[kBatch];
+    double lanes[kBatch];
     for (int32_t c = 0; c < C; ++c) {
-      detail::accumulate_lanes(bias[c], index + begin[c], begin[c + 1] - begin[c], stumps.data(), fire.data(), out);
-      for (int32_t j = 0; j < n; ++j) lane_scores[static_cast<size_t>(j) * C + c] = out[j];
+      detail::accumulate_lanes(bias[c], index + begin[c], begin[c + 1] - begin[c], stumps.data(), fire.data(), lanes);
+      for (int32_t j = 0; j < n; ++j) lane_scores[static_cast<size_t>(j) * C + c] = lanes[j];
     }
     for (int32_t j = 0; j < n; ++j) {
       const int64_t s = batch[j];
@@ -278,16 +272,16 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
       }
       FitSample fs;
       fs.truth = set.sample_class[s];
-      fs.first = static_cast<int64_t>(entries.size());
+      fs.first = static_cast<int64_t>(out.entries.size());
       int32_t nearest = -1;
       for (int32_t d = 0; d <= max_distance; ++d) {
         if (best_cls[d] < 0) continue;
-        entries.push_back({best_score[d], best_cls[d], static_cast<uint16_t>(d)});
+        out.entries.push_back({best_score[d], best_cls[d], static_cast<uint16_t>(d)});
         if (nearest < 0) nearest = best_cls[d];
       }
-      fs.last = static_cast<int64_t>(entries.size());
-      hamming_hits += nearest == fs.truth;
-      samples.push_back(fs);
+      fs.last = static_cast<int64_t>(out.entries.size());
+      out.hamming_hits += nearest == fs.truth;
+      out.samples.push_back(fs);
     }
     batch.clear();
   };
@@ -305,16 +299,21 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
     if (static_cast<int32_t>(batch.size()) == kBatch) flush();
   }
   if (!batch.empty()) flush();
+  return out;
+}
 
-  const size_t K = options.weights.size();
-  std::vector<double> p1(K, 0.0);
+// P@1 of the held-out samples with distance_score = weight * g.
+double fused_p1(const HeldOutScores& held, const std::vector<double>& g, double weight) {
   std::vector<double> table(g.size());
-  for (size_t i = 0; i < K; ++i) {
-    for (size_t d = 0; d < g.size(); ++d) table[d] = options.weights[i] * g[d];
-    int64_t hits = 0;
-    for (const FitSample& s : samples) hits += fused_first(entries, s, table) == s.truth;
-    p1[i] = static_cast<double>(hits) / static_cast<double>(samples.size());
-  }
+  for (size_t d = 0; d < g.size(); ++d) table[d] = weight * g[d];
+  int64_t hits = 0;
+  for (const FitSample& s : held.samples) hits += fused_first(held.entries, s, table) == s.truth;
+  return static_cast<double>(hits) / static_cast<double>(held.samples.size());
+}
+
+// The index of the weight whose P@1, averaged with its grid neighbours', is largest (ties: smaller).
+size_t plateau_middle(const std::vector<double>& p1) {
+  const size_t K = p1.size();
   size_t chosen = 0;
   double chosen_smooth = -1.0;
   for (size_t i = 0; i < K; ++i) {
@@ -327,6 +326,44 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
       chosen = i;
     }
   }
+  return chosen;
+}
+
+}  // namespace
+
+DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& map, const TrainingSet& set,
+                                       const DescriptorFusionOptions& options, DescriptorFusionStats* stats) {
+  options.check();
+  const int32_t C = model.num_classes();
+  LMB_CHECK(set.num_classes == C && set.class_landmark.size() == static_cast<size_t>(C),
+            "descriptor fusion: the training set has " << set.num_classes << " classes, the model " << C);
+  for (int32_t c = 0; c < C; ++c) {
+    LMB_CHECK(set.class_landmark[c] == model.class_landmark(c),
+              "descriptor fusion: class " << c << " is landmark " << set.class_landmark[c]
+                                          << " in the training set but " << model.class_landmark(c)
+                                          << " in the model (another run's model?)");
+  }
+  LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
+            "descriptor fusion: the map has " << map.descriptor_bytes << "-byte descriptors, the model "
+                                              << model.descriptor_bytes());
+  std::vector<int32_t> class_of_landmark(map.landmarks.size(), -1);
+  for (int32_t c = 0; c < C; ++c) {
+    LMB_CHECK(set.class_landmark[c] >= 0 && set.class_landmark[c] < static_cast<landmark_t>(map.landmarks.size()),
+              "descriptor fusion: class " << c << " landmark " << set.class_landmark[c] << " is not in the map");
+    class_of_landmark[set.class_landmark[c]] = c;
+  }
+  const Exemplars ex = collect_exemplars(map, class_of_landmark, C);
+
+  // 1. The likelihood ratio of the distance from training observations (leave-one-out).
+  std::vector<double> g_bins;
+  int64_t distance_samples = 0;
+  const std::vector<double> g = distance_log_ratio(ex, map, set, options, &g_bins, &distance_samples);
+
+  // 2. The weight from the held-out observations.
+  const HeldOutScores held = score_held_out(model, map, set, ex, options);
+  std::vector<double> p1;
+  for (double weight : options.weights) p1.push_back(fused_p1(held, g, weight));
+  const size_t chosen = plateau_middle(p1);
   const double alpha = options.weights[chosen];
 
   DescriptorFusion fusion;
@@ -335,21 +372,16 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   fusion.distance_score.resize(g.size());
   for (size_t d = 0; d < g.size(); ++d) fusion.distance_score[d] = alpha * g[d];
   if (stats) {
+    const double n = static_cast<double>(held.samples.size());
     stats->weight = alpha;
     stats->exemplars = static_cast<int64_t>(ex.keypoint.size());
-    stats->distance_samples = static_cast<int64_t>(distance_samples.size());
-    stats->fit_samples = static_cast<int64_t>(samples.size());
+    stats->distance_samples = distance_samples;
+    stats->fit_samples = static_cast<int64_t>(held.samples.size());
     const auto zero = std::find(options.weights.begin(), options.weights.end(), 0.0);
-    if (zero != options.weights.end()) {
-      stats->fit_p1_without = p1[static_cast<size_t>(zero - options.weights.begin())];
-    } else {
-      std::fill(table.begin(), table.end(), 0.0);
-      int64_t hits = 0;
-      for (const FitSample& s : samples) hits += fused_first(entries, s, table) == s.truth;
-      stats->fit_p1_without = static_cast<double>(hits) / static_cast<double>(samples.size());
-    }
+    stats->fit_p1_without = zero != options.weights.end() ? p1[static_cast<size_t>(zero - options.weights.begin())]
+                                                          : fused_p1(held, g, 0.0);
     stats->fit_p1_with = p1[chosen];
-    stats->fit_p1_hamming = static_cast<double>(hamming_hits) / static_cast<double>(samples.size());
+    stats->fit_p1_hamming = static_cast<double>(held.hamming_hits) / n;
     stats->weight_p1 = p1;
     stats->log_ratio = g_bins;
     stats->distance_ratio = g;
