@@ -204,6 +204,116 @@ std::string folder_name(const fs::path& dir) {
   return name.empty() ? normal.parent_path().filename().string() : name;
 }
 
+// A kept frame: its listing, trajectory, interpolated pose and accelerometer reading.
+struct Kept {
+  const TumImage* image;
+  const TumTrajectory* trajectory;
+  Rigid3d world_from_cam;
+  std::optional<Eigen::Vector3d> accel;
+};
+
+// How well the accelerometer's gravity agrees with the ground truth's over the kept frames with a
+// reading (none: nullopt): angles, per world axis, a time-offset scan and the Kabsch-fitted rotation.
+std::optional<GravityAgreement> gravity_agreement(const std::vector<Kept>& kept, const TumImportOptions& options,
+                                                  const Eigen::Vector3d& up) {
+  GravityAgreement g;
+  std::vector<double> angles;
+  std::vector<double> by_axis[6];
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();  // sum of (accel down) * (ground-truth down)^T
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pairs;
+  for (const Kept& k : kept) {
+    if (!k.accel || k.accel->norm() < 1e-6) continue;
+    const Eigen::Vector3d down_accel = (-*k.accel).normalized();
+    const Eigen::Vector3d accel_in_cam = options.cam_from_accel * down_accel;
+    const Eigen::Quaterniond cam_from_world = k.world_from_cam.rotation.conjugate();
+    const Eigen::Vector3d truth = cam_from_world * (-up);
+    angles.push_back(angle_deg(accel_in_cam, truth));
+    for (int a = 0; a < 6; ++a) by_axis[a].push_back(angle_deg(accel_in_cam, cam_from_world * (-axis_vector(a))));
+    h += down_accel * truth.transpose();
+    pairs.emplace_back(down_accel, truth);
+  }
+  if (angles.empty()) return std::nullopt;
+  g.frames = static_cast<int>(angles.size());
+  g.median_deg = median(angles);
+  g.p90_deg = quantile(angles, 0.9);
+  double sum = 0;
+  for (double a : angles) sum += a;
+  g.mean_deg = sum / static_cast<double>(angles.size());
+  for (int a = 0; a < 6; ++a) g.median_deg_by_world_axis[a] = median(by_axis[a]);
+  // Time offset scan.
+  g.best_time_offset_median_deg = 1e9;
+  for (int step = -12; step <= 12; ++step) {
+    const double offset = 0.005 * step;
+    std::vector<double> scan;
+    for (const Kept& k : kept) {
+      if (!k.accel || k.accel->norm() < 1e-6) continue;
+      const std::optional<Rigid3d> pose =
+          interpolate_pose(*k.trajectory, k.image->time_s + offset, options.max_gap_s);
+      if (!pose) continue;
+      scan.push_back(angle_deg(options.cam_from_accel * (-*k.accel).normalized(),
+                               pose->rotation.conjugate() * (-up)));
+    }
+    const double m = median(scan);
+    if (!scan.empty() && m < g.best_time_offset_median_deg) {
+      g.best_time_offset_median_deg = m;
+      g.best_time_offset_s = offset;
+    }
+  }
+  // Least-squares rotation (Kabsch): truth ~ R * down_accel.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() > 0 ? 1.0 : -1.0;
+  g.fitted_cam_from_accel = svd.matrixV() * d * svd.matrixU().transpose();
+  g.fitted_rotation_offset_deg =
+      Eigen::AngleAxisd(g.fitted_cam_from_accel * options.cam_from_accel.transpose()).angle() * kRadToDeg;
+  std::vector<double> fitted;
+  for (const auto& [down_accel, truth] : pairs) fitted.push_back(angle_deg(g.fitted_cam_from_accel * down_accel, truth));
+  g.fitted_median_deg = median(fitted);
+  return g;
+}
+
+// The map/query split of one map sequence's kept frames by `rule` (a list rule over several map
+// sequences: the entries naming this sequence's frames, added to *list_entries_used).
+std::vector<bool> map_frame_flags(const SplitRule& rule, size_t num_map, const std::vector<Kept>& frames,
+                                  const fs::path& dir, std::set<std::string>* list_entries_used) {
+  std::vector<SplitFrame> split_frames;
+  std::set<std::string> keys;
+  for (const Kept& k : frames) {
+    SplitFrame f;
+    f.keys = {k.image->timestamp, k.image->file, fs::path(k.image->file).filename().string()};
+    f.time_s = k.image->time_s;
+    keys.insert(f.keys.begin(), f.keys.end());
+    split_frames.push_back(f);
+  }
+  SplitRule sequence_rule = rule;
+  if (rule.kind == SplitRule::Kind::kList && num_map > 1) {
+    sequence_rule.list.clear();
+    for (const std::string& e : rule.list) {
+      if (!keys.count(e)) continue;
+      sequence_rule.list.push_back(e);
+      list_entries_used->insert(e);
+    }
+    // A map-list must give every map sequence map frames; a query-list may leave one all map.
+    LMB_CHECK(!sequence_rule.list.empty() || rule.list_names_queries,
+              rule.list_file.string() << ": names no frame of map sequence " << dir.string());
+  }
+  return assign_map_frames(sequence_rule, split_frames, true);
+}
+
+// The session name of each sequence folder: --names, or the folder's name ("map" for the one map
+// sequence of a legacy import); each checked.
+std::vector<std::string> sequence_names(const TumImportOptions& options, const std::vector<fs::path>& dirs,
+                                        bool legacy_names) {
+  std::vector<std::string> names = options.session_names;
+  if (names.empty()) {
+    for (const fs::path& d : dirs) names.push_back(legacy_names ? "map" : folder_name(d));
+  }
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    check_session_name(names[i], dirs[i].string() + ": session name (its folder's name; set --names)");
+  }
+  return names;
+}
+
 }  // namespace
 
 TumImportStats import_tum(const TumImportOptions& options) {
@@ -215,21 +325,9 @@ TumImportStats import_tum(const TumImportOptions& options) {
   std::vector<fs::path> dirs = options.data_dirs;
   dirs.insert(dirs.end(), options.query_dirs.begin(), options.query_dirs.end());
   const bool legacy_names = options.session_names.empty() && num_map == 1 && options.query_dirs.empty();
-  std::vector<std::string> names = options.session_names;
-  if (names.empty()) {
-    for (const fs::path& d : dirs) names.push_back(legacy_names ? "map" : folder_name(d));
-  }
-  for (size_t i = 0; i < dirs.size(); ++i) {
-    check_session_name(names[i], dirs[i].string() + ": session name (its folder's name; set --names)");
-  }
+  const std::vector<std::string> names = sequence_names(options, dirs, legacy_names);
 
   TumImportStats stats;
-  struct Kept {
-    const TumImage* image;
-    const TumTrajectory* trajectory;
-    Rigid3d world_from_cam;
-    std::optional<Eigen::Vector3d> accel;
-  };
   // Every sequence's inputs stay alive until the end (Kept points into them).
   std::vector<std::vector<TumImage>> listed(dirs.size());
   std::vector<TumTrajectory> trajectories(dirs.size());
@@ -274,32 +372,11 @@ TumImportStats import_tum(const TumImportOptions& options) {
                                                       << options.max_gap_s * 1000 << " ms (" << skipped_no_pose
                                                       << " skipped)");
 
-    // The split: map sequences by the rule (a list rule over several map sequences: the entries
-    // naming this sequence's frames), query sequences all queries.
+    // The split: map sequences by the rule, query sequences all queries.
     std::vector<bool> is_map(kept.size() - first_kept, false);
     if (map_sequence) {
-      std::vector<SplitFrame> split_frames;
-      std::set<std::string> keys;
-      for (size_t i = first_kept; i < kept.size(); ++i) {
-        SplitFrame f;
-        f.keys = {kept[i].image->timestamp, kept[i].image->file, fs::path(kept[i].image->file).filename().string()};
-        f.time_s = kept[i].image->time_s;
-        keys.insert(f.keys.begin(), f.keys.end());
-        split_frames.push_back(f);
-      }
-      SplitRule sequence_rule = rule;
-      if (rule.kind == SplitRule::Kind::kList && num_map > 1) {
-        sequence_rule.list.clear();
-        for (const std::string& e : rule.list) {
-          if (!keys.count(e)) continue;
-          sequence_rule.list.push_back(e);
-          list_entries_used.insert(e);
-        }
-        // A map-list must give every map sequence map frames; a query-list may leave one all map.
-        LMB_CHECK(!sequence_rule.list.empty() || rule.list_names_queries,
-                  rule.list_file.string() << ": names no frame of map sequence " << dir.string());
-      }
-      is_map = assign_map_frames(sequence_rule, split_frames, true);
+      const std::vector<Kept> frames(kept.begin() + static_cast<std::ptrdiff_t>(first_kept), kept.end());
+      is_map = map_frame_flags(rule, num_map, frames, dir, &list_entries_used);
     }
 
     const std::string map_name = names[seq];
@@ -347,61 +424,7 @@ TumImportStats import_tum(const TumImportOptions& options) {
 
   // Gravity agreement between the accelerometer and the ground truth.
   if (has_accel) {
-    GravityAgreement g;
-    std::vector<double> angles;
-    std::vector<double> by_axis[6];
-    Eigen::Matrix3d h = Eigen::Matrix3d::Zero();  // sum of (accel down) * (ground-truth down)^T
-    std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pairs;
-    for (const Kept& k : kept) {
-      if (!k.accel || k.accel->norm() < 1e-6) continue;
-      const Eigen::Vector3d down_accel = (-*k.accel).normalized();
-      const Eigen::Vector3d accel_in_cam = options.cam_from_accel * down_accel;
-      const Eigen::Quaterniond cam_from_world = k.world_from_cam.rotation.conjugate();
-      const Eigen::Vector3d truth = cam_from_world * (-up);
-      angles.push_back(angle_deg(accel_in_cam, truth));
-      for (int a = 0; a < 6; ++a) by_axis[a].push_back(angle_deg(accel_in_cam, cam_from_world * (-axis_vector(a))));
-      h += down_accel * truth.transpose();
-      pairs.emplace_back(down_accel, truth);
-    }
-    if (!angles.empty()) {
-      g.frames = static_cast<int>(angles.size());
-      g.median_deg = median(angles);
-      g.p90_deg = quantile(angles, 0.9);
-      double sum = 0;
-      for (double a : angles) sum += a;
-      g.mean_deg = sum / static_cast<double>(angles.size());
-      for (int a = 0; a < 6; ++a) g.median_deg_by_world_axis[a] = median(by_axis[a]);
-      // Time offset scan.
-      g.best_time_offset_median_deg = 1e9;
-      for (int step = -12; step <= 12; ++step) {
-        const double offset = 0.005 * step;
-        std::vector<double> scan;
-        for (const Kept& k : kept) {
-          if (!k.accel || k.accel->norm() < 1e-6) continue;
-          const std::optional<Rigid3d> pose =
-              interpolate_pose(*k.trajectory, k.image->time_s + offset, options.max_gap_s);
-          if (!pose) continue;
-          scan.push_back(angle_deg(options.cam_from_accel * (-*k.accel).normalized(),
-                                   pose->rotation.conjugate() * (-up)));
-        }
-        const double m = median(scan);
-        if (!scan.empty() && m < g.best_time_offset_median_deg) {
-          g.best_time_offset_median_deg = m;
-          g.best_time_offset_s = offset;
-        }
-      }
-      // Least-squares rotation (Kabsch): truth ~ R * down_accel.
-      const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-      d(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() > 0 ? 1.0 : -1.0;
-      g.fitted_cam_from_accel = svd.matrixV() * d * svd.matrixU().transpose();
-      g.fitted_rotation_offset_deg =
-          Eigen::AngleAxisd(g.fitted_cam_from_accel * options.cam_from_accel.transpose()).angle() * kRadToDeg;
-      std::vector<double> fitted;
-      for (const auto& [down_accel, truth] : pairs) fitted.push_back(angle_deg(g.fitted_cam_from_accel * down_accel, truth));
-      g.fitted_median_deg = median(fitted);
-      stats.gravity_agreement = g;
-    }
+    if (std::optional<GravityAgreement> g = gravity_agreement(kept, options, up)) stats.gravity_agreement = *g;
   }
 
   std::map<int, Camera> cameras;
