@@ -97,6 +97,90 @@ void parallel_for(int64_t n, int threads, const std::function<void(int64_t, int)
   if (failure) std::rethrow_exception(failure);
 }
 
+// Copies the frames (keypoints, descriptors, gravity) into *map, whose cameras and sessions are
+// set, checking each against them; counts the frames in *stats. Returns each keypoint's frame.
+std::vector<frame_t> add_frames(const std::vector<MapperFrame>& frames, const MapperOptions& options, LandmarkMap* map,
+                                MapperStats* stats) {
+  const int descriptor_bytes = map->descriptor_bytes;
+  std::vector<frame_t> keypoint_frame;
+  const std::vector<Camera>& cameras = map->cameras;
+  const std::vector<MapSession>& sessions = map->sessions;
+  const int num_frames = static_cast<int>(frames.size());
+  for (int f = 0; f < num_frames; ++f) {
+    const MapperFrame& in = frames[f];
+    LMB_CHECK(in.camera >= 0 && in.camera < static_cast<camera_t>(cameras.size()),
+              "mapper: frame '" << in.name << "': camera index " << in.camera << " out of range");
+    LMB_CHECK(in.session >= 0 && in.session < static_cast<int32_t>(sessions.size()),
+              "mapper: frame '" << in.name << "': session index " << in.session << " out of range");
+    const SessionKind kind = sessions[static_cast<size_t>(in.session)].kind;
+    LMB_CHECK(in.is_query == (kind != SessionKind::kMap),
+              "mapper: frame '" << in.name << "': is_query " << in.is_query << " in the " << session_kind_name(kind)
+                                << " session '" << sessions[static_cast<size_t>(in.session)].name << "'");
+    LMB_CHECK(in.descriptors.size() == in.keypoints.size() * static_cast<size_t>(descriptor_bytes),
+              "mapper: frame '" << in.name << "': descriptor rows do not match the keypoints");
+    MapFrame out;
+    out.name = in.name;
+    out.camera = in.camera;
+    out.session = in.session;
+    out.cam_from_world = in.cam_from_world;
+    out.gravity_in_cam = in.gravity_in_cam ? in.gravity_in_cam->normalized()
+                                         : (in.cam_from_world.rotation * (-options.up)).normalized();
+    out.is_query = in.is_query;
+    out.first_keypoint = static_cast<int64_t>(map->keypoints.size());
+    out.num_keypoints = static_cast<int32_t>(in.keypoints.size());
+    map->frames.push_back(out);
+    map->keypoints.insert(map->keypoints.end(), in.keypoints.begin(), in.keypoints.end());
+    map->descriptors.insert(map->descriptors.end(), in.descriptors.begin(), in.descriptors.end());
+    keypoint_frame.insert(keypoint_frame.end(), in.keypoints.size(), f);
+    (in.is_query ? stats->num_query_frames : stats->num_map_frames) += 1;
+    stats->num_outside_frames += kind == SessionKind::kOutside;
+  }
+  return keypoint_frame;
+}
+
+// Pairs the frames, matches each pair (guided by the known poses) and joins the matches into
+// tracks of map keypoints; counts them in *stats.
+std::vector<std::vector<int64_t>> match_tracks(const std::vector<MapperFrame>& frames, const LandmarkMap& map,
+                                               const std::vector<frame_t>& keypoint_frame,
+                                               const MapperOptions& options, MapperStats* stats) {
+  const std::vector<Camera>& cameras = map.cameras;
+  const std::vector<MapSession>& sessions = map.sessions;
+  const int num_frames = static_cast<int>(frames.size());
+  const int descriptor_bytes = map.descriptor_bytes;
+  std::vector<PairFrame> pair_frames;
+  for (const MapperFrame& f : frames) {
+    pair_frames.push_back(PairFrame{f.cam_from_world, f.is_query, f.session,
+                                    sessions[static_cast<size_t>(f.session)].kind == SessionKind::kOutside});
+  }
+  const auto pairs = select_frame_pairs(pair_frames, options.pairs);
+  stats->num_pairs = static_cast<int64_t>(pairs.size());
+  std::vector<std::unique_ptr<MatchingFrame>> matching_frames(num_frames);
+  parallel_for(num_frames, options.threads, [&](int64_t f, int) {
+    matching_frames[f] = std::make_unique<MatchingFrame>(cameras[frames[f].camera], frames[f].cam_from_world,
+                                                         frames[f].keypoints, frames[f].descriptors.data(),
+                                                         descriptor_bytes);
+  });
+  std::vector<std::vector<Match>> pair_matches(pairs.size());
+  {
+    std::vector<GuidedMatcher> matchers(options.threads, GuidedMatcher(options.matching));
+    parallel_for(static_cast<int64_t>(pairs.size()), options.threads, [&](int64_t p, int worker) {
+      pair_matches[p] = matchers[worker].match(*matching_frames[pairs[p].first], *matching_frames[pairs[p].second]);
+    });
+  }
+  std::vector<KeypointMatch> matches;
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    const int64_t base_a = map.frames[pairs[p].first].first_keypoint;
+    const int64_t base_b = map.frames[pairs[p].second].first_keypoint;
+    for (const Match& m : pair_matches[p]) matches.push_back(KeypointMatch{base_a + m.a, base_b + m.b, m.distance});
+  }
+  stats->num_matches = static_cast<int64_t>(matches.size());
+  pair_matches.clear();
+  auto tracks = build_tracks(keypoint_frame, std::move(matches));
+  stats->num_tracks = static_cast<int64_t>(tracks.size());
+  return tracks;
+
+}
+
 }  // namespace
 
 LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::vector<MapperFrame>& frames,
@@ -138,72 +222,14 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
   map.descriptor_bytes = descriptor_bytes;
   map.cameras = cameras;
   map.sessions = sessions;
-  std::vector<frame_t> keypoint_frame;
-  for (int f = 0; f < num_frames; ++f) {
-    const MapperFrame& in = frames[f];
-    LMB_CHECK(in.camera >= 0 && in.camera < static_cast<camera_t>(cameras.size()),
-              "mapper: frame '" << in.name << "': camera index " << in.camera << " out of range");
-    LMB_CHECK(in.session >= 0 && in.session < static_cast<int32_t>(sessions.size()),
-              "mapper: frame '" << in.name << "': session index " << in.session << " out of range");
-    const SessionKind kind = sessions[static_cast<size_t>(in.session)].kind;
-    LMB_CHECK(in.is_query == (kind != SessionKind::kMap),
-              "mapper: frame '" << in.name << "': is_query " << in.is_query << " in the " << session_kind_name(kind)
-                                << " session '" << sessions[static_cast<size_t>(in.session)].name << "'");
-    LMB_CHECK(in.descriptors.size() == in.keypoints.size() * static_cast<size_t>(descriptor_bytes),
-              "mapper: frame '" << in.name << "': descriptor rows do not match the keypoints");
-    MapFrame out;
-    out.name = in.name;
-    out.camera = in.camera;
-    out.session = in.session;
-    out.cam_from_world = in.cam_from_world;
-    out.gravity_in_cam = in.gravity_in_cam ? in.gravity_in_cam->normalized()
-                                         : (in.cam_from_world.rotation * (-options.up)).normalized();
-    out.is_query = in.is_query;
-    out.first_keypoint = static_cast<int64_t>(map.keypoints.size());
-    out.num_keypoints = static_cast<int32_t>(in.keypoints.size());
-    map.frames.push_back(out);
-    map.keypoints.insert(map.keypoints.end(), in.keypoints.begin(), in.keypoints.end());
-    map.descriptors.insert(map.descriptors.end(), in.descriptors.begin(), in.descriptors.end());
-    keypoint_frame.insert(keypoint_frame.end(), in.keypoints.size(), f);
-    (in.is_query ? stats.num_query_frames : stats.num_map_frames) += 1;
-    stats.num_outside_frames += kind == SessionKind::kOutside;
-  }
+  const std::vector<frame_t> keypoint_frame = add_frames(frames, options, &map, &stats);
   const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
   map.keypoint_landmark.assign(num_keypoints, kInvalidLandmarkId);
   stats.num_keypoints = num_keypoints;
 
   // Pairs and guided matching.
   const auto match_start = Clock::now();
-  std::vector<PairFrame> pair_frames;
-  for (const MapperFrame& f : frames) {
-    pair_frames.push_back(PairFrame{f.cam_from_world, f.is_query, f.session,
-                                    sessions[static_cast<size_t>(f.session)].kind == SessionKind::kOutside});
-  }
-  const auto pairs = select_frame_pairs(pair_frames, options.pairs);
-  stats.num_pairs = static_cast<int64_t>(pairs.size());
-  std::vector<std::unique_ptr<MatchingFrame>> matching_frames(num_frames);
-  parallel_for(num_frames, options.threads, [&](int64_t f, int) {
-    matching_frames[f] = std::make_unique<MatchingFrame>(cameras[frames[f].camera], frames[f].cam_from_world,
-                                                         frames[f].keypoints, frames[f].descriptors.data(),
-                                                         descriptor_bytes);
-  });
-  std::vector<std::vector<Match>> pair_matches(pairs.size());
-  {
-    std::vector<GuidedMatcher> matchers(options.threads, GuidedMatcher(options.matching));
-    parallel_for(static_cast<int64_t>(pairs.size()), options.threads, [&](int64_t p, int worker) {
-      pair_matches[p] = matchers[worker].match(*matching_frames[pairs[p].first], *matching_frames[pairs[p].second]);
-    });
-  }
-  std::vector<KeypointMatch> matches;
-  for (size_t p = 0; p < pairs.size(); ++p) {
-    const int64_t base_a = map.frames[pairs[p].first].first_keypoint;
-    const int64_t base_b = map.frames[pairs[p].second].first_keypoint;
-    for (const Match& m : pair_matches[p]) matches.push_back(KeypointMatch{base_a + m.a, base_b + m.b, m.distance});
-  }
-  stats.num_matches = static_cast<int64_t>(matches.size());
-  pair_matches.clear();
-  const auto tracks = build_tracks(keypoint_frame, std::move(matches));
-  stats.num_tracks = static_cast<int64_t>(tracks.size());
+  const std::vector<std::vector<int64_t>> tracks = match_tracks(frames, map, keypoint_frame, options, &stats);
   stats.match_seconds = seconds_since(match_start);
 
   // Triangulation.
