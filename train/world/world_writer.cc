@@ -88,6 +88,77 @@ void commit_dir(const fs::path& tmp, const fs::path& out_dir) {
   if (!old.empty()) fs::remove_all(old, ec);
 }
 
+// world.json: what the world holds (counts, camera, geometry, layout, sessions and their passes
+// and lighting) and the image formats.
+nlohmann::json world_json(const WorldOptions& options, const World& world, const Camera& camera,
+                          const std::vector<Session>& sessions, const WorldWriteStats& stats) {
+  const WorldSummary& s = world.summary;
+  nlohmann::json j;
+  j["format"] = "lmb-world";
+  j["format_version"] = 1;
+  j["preset"] = options.preset;
+  j["seed"] = options.seed;
+  j["non_aliased"] = options.non_aliased;
+  j["units"] = "m";
+  j["up_axis"] = {0, 0, 1};
+  j["gravity"] = {0, 0, -1};
+  j["counts"] = {{"map_frames", stats.map_frames},   {"query_frames", stats.query_frames},
+                 {"map_sessions", options.map_sessions}, {"query_sessions", options.query_sessions},
+                 {"doors", s.doors},                 {"posters", s.posters},
+                 {"poster_textures", s.poster_textures}, {"pillars", s.pillars},
+                 {"room_plates", s.plates},          {"signs", s.signs},
+                 {"stains", s.stains},               {"objects", s.objects},
+                 {"lamps", s.lamps},                 {"floor_tiles", s.floor_tiles},
+                 {"ceiling_panels", s.ceiling_panels}, {"textures", s.textures}};
+  j["camera"] = {{"camera_id", 1},
+                 {"model", camera_model_name(camera.model)},
+                 {"width", camera.width},
+                 {"height", camera.height},
+                 {"params", camera.params}};
+  j["geometry"] = {{"kind", "straight corridor"},
+                   {"length_m", world.length},
+                   {"width_m", world.width},
+                   {"height_m", world.height},
+                   {"x_range", {0.0, world.length}},
+                   {"y_range", {-world.width / 2, world.width / 2}},
+                   {"z_range", {0.0, world.height}},
+                   {"floor_tile_m", world.tile_size},
+                   {"ceiling_panel_m", world.panel_size},
+                   {"lamp_spacing_m", world.lamp_spacing},
+                   {"pillar_bay_m", options.pillar_bay_m},
+                   {"boxes", world.boxes.size()}};
+  j["layout"] = {{"poster_designs", options.poster_designs},
+                 {"door_share", options.door_share},
+                 {"poster_share", options.poster_share},
+                 {"sign_share", options.sign_share},
+                 {"wall_stains_per_m", options.wall_stains_per_m},
+                 {"floor_stains_per_m", options.floor_stains_per_m}};
+  for (const Session& session : sessions) {
+    nlohmann::json passes = nlohmann::json::array();
+    for (const PassParams& p : session.passes) {
+      passes.push_back({{"heading_deg", p.heading * 180.0 / M_PI},
+                        {"lateral_offset_m", p.lateral_m},
+                        {"camera_height_m", p.height_m},
+                        {"yaw_amplitude_deg", p.yaw_amplitude_deg},
+                        {"yaw_period_m", p.yaw_period_m},
+                        {"pitch_mean_deg", p.pitch_mean_deg},
+                        {"pitch_amplitude_deg", p.pitch_amplitude_deg},
+                        {"roll_amplitude_deg", p.roll_amplitude_deg}});
+    }
+    j["sessions"][session.name] = {{"kind", session_kind_name(session.kind)},
+                                   {"frames", session.cam_from_world.size()},
+                                   {"image_dir", "images/" + session.name},
+                                   {"depth_dir", "depth/" + session.name},
+                                   {"time_of_day", session.time_of_day},
+                                   {"passes", passes},
+                                   {"lighting", lighting_json(session.lighting)}};
+  }
+  j["images"] = {{"format", "png"}, {"channels", 1}, {"bit_depth", 8}};
+  j["depth"] = {{"format", "png"}, {"bit_depth", 16}, {"kind", "z-depth of the pixel centre"},
+                {"units", "mm"}, {"invalid", 0}};
+  return j;
+}
+
 }  // namespace
 
 WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir,
@@ -143,71 +214,7 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     }
     write_colmap_text(model, tmp / "sparse");
 
-    const WorldSummary& s = world.summary;
-    nlohmann::json j;
-    j["format"] = "lmb-world";
-    j["format_version"] = 1;
-    j["preset"] = options.preset;
-    j["seed"] = options.seed;
-    j["non_aliased"] = options.non_aliased;
-    j["units"] = "m";
-    j["up_axis"] = {0, 0, 1};
-    j["gravity"] = {0, 0, -1};
-    j["counts"] = {{"map_frames", stats.map_frames},   {"query_frames", stats.query_frames},
-                   {"map_sessions", options.map_sessions}, {"query_sessions", options.query_sessions},
-                   {"doors", s.doors},                 {"posters", s.posters},
-                   {"poster_textures", s.poster_textures}, {"pillars", s.pillars},
-                   {"room_plates", s.plates},          {"signs", s.signs},
-                   {"stains", s.stains},               {"objects", s.objects},
-                   {"lamps", s.lamps},                 {"floor_tiles", s.floor_tiles},
-                   {"ceiling_panels", s.ceiling_panels}, {"textures", s.textures}};
-    j["camera"] = {{"camera_id", 1},
-                   {"model", camera_model_name(camera.model)},
-                   {"width", camera.width},
-                   {"height", camera.height},
-                   {"params", camera.params}};
-    j["geometry"] = {{"kind", "straight corridor"},
-                     {"length_m", world.length},
-                     {"width_m", world.width},
-                     {"height_m", world.height},
-                     {"x_range", {0.0, world.length}},
-                     {"y_range", {-world.width / 2, world.width / 2}},
-                     {"z_range", {0.0, world.height}},
-                     {"floor_tile_m", world.tile_size},
-                     {"ceiling_panel_m", world.panel_size},
-                     {"lamp_spacing_m", world.lamp_spacing},
-                     {"pillar_bay_m", options.pillar_bay_m},
-                     {"boxes", world.boxes.size()}};
-    j["layout"] = {{"poster_designs", options.poster_designs},
-                   {"door_share", options.door_share},
-                   {"poster_share", options.poster_share},
-                   {"sign_share", options.sign_share},
-                   {"wall_stains_per_m", options.wall_stains_per_m},
-                   {"floor_stains_per_m", options.floor_stains_per_m}};
-    for (const Session& session : sessions) {
-      nlohmann::json passes = nlohmann::json::array();
-      for (const PassParams& p : session.passes) {
-        passes.push_back({{"heading_deg", p.heading * 180.0 / M_PI},
-                          {"lateral_offset_m", p.lateral_m},
-                          {"camera_height_m", p.height_m},
-                          {"yaw_amplitude_deg", p.yaw_amplitude_deg},
-                          {"yaw_period_m", p.yaw_period_m},
-                          {"pitch_mean_deg", p.pitch_mean_deg},
-                          {"pitch_amplitude_deg", p.pitch_amplitude_deg},
-                          {"roll_amplitude_deg", p.roll_amplitude_deg}});
-      }
-      j["sessions"][session.name] = {{"kind", session_kind_name(session.kind)},
-                                     {"frames", session.cam_from_world.size()},
-                                     {"image_dir", "images/" + session.name},
-                                     {"depth_dir", "depth/" + session.name},
-                                     {"time_of_day", session.time_of_day},
-                                     {"passes", passes},
-                                     {"lighting", lighting_json(session.lighting)}};
-    }
-    j["images"] = {{"format", "png"}, {"channels", 1}, {"bit_depth", 8}};
-    j["depth"] = {{"format", "png"}, {"bit_depth", 16}, {"kind", "z-depth of the pixel centre"},
-                  {"units", "mm"}, {"invalid", 0}};
-    write_file_atomically(tmp / "world.json", j.dump(2) + "\n");
+    write_file_atomically(tmp / "world.json", world_json(options, world, camera, sessions, stats).dump(2) + "\n");
     stats.render_seconds = seconds_since(t1);
     commit_dir(tmp, out_dir);
     return stats;
