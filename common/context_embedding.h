@@ -167,6 +167,9 @@ class DimPlan {
 // thread; the const query methods are safe to call concurrently after reset().
 class FrameContext {
  public:
+  // The most values one Axis::ranks / keypoint_ranks call ranks (a stack batch).
+  static constexpr int32_t kMaxRankBatch = 64;
+
   // Counts are stored as uint16: a frame may hold at most this many keypoints.
   static constexpr int32_t kMaxFrameKeypoints = 65535;
   // Frames up to this size get the dominance structure of the DimPlan path (11 MB at the limit).
@@ -267,6 +270,9 @@ class FrameContext {
   void check_plan(const DimPlan& plan, const uint8_t* descriptors, int32_t count) const;
   // The region rectangle q of keypoint k as rank ranges.
   Bounds bounds(int32_t k, const RegionRect& q) const;
+  // reset()'s last steps: the byte word tables (small_words_) and the dominance structure (dom_).
+  void build_byte_tables();
+  void build_dominance();
   void counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts, int32_t* total) const;
   // Keypoints of word w with x rank < ix and y rank < iy.
   int32_t word_dominance(int32_t w, int32_t ix, int32_t iy) const;
