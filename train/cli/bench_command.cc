@@ -91,6 +91,130 @@ LandmarkMap synthetic_map(const ContextBenchArgs& a) {
   return map;
 }
 
+struct NaiveTimes {
+  double naive_per_sample = 0, fast_per_sample = 0;  // CPU seconds
+  size_t samples = 0;
+};
+
+// The naive regions x keypoints loop against the fast path (frame index built for each sample's
+// frame) on the same random subset of at most naive_samples samples, both single-threaded; they
+// must give the same bytes.
+NaiveTimes time_naive_and_fast(const LandmarkMap& map, const ContextRegions& regions, const EmbeddingLayout& layout,
+                               const std::vector<uint8_t>& words, const std::vector<int64_t>& samples,
+                               int64_t naive_samples, Rng& rng) {
+  const std::vector<frame_t> frame_of = keypoint_frames(map);
+  std::vector<int64_t> subset;
+  {
+    std::vector<int64_t> pool = samples;
+    rng.shuffle(pool);
+    pool.resize(std::min<size_t>(pool.size(), static_cast<size_t>(naive_samples)));
+    std::sort(pool.begin(), pool.end());
+    subset = pool;
+  }
+  std::vector<uint8_t> row(static_cast<size_t>(layout.num_context_dims()));
+  FrameContext context(regions, layout.num_words);
+  double cpu = cpu_seconds();
+  uint64_t checksum_naive = 0, checksum_fast = 0;
+  for (size_t i = 0; i < subset.size(); ++i) {
+    const frame_t f = frame_of[subset[i]];
+    const FrameKeypoints frame = map_frame_keypoints(map, f, words);
+    embed_context_brute_force(regions, layout.num_words, frame,
+                              static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint),
+                              row.data());
+    for (uint8_t v : row) checksum_naive = checksum_naive * 31 + v;
+  }
+  const double naive_per_sample = (cpu_seconds() - cpu) / subset.size();
+  cpu = cpu_seconds();
+  for (size_t i = 0; i < subset.size(); ++i) {
+    const frame_t f = frame_of[subset[i]];
+    if (i == 0 || frame_of[subset[i - 1]] != f) context.reset(map_frame_keypoints(map, f, words));
+    context.embed_context(static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint), row.data());
+    for (uint8_t v : row) checksum_fast = checksum_fast * 31 + v;
+  }
+  const double fast_subset_per_sample = (cpu_seconds() - cpu) / subset.size();
+  LMB_CHECK(checksum_naive == checksum_fast, "bench context: fast and naive embeddings differ");
+  return NaiveTimes{naive_per_sample, fast_subset_per_sample, subset.size()};
+}
+
+struct UsedDimsTimes {
+  double query_us = 0, frame_us = 0, naive_us = 0;  // CPU microseconds per keypoint
+  size_t dims = 0;
+};
+
+// Only a model's used dims (a.used_dims random ones) for every keypoint of a.used_dims_frames
+// frames spread over the map, against the naive loop over the used regions (20 keypoints a frame).
+UsedDimsTimes time_used_dims(const LandmarkMap& map, const ContextRegions& regions, const EmbeddingLayout& layout,
+                             const std::vector<uint8_t>& words, const ContextBenchArgs& a, Rng& rng) {
+  std::vector<int32_t> dims;
+  {
+    std::vector<int32_t> all(static_cast<size_t>(layout.num_dims()));
+    for (int32_t d = 0; d < layout.num_dims(); ++d) all[d] = d;
+    rng.shuffle(all);
+    all.resize(std::min<size_t>(all.size(), static_cast<size_t>(a.used_dims)));
+    std::sort(all.begin(), all.end());
+    dims = all;
+  }
+  int32_t used_regions = 0;
+  for (size_t i = 0; i < dims.size(); ++i) {
+    if (layout.is_context(dims[i]) &&
+        (i == 0 || layout.region_of(dims[i]) != layout.region_of(dims[i - 1]))) {
+      ++used_regions;
+    }
+  }
+  const DimPlan plan(regions, layout, dims);
+  FrameContext sparse_context(regions, layout.num_words);
+  double prep_seconds = 0, reset_seconds = 0, query_seconds = 0, naive_seconds = 0;
+  int64_t query_keypoints = 0, naive_keypoints = 0, max_frame_keypoints = 0;
+  std::vector<uint8_t> out;
+  std::vector<int32_t> counts(static_cast<size_t>(layout.num_words));
+  uint64_t checksum_naive = 0;  // keeps the naive loop from being optimised away
+  const int frames_to_use = std::min<int>(a.used_dims_frames, map.num_frames());
+  for (int i = 0; i < frames_to_use; ++i) {
+    const frame_t f = static_cast<frame_t>(
+        (static_cast<int64_t>(i) * map.num_frames()) / frames_to_use);
+    const MapFrame& mf = map.frames[f];
+    if (mf.num_keypoints == 0) continue;
+    max_frame_keypoints = std::max<int64_t>(max_frame_keypoints, mf.num_keypoints);
+    double cpu = cpu_seconds();
+    const FrameKeypoints frame = map_frame_keypoints(map, f, words);
+    prep_seconds += (cpu_seconds() - cpu);
+    cpu = cpu_seconds();
+    sparse_context.reset(frame);
+    reset_seconds += (cpu_seconds() - cpu);
+    out.resize(static_cast<size_t>(mf.num_keypoints) * dims.size());
+    cpu = cpu_seconds();
+    sparse_context.compute_dims_all(plan, map.descriptor(mf.first_keypoint), out.data());
+    query_seconds += (cpu_seconds() - cpu);
+    query_keypoints += mf.num_keypoints;
+    // Naive: per keypoint, the regions x keypoints loop over the used regions only.
+    const int32_t naive_k = std::min<int32_t>(mf.num_keypoints, 20);
+    cpu = cpu_seconds();
+    for (int32_t k = 0; k < naive_k; ++k) {
+      for (size_t j = 0; j < dims.size(); ++j) {
+        if (!layout.is_context(dims[j])) break;
+        const int32_t r = layout.region_of(dims[j]);
+        if (j > 0 && layout.region_of(dims[j - 1]) == r) continue;
+        checksum_naive += static_cast<uint64_t>(
+            region_counts_brute_force(regions, layout.num_words, frame, k, r, counts.data()));
+      }
+    }
+    naive_seconds += (cpu_seconds() - cpu);
+    naive_keypoints += naive_k;
+  }
+  const double query_us = 1e6 * query_seconds / std::max<int64_t>(1, query_keypoints);
+  const double frame_us = 1e6 * (prep_seconds + reset_seconds) / std::max<int64_t>(1, query_keypoints);
+  const double naive_us = 1e6 * naive_seconds / std::max<int64_t>(1, naive_keypoints);
+  spdlog::info("bench context: {} used dims ({} regions): {:.1f} CPU-us/keypoint to compute them, "
+               "plus {:.1f} us/keypoint for the frame (alignment {:.2f} ms + index {:.2f} ms per frame); "
+               "naive {:.1f} us/keypoint: {:.1f}x (query only), {:.1f}x (with the frame)",
+               dims.size(), used_regions, query_us, frame_us,
+               1e3 * prep_seconds / std::max(1, frames_to_use),
+               1e3 * reset_seconds / std::max(1, frames_to_use), naive_us, naive_us / query_us,
+               naive_us / (query_us + frame_us));
+  if (checksum_naive == 1) spdlog::debug("bench context: checksum 1");
+  return UsedDimsTimes{query_us, frame_us, naive_us, dims.size()};
+}
+
 void run_context_bench(const ContextBenchArgs& a) {
   LMB_CHECK(!a.map_path.empty() || a.synthetic_frames > 0,
             "bench context: give --map map.h5 or --synthetic N");
@@ -164,115 +288,25 @@ void run_context_bench(const ContextBenchArgs& a) {
                samples.size(), positives, num_background, layout.num_dims(), a.threads,
                build_seconds, build_cpu, 1e6 * build_cpu / samples.size(), gib, layout.num_dims());
 
-  // 2. Naive regions x keypoints loop on a subset, against the fast path on the same subset (both
-  // single-threaded, frame preparation included in both).
+  // 2. Naive regions x keypoints loop on a subset, against the fast path on the same subset.
   const std::vector<uint8_t> words = keypoint_words(map, vocabulary, a.threads);
-  const std::vector<frame_t> frame_of = keypoint_frames(map);
-  std::vector<int64_t> subset;
-  {
-    std::vector<int64_t> pool = samples;
-    rng.shuffle(pool);
-    pool.resize(std::min<size_t>(pool.size(), static_cast<size_t>(a.naive_samples)));
-    std::sort(pool.begin(), pool.end());
-    subset = pool;
-  }
-  std::vector<uint8_t> row(static_cast<size_t>(layout.num_context_dims()));
-  FrameContext context(regions, layout.num_words);
-  cpu = cpu_seconds();
-  uint64_t checksum_naive = 0, checksum_fast = 0;
-  for (size_t i = 0; i < subset.size(); ++i) {
-    const frame_t f = frame_of[subset[i]];
-    const FrameKeypoints frame = map_frame_keypoints(map, f, words);
-    embed_context_brute_force(regions, layout.num_words, frame,
-                              static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint),
-                              row.data());
-    for (uint8_t v : row) checksum_naive = checksum_naive * 31 + v;
-  }
-  const double naive_per_sample = (cpu_seconds() - cpu) / subset.size();
-  cpu = cpu_seconds();
-  for (size_t i = 0; i < subset.size(); ++i) {
-    const frame_t f = frame_of[subset[i]];
-    if (i == 0 || frame_of[subset[i - 1]] != f) context.reset(map_frame_keypoints(map, f, words));
-    context.embed_context(static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint), row.data());
-    for (uint8_t v : row) checksum_fast = checksum_fast * 31 + v;
-  }
-  const double fast_subset_per_sample = (cpu_seconds() - cpu) / subset.size();
-  LMB_CHECK(checksum_naive == checksum_fast, "bench context: fast and naive embeddings differ");
+  const NaiveTimes naive = time_naive_and_fast(map, regions, layout, words, samples, a.naive_samples, rng);
+  const double naive_per_sample = naive.naive_per_sample;
+  const double fast_subset_per_sample = naive.fast_per_sample;
+  const size_t subset_size = naive.samples;
   const double build_per_sample_thread = build_cpu / samples.size();
   spdlog::info("bench context: naive loop {:.1f} CPU-us/sample ({} samples) -> all samples on {} "
                "threads ~{:.0f} s; fast path {:.1f} CPU-us/sample on the same subset (frame index "
                "built for each subset sample's frame), {:.1f} in the full build: {:.1f}x faster "
                "than naive",
-               1e6 * naive_per_sample, subset.size(), a.threads,
+               1e6 * naive_per_sample, subset_size, a.threads,
                naive_per_sample * samples.size() / a.threads, 1e6 * fast_subset_per_sample,
                1e6 * build_per_sample_thread, naive_per_sample / build_per_sample_thread);
 
   // 3. Only a model's used dims (random, sorted) for every keypoint of some frames.
-  std::vector<int32_t> dims;
-  {
-    std::vector<int32_t> all(static_cast<size_t>(layout.num_dims()));
-    for (int32_t d = 0; d < layout.num_dims(); ++d) all[d] = d;
-    rng.shuffle(all);
-    all.resize(std::min<size_t>(all.size(), static_cast<size_t>(a.used_dims)));
-    std::sort(all.begin(), all.end());
-    dims = all;
-  }
-  int32_t used_regions = 0;
-  for (size_t i = 0; i < dims.size(); ++i) {
-    if (layout.is_context(dims[i]) &&
-        (i == 0 || layout.region_of(dims[i]) != layout.region_of(dims[i - 1]))) {
-      ++used_regions;
-    }
-  }
-  const DimPlan plan(regions, layout, dims);
-  FrameContext sparse_context(regions, layout.num_words);
-  double prep_seconds = 0, reset_seconds = 0, query_seconds = 0, naive_seconds = 0;
-  int64_t query_keypoints = 0, naive_keypoints = 0, max_frame_keypoints = 0;
-  std::vector<uint8_t> out;
-  std::vector<int32_t> counts(static_cast<size_t>(layout.num_words));
-  const int frames_to_use = std::min<int>(a.used_dims_frames, map.num_frames());
-  for (int i = 0; i < frames_to_use; ++i) {
-    const frame_t f = static_cast<frame_t>(
-        (static_cast<int64_t>(i) * map.num_frames()) / frames_to_use);
-    const MapFrame& mf = map.frames[f];
-    if (mf.num_keypoints == 0) continue;
-    max_frame_keypoints = std::max<int64_t>(max_frame_keypoints, mf.num_keypoints);
-    cpu = cpu_seconds();
-    const FrameKeypoints frame = map_frame_keypoints(map, f, words);
-    prep_seconds += (cpu_seconds() - cpu);
-    cpu = cpu_seconds();
-    sparse_context.reset(frame);
-    reset_seconds += (cpu_seconds() - cpu);
-    out.resize(static_cast<size_t>(mf.num_keypoints) * dims.size());
-    cpu = cpu_seconds();
-    sparse_context.compute_dims_all(plan, map.descriptor(mf.first_keypoint), out.data());
-    query_seconds += (cpu_seconds() - cpu);
-    query_keypoints += mf.num_keypoints;
-    // Naive: per keypoint, the regions x keypoints loop over the used regions only.
-    const int32_t naive_k = std::min<int32_t>(mf.num_keypoints, 20);
-    cpu = cpu_seconds();
-    for (int32_t k = 0; k < naive_k; ++k) {
-      for (size_t j = 0; j < dims.size(); ++j) {
-        if (!layout.is_context(dims[j])) break;
-        const int32_t r = layout.region_of(dims[j]);
-        if (j > 0 && layout.region_of(dims[j - 1]) == r) continue;
-        checksum_naive += static_cast<uint64_t>(
-            region_counts_brute_force(regions, layout.num_words, frame, k, r, counts.data()));
-      }
-    }
-    naive_seconds += (cpu_seconds() - cpu);
-    naive_keypoints += naive_k;
-  }
-  const double query_us = 1e6 * query_seconds / std::max<int64_t>(1, query_keypoints);
-  const double frame_us = 1e6 * (prep_seconds + reset_seconds) / std::max<int64_t>(1, query_keypoints);
-  const double naive_us = 1e6 * naive_seconds / std::max<int64_t>(1, naive_keypoints);
-  spdlog::info("bench context: {} used dims ({} regions): {:.1f} CPU-us/keypoint to compute them, "
-               "plus {:.1f} us/keypoint for the frame (alignment {:.2f} ms + index {:.2f} ms per frame); "
-               "naive {:.1f} us/keypoint: {:.1f}x (query only), {:.1f}x (with the frame)",
-               dims.size(), used_regions, query_us, frame_us,
-               1e3 * prep_seconds / std::max(1, frames_to_use),
-               1e3 * reset_seconds / std::max(1, frames_to_use), naive_us, naive_us / query_us,
-               naive_us / (query_us + frame_us));
+  const UsedDimsTimes used = time_used_dims(map, regions, layout, words, a, rng);
+  const double query_us = used.query_us, frame_us = used.frame_us, naive_us = used.naive_us;
+  const size_t num_used_dims = used.dims;
 
   if (!a.json_path.empty()) {
     report["map"] = source;
@@ -289,7 +323,7 @@ void run_context_bench(const ContextBenchArgs& a) {
     report["naive_us_per_sample"] = 1e6 * naive_per_sample;
     report["fast_us_per_sample_thread"] = 1e6 * build_per_sample_thread;
     report["speedup_vs_naive"] = naive_per_sample / build_per_sample_thread;
-    report["used_dims"] = dims.size();
+    report["used_dims"] = num_used_dims;
     report["used_dims_us_per_keypoint"] = query_us;
     report["used_dims_frame_us_per_keypoint"] = frame_us;
     report["used_dims_naive_us_per_keypoint"] = naive_us;
