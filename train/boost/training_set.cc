@@ -33,6 +33,51 @@ std::vector<int64_t> held_out_of_landmark(const std::vector<int64_t>& observatio
   return held;
 }
 
+// The class landmarks, ascending: options.class_landmarks (an area; each checked to exist and to
+// have min_train_observations map observations), or the top_k_landmarks by quality (ties: smaller
+// id) among those with at least min_train_observations.
+std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
+                                               const std::vector<std::vector<int64_t>>& observations,
+                                               const TrainingSetOptions& options) {
+  const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
+  std::vector<landmark_t> candidates;
+  if (!options.class_landmarks.empty()) {
+    // The given classes (an area): each must exist and have enough observations to train on.
+    for (size_t i = 0; i < options.class_landmarks.size(); ++i) {
+      const landmark_t l = options.class_landmarks[i];
+      LMB_CHECK(l >= 0 && l < num_landmarks,
+                "training set: class landmark " << l << " is not a landmark of the map (" << num_landmarks << ")");
+      LMB_CHECK(i == 0 || l > options.class_landmarks[i - 1],
+                "training set: class landmarks must be ascending and distinct (" << l << " after "
+                                                                                 << options.class_landmarks[i - 1] << ")");
+      LMB_CHECK(static_cast<int64_t>(observations[l].size()) >= options.min_train_observations,
+                "training set: class landmark " << l << " has " << observations[l].size()
+                                                << " map observations, fewer than min_train_observations = "
+                                                << options.min_train_observations);
+    }
+    candidates = options.class_landmarks;
+  } else {
+    for (landmark_t l = 0; l < num_landmarks; ++l) {
+      if (static_cast<int64_t>(observations[l].size()) >= options.min_train_observations) {
+        candidates.push_back(l);
+      }
+    }
+    LMB_CHECK(!candidates.empty(), "training set: no landmark has at least "
+                                       << options.min_train_observations << " map observations");
+    std::sort(candidates.begin(), candidates.end(), [&](landmark_t a, landmark_t b) {
+      if (map.landmarks[a].quality != map.landmarks[b].quality) {
+        return map.landmarks[a].quality > map.landmarks[b].quality;
+      }
+      return a < b;
+    });
+    if (static_cast<int64_t>(candidates.size()) > options.top_k_landmarks) {
+      candidates.resize(static_cast<size_t>(options.top_k_landmarks));
+    }
+    std::sort(candidates.begin(), candidates.end());
+  }
+  return candidates;
+}
+
 }  // namespace
 
 void TrainingSet::check() const {
@@ -106,42 +151,8 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
     }
   }
 
-  // Qualification and top-K by quality.
-  std::vector<landmark_t> candidates;
-  if (!options.class_landmarks.empty()) {
-    // The given classes (an area): each must exist and have enough observations to train on.
-    for (size_t i = 0; i < options.class_landmarks.size(); ++i) {
-      const landmark_t l = options.class_landmarks[i];
-      LMB_CHECK(l >= 0 && l < num_landmarks,
-                "training set: class landmark " << l << " is not a landmark of the map (" << num_landmarks << ")");
-      LMB_CHECK(i == 0 || l > options.class_landmarks[i - 1],
-                "training set: class landmarks must be ascending and distinct (" << l << " after "
-                                                                                 << options.class_landmarks[i - 1] << ")");
-      LMB_CHECK(static_cast<int64_t>(observations[l].size()) >= options.min_train_observations,
-                "training set: class landmark " << l << " has " << observations[l].size()
-                                                << " map observations, fewer than min_train_observations = "
-                                                << options.min_train_observations);
-    }
-    candidates = options.class_landmarks;
-  } else {
-    for (landmark_t l = 0; l < num_landmarks; ++l) {
-      if (static_cast<int64_t>(observations[l].size()) >= options.min_train_observations) {
-        candidates.push_back(l);
-      }
-    }
-    LMB_CHECK(!candidates.empty(), "training set: no landmark has at least "
-                                       << options.min_train_observations << " map observations");
-    std::sort(candidates.begin(), candidates.end(), [&](landmark_t a, landmark_t b) {
-      if (map.landmarks[a].quality != map.landmarks[b].quality) {
-        return map.landmarks[a].quality > map.landmarks[b].quality;
-      }
-      return a < b;
-    });
-    if (static_cast<int64_t>(candidates.size()) > options.top_k_landmarks) {
-      candidates.resize(static_cast<size_t>(options.top_k_landmarks));
-    }
-    std::sort(candidates.begin(), candidates.end());
-  }
+  // Qualification and top-K by quality, or the given classes.
+  const std::vector<landmark_t> candidates = select_class_landmarks(map, observations, options);
 
   TrainingSet set;
   set.num_classes = static_cast<int32_t>(candidates.size());
