@@ -2,7 +2,9 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <limits>
 
 #include "common/error.h"
 
@@ -18,6 +20,20 @@ double parse_finite_number(const std::string& token, const std::string& where,
             where << ": " << field << " is not a number: '" << token << "'");
   LMB_CHECK(std::isfinite(value) && errno != ERANGE, where << ": " << field << " is not finite");
   return value;
+}
+
+double parse_number_or_infinity(const std::string& token, const std::string& where, const std::string& field) {
+  if (token == "inf") return std::numeric_limits<double>::infinity();
+  if (token == "-inf") return -std::numeric_limits<double>::infinity();
+  return parse_finite_number(token, where, field);
+}
+
+std::string exact_number_text(double v) {
+  if (std::isinf(v)) return v < 0 ? "-inf" : "inf";
+  if (v == 0.0) v = 0.0;  // no "-0"
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
 }
 
 }  // namespace lmb

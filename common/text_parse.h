@@ -11,4 +11,11 @@ namespace lmb {
 double parse_finite_number(const std::string& token, const std::string& where,
                            const std::string& field);
 
+// A whole token as a double that may be "inf" or "-inf" (an unbounded end), never NaN; otherwise
+// as parse_finite_number.
+double parse_number_or_infinity(const std::string& token, const std::string& where, const std::string& field);
+
+// The text of v that parses back to the same double ("%.17g"; "inf" / "-inf"; no "-0").
+std::string exact_number_text(double v);
+
 }  // namespace lmb

@@ -18,20 +18,6 @@ namespace lmb {
 
 namespace {
 
-std::string number_text(double v) {
-  if (std::isinf(v)) return v < 0 ? "-inf" : "inf";
-  if (v == 0.0) v = 0.0;  // no "-0"
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
-
-double parse_bound(const std::string& token, const std::string& where, const std::string& field) {
-  if (token == "inf") return std::numeric_limits<double>::infinity();
-  if (token == "-inf") return -std::numeric_limits<double>::infinity();
-  return parse_finite_number(token, where, field);
-}
-
 uint64_t parse_unsigned(const std::string& token, const std::string& where, const std::string& field, int base,
                         uint64_t max) {
   const char* begin = token.c_str();
@@ -59,7 +45,7 @@ void write_bundle_index(const std::filesystem::path& path, double reach, const s
   std::ostringstream os;
   os << "lmb-bundle 1\n";
   os << "# area ID file FILE bytes N crc32 HEX landmarks N cell LO_X LO_Y LO_Z HI_X HI_Y HI_Z\n";
-  os << "reach " << number_text(reach) << "\n";
+  os << "reach " << exact_number_text(reach) << "\n";
   os << "areas " << areas.size() << "\n";
   for (size_t i = 0; i < areas.size(); ++i) {
     const BundleArea& a = areas[i];
@@ -70,8 +56,8 @@ void write_bundle_index(const std::filesystem::path& path, double reach, const s
     std::snprintf(crc, sizeof(crc), "%08x", a.crc32);
     os << "area " << a.id << " file " << a.file << " bytes " << a.bytes << " crc32 " << crc << " landmarks "
        << a.landmarks << " cell";
-    for (int k = 0; k < 3; ++k) os << " " << number_text(a.cell_lo[k]);
-    for (int k = 0; k < 3; ++k) os << " " << number_text(a.cell_hi[k]);
+    for (int k = 0; k < 3; ++k) os << " " << exact_number_text(a.cell_lo[k]);
+    for (int k = 0; k < 3; ++k) os << " " << exact_number_text(a.cell_hi[k]);
     os << "\n";
   }
   write_file_atomically(path, os.str());
@@ -114,8 +100,8 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
     LMB_CHECK(t[6].size() == 8, w << ": crc32 is not 8 hex digits: '" << t[6] << "'");
     a.crc32 = static_cast<uint32_t>(parse_unsigned(t[6], w, "crc32", 16, UINT32_MAX));
     a.landmarks = static_cast<int64_t>(parse_unsigned(t[8], w, "landmarks", 10, INT32_MAX));
-    for (int k = 0; k < 3; ++k) a.cell_lo[k] = parse_bound(t[10 + k], w, "cell");
-    for (int k = 0; k < 3; ++k) a.cell_hi[k] = parse_bound(t[13 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.cell_lo[k] = parse_number_or_infinity(t[10 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.cell_hi[k] = parse_number_or_infinity(t[13 + k], w, "cell");
     for (int k = 0; k < 3; ++k) {
       LMB_CHECK(a.cell_lo[k] <= a.cell_hi[k], w << ": cell lower end above its upper end on axis " << k);
       LMB_CHECK(a.cell_lo[k] < std::numeric_limits<double>::infinity() &&

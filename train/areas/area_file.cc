@@ -19,21 +19,7 @@ namespace lmb {
 
 namespace {
 
-std::string number_text(double v) {
-  if (std::isinf(v)) return v < 0 ? "-inf" : "inf";
-  if (v == 0.0) v = 0.0;  // no "-0"
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
-
 // A number that may be -inf / inf (cell ends), never NaN.
-double parse_bound(const std::string& token, const std::string& where, const std::string& field) {
-  if (token == "inf") return std::numeric_limits<double>::infinity();
-  if (token == "-inf") return -std::numeric_limits<double>::infinity();
-  return parse_finite_number(token, where, field);
-}
-
 int64_t parse_integer(const std::string& token, const std::string& where, const std::string& field, int64_t lo,
                       int64_t hi) {
   const char* begin = token.c_str();
@@ -61,18 +47,18 @@ std::string area_file_text(const AreaFile& file, const std::string& source) {
   os << "map_landmarks " << file.map_landmarks << "\n";
   os << "max_classes " << s.options.max_classes << "\n";
   os << "min_observations " << s.options.min_observations << "\n";
-  os << "overlap " << number_text(s.options.overlap) << "\n";
-  os << "reach " << number_text(s.options.reach) << "\n";
+  os << "overlap " << exact_number_text(s.options.overlap) << "\n";
+  os << "reach " << exact_number_text(s.options.reach) << "\n";
   os << "eligible " << s.num_eligible << "\n";
   os << "areas " << s.areas.size() << "\n";
   for (const Area& a : s.areas) {
     os << "area " << a.id << " landmarks " << a.landmarks.size() << " core " << a.num_core << " truncated "
        << a.num_truncated << " cell";
-    for (int i = 0; i < 3; ++i) os << " " << number_text(a.cell.lo[i]);
-    for (int i = 0; i < 3; ++i) os << " " << number_text(a.cell.hi[i]);
+    for (int i = 0; i < 3; ++i) os << " " << exact_number_text(a.cell.lo[i]);
+    for (int i = 0; i < 3; ++i) os << " " << exact_number_text(a.cell.hi[i]);
     os << " bounds";
-    for (int i = 0; i < 3; ++i) os << " " << number_text(a.bounds.lo[i]);
-    for (int i = 0; i < 3; ++i) os << " " << number_text(a.bounds.hi[i]);
+    for (int i = 0; i < 3; ++i) os << " " << exact_number_text(a.bounds.lo[i]);
+    for (int i = 0; i < 3; ++i) os << " " << exact_number_text(a.bounds.hi[i]);
     os << "\n";
   }
   for (const Area& a : s.areas) {
@@ -138,8 +124,8 @@ AreaFile read_area_file(const std::filesystem::path& path) {
     counts[static_cast<size_t>(i)] = parse_integer(t[2], w, "landmarks", 1, s.options.max_classes);
     a.num_core = parse_integer(t[4], w, "core", 0, INT64_MAX);
     a.num_truncated = parse_integer(t[6], w, "truncated", 0, INT64_MAX);
-    for (int k = 0; k < 3; ++k) a.cell.lo[k] = parse_bound(t[8 + k], w, "cell");
-    for (int k = 0; k < 3; ++k) a.cell.hi[k] = parse_bound(t[11 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.cell.lo[k] = parse_number_or_infinity(t[8 + k], w, "cell");
+    for (int k = 0; k < 3; ++k) a.cell.hi[k] = parse_number_or_infinity(t[11 + k], w, "cell");
     for (int k = 0; k < 3; ++k) a.bounds.lo[k] = parse_finite_number(t[15 + k], w, "bounds");
     for (int k = 0; k < 3; ++k) a.bounds.hi[k] = parse_finite_number(t[18 + k], w, "bounds");
     for (int k = 0; k < 3; ++k) {
