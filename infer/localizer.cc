@@ -88,14 +88,18 @@ LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypo
     result.correspondence_keypoint = std::move(keypoint);
     result.correspondence_match = std::move(match);
   }
+  // PROSAC samples the correspondences in the order of their margin over the background.
   std::vector<Eigen::Vector2d> pixels;
   std::vector<Eigen::Vector3d> points;
+  std::vector<double> margins;
   for (size_t i = 0; i < result.correspondence_keypoint.size(); ++i) {
     const int32_t k = result.correspondence_keypoint[i];
+    const ClassMatch& c = result.matches.matches[result.correspondence_match[i]];
     pixels.emplace_back(keypoints[k].x, keypoints[k].y);
-    points.push_back(m.class_position(result.matches.matches[result.correspondence_match[i]].cls));
+    points.push_back(m.class_position(c.cls));
+    margins.push_back(c.score - c.background_score);
   }
-  result.pose = estimate_absolute_pose(camera, pixels, points, options.pose);
+  result.pose = estimate_absolute_pose(camera, pixels, points, options.pose, margins);
   const Clock::time_point t_end = Clock::now();
   result.timings.pose_ms = ms(t_end - t_classified);
   result.timings.total_ms = ms(t_end - t_start);

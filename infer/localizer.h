@@ -7,7 +7,8 @@
 // Steps: quantize each descriptor to its visual word, place the keypoints in the gravity-aligned
 // normalized plane (common/context_embedding.h), classify them (infer/classifier.h), then feed the
 // matches to estimate_absolute_pose (infer/pose_estimator.h): each keypoint's best match, or its
-// pose_top_k best, keypoint pixel <-> the class's 3D landmark.
+// pose_top_k best, keypoint pixel <-> the class's 3D landmark, with the match's margin over the
+// background (score - background score) as the PROSAC order.
 //
 // Inputs: keypoints in pixels of the distorted image with COLMAP's convention (centre of the
 // top-left pixel at (0.5, 0.5); add 0.5 to an OpenCV KeyPoint::pt), scale = detector diameter in pixels (lmb::Keypoint); descriptors:
@@ -43,7 +44,7 @@ struct LMB_INFER_EXPORT LocalizerOptions {
   // At most this many correspondences, those with the largest margin over the background
   // (score - background score; ties: keypoint order); 0 = all.
   int max_correspondences = 0;
-  PoseEstimatorOptions pose;     // RANSAC iterations, inlier threshold (px), seed, refinement
+  PoseEstimatorOptions pose;     // RANSAC samples, inlier threshold (px), seed, PROSAC, refinement
 
   // Throws lmb::Error naming the field.
   void check() const;
@@ -60,7 +61,7 @@ struct LocalizeTimings {
 
 struct LocalizeResult {
   KeypointMatches matches;              // ranked matches of every keypoint
-  PoseResult pose;                      // cam_from_world and the inlier mask of correspondences
+  PoseResult pose;                      // cam_from_world, inlier mask of correspondences, RANSAC stats
   // One entry per correspondence given to the pose estimator (pose.inlier_mask is aligned):
   std::vector<int32_t> correspondence_keypoint;  // keypoint index
   std::vector<int32_t> correspondence_match;     // index into matches.matches

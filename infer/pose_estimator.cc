@@ -3,103 +3,22 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <limits>
-#include <memory>
+#include <numeric>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
-#include <opengv/absolute_pose/CentralAbsoluteAdapter.hpp>
-#include <opengv/sac/Ransac.hpp>
-#include <opengv/sac_problems/absolute_pose/AbsolutePoseSacProblem.hpp>
 
 #include "common/error.h"
-#include "common/random.h"
+#include "infer/p3p.h"
 
 namespace lmb {
 
 namespace detail {
 namespace {
 
-using OpenGvProblem = opengv::sac_problems::absolute_pose::AbsolutePoseSacProblem;
-
-// KNEIP samples 4 correspondences: P3P on three, the fourth picks among P3P's solutions.
-constexpr int kMinSampleSize = 4;
+constexpr int kMinPoints = 4;
 constexpr int kMaxRefineRounds = 4;
-
-// OpenGV's absolute-pose problem with two changes.
-// - Seeded sampling. OpenGV samples with a std::mt19937 seeded from time() + clock() (or the
-//   constant 12345), drawn through the public std::function rng_gen_ (which holds its own copy of
-//   the engine, so reseeding rng_alg_ would not help). The constructor replaces rng_gen_ by
-//   lmb::Rng(seed); rnd() must return a non-negative int: 31 random bits.
-// - Fast scoring. OpenGV scores every correspondence of every hypothesis through virtual adapter
-//   calls returning matrices by value (about 50 ns per correspondence here); this scores from the
-//   arrays directly, with the same distance 1 - cos(angle).
-class SeededAbsolutePoseProblem : public OpenGvProblem {
- public:
-  SeededAbsolutePoseProblem(opengv::absolute_pose::CentralAbsoluteAdapter& adapter,
-                            const opengv::bearingVectors_t& bearings, const opengv::points_t& points,
-                            const std::vector<int>& indices, uint64_t seed)
-      : OpenGvProblem(adapter, OpenGvProblem::KNEIP, indices, /*randomSeed=*/false),
-        bearings_(bearings),
-        points_(points) {
-    rng_gen_ = std::make_shared<std::function<int()>>(
-        [rng = Rng(seed)]() mutable { return static_cast<int>(rng.next() >> 33); });
-  }
-
-  // 1 - cos of the angle between bearing i and the direction to point i under world_from_cam.
-  static double distance(const Eigen::Matrix3d& cam_from_world_rotation,
-                         const Eigen::Vector3d& camera_center, const Eigen::Vector3d& point,
-                         const Eigen::Vector3d& bearing) {
-    const Eigen::Vector3d x = cam_from_world_rotation * (point - camera_center);
-    return 1.0 - x.dot(bearing) / x.norm();
-  }
-
-  void getSelectedDistancesToModel(const model_t& model, const std::vector<int>& indices,
-                                   std::vector<double>& scores) const override {
-    const Eigen::Matrix3d rotation = model.leftCols<3>().transpose();
-    const Eigen::Vector3d center = model.col(3);
-    scores.resize(indices.size());
-    for (size_t k = 0; k < indices.size(); ++k) {
-      scores[k] = distance(rotation, center, points_[indices[k]], bearings_[indices[k]]);
-    }
-  }
-
-  int countWithinDistance(const model_t& model, double threshold) override {
-    const Eigen::Matrix3d rotation = model.leftCols<3>().transpose();
-    const Eigen::Vector3d center = model.col(3);
-    int count = 0;
-    for (const int i : *indices_) {
-      count += distance(rotation, center, points_[i], bearings_[i]) < threshold;
-    }
-    return count;
-  }
-
- private:
-  const opengv::bearingVectors_t& bearings_;
-  const opengv::points_t& points_;
-};
-using SacProblem = SeededAbsolutePoseProblem;
-
-// MSAC cost of a model over the valid correspondences: sum of min(distance, threshold), where
-// distance is OpenGV's 1 - cos(angle).
-double truncated_cost(const SacProblem& problem, const opengv::transformation_t& model,
-                      const std::vector<int>& indices, double threshold) {
-  std::vector<double> distances;
-  distances.reserve(indices.size());
-  problem.getSelectedDistancesToModel(model, indices, distances);
-  double cost = 0.0;
-  for (const double d : distances) cost += std::isfinite(d) ? std::min(d, threshold) : threshold;
-  return cost;
-}
-
-int count_distinct_points(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& inliers) {
-  std::vector<std::array<double, 3>> distinct;
-  distinct.reserve(inliers.size());
-  for (const int i : inliers) distinct.push_back({points[i].x(), points[i].y(), points[i].z()});
-  std::sort(distinct.begin(), distinct.end());
-  return static_cast<int>(std::unique(distinct.begin(), distinct.end()) - distinct.begin());
-}
 
 // Robust non-linear refinement of cam_from_world (R, t) on the given correspondences, by
 // Levenberg-Marquardt on angular residuals with a Cauchy loss.
@@ -110,15 +29,9 @@ int count_distinct_points(const std::vector<Eigen::Vector3d>& points, const std:
 // outliers: worst errors 15-25 mm and 0.31-0.41 degrees, against 2.5-4.7 mm and 0.035-0.050 here). This minimizes sum rho(|r_i|^2) where r_i is the 2D tangent-plane
 // residual of the predicted direction at the observed bearing b_i (|r_i| = sin angle) and rho the
 // Cauchy loss with scale `scale` (radians).
-struct RefineResult {
-  Eigen::Matrix3d rotation;
-  Eigen::Vector3d translation;
-};
-
-RefineResult refine_cam_from_world(const opengv::bearingVectors_t& bearings,
-                                   const opengv::points_t& points, const std::vector<int>& indices,
-                                   const Eigen::Matrix3d& rotation0, const Eigen::Vector3d& translation0,
-                                   double scale) {
+CameraPose refine_cam_from_world(const std::vector<Eigen::Vector3d>& bearings,
+                                 const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices,
+                                 const CameraPose& start, double scale) {
   constexpr int kMaxIterations = 50;
   const size_t m = indices.size();
   // Tangent-plane bases of the observed bearings.
@@ -141,7 +54,7 @@ RefineResult refine_cam_from_world(const opengv::bearingVectors_t& bearings,
     return cost;
   };
 
-  RefineResult best{rotation0, translation0};
+  CameraPose best = start;
   double best_cost = cost_of(best.rotation, best.translation);
   double lambda = 1e-3;
   for (int it = 0; it < kMaxIterations; ++it) {
@@ -170,7 +83,7 @@ RefineResult refine_cam_from_world(const opengv::bearingVectors_t& bearings,
       damped.diagonal() += lambda * H.diagonal().cwiseMax(1e-12);
       const Eigen::Matrix<double, 6, 1> step = -damped.ldlt().solve(g);
       if (!step.allFinite()) break;
-      RefineResult candidate;
+      CameraPose candidate;
       const double angle = step.head<3>().norm();
       candidate.rotation =
           (angle > 0 ? Eigen::AngleAxisd(angle, step.head<3>() / angle).toRotationMatrix()
@@ -194,38 +107,149 @@ RefineResult refine_cam_from_world(const opengv::bearingVectors_t& bearings,
   return best;
 }
 
-// OpenGV's model is world_from_cam: [R | c] with R the camera's axes in the world and c its centre.
-Rigid3d cam_from_world_of(const opengv::transformation_t& world_from_cam) {
-  const Eigen::Matrix3d cam_from_world_rotation = world_from_cam.leftCols<3>().transpose();
-  Eigen::Quaterniond q(cam_from_world_rotation);
+int count_distinct_points(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& inliers) {
+  std::vector<std::array<double, 3>> distinct;
+  distinct.reserve(inliers.size());
+  for (const int i : inliers) distinct.push_back({points[i].x(), points[i].y(), points[i].z()});
+  std::sort(distinct.begin(), distinct.end());
+  return static_cast<int>(std::unique(distinct.begin(), distinct.end()) - distinct.begin());
+}
+
+Rigid3d rigid_of(const CameraPose& pose) {
+  Eigen::Quaterniond q(pose.rotation);
   q.normalize();
-  return Rigid3d(q, -(cam_from_world_rotation * world_from_cam.col(3)));
+  return Rigid3d(q, pose.translation);
 }
 
 }  // namespace
+
+// The ransac<> estimator of the absolute pose: bearing vectors <-> world points, P3P, angular
+// residuals 1 - cos(angle) against `threshold`, LO by refine_cam_from_world.
+class AbsolutePoseEstimator {
+ public:
+  using Model = CameraPose;
+  static constexpr int kSampleSize = 3;
+
+  AbsolutePoseEstimator(const std::vector<Eigen::Vector3d>& bearings, const std::vector<Eigen::Vector3d>& points,
+                        double threshold, double loss_scale, bool refine)
+      : bearings_(bearings),
+        points_(points),
+        threshold_(threshold),
+        min_cos_(1.0 - threshold),
+        loss_scale_(loss_scale),
+        refine_(refine) {}
+
+  int num_data() const { return static_cast<int>(bearings_.size()); }
+
+  void generate_models(const int* sample, std::vector<CameraPose>* models) {
+    const Eigen::Vector3d b[3] = {bearings_[sample[0]], bearings_[sample[1]], bearings_[sample[2]]};
+    const Eigen::Vector3d p[3] = {points_[sample[0]], points_[sample[1]], points_[sample[2]]};
+    p3p(b, p, models);
+  }
+
+  // Residual 1 - cos(angle) is below the threshold exactly when x.b > 0 and
+  // (x.b)^2 > (1 - threshold)^2 |x|^2; only inliers need the square root.
+  double score(const CameraPose& model, int* num_inliers) const {
+    const Eigen::Matrix3d& R = model.rotation;
+    const Eigen::Vector3d& t = model.translation;
+    const double c2 = min_cos_ * min_cos_;
+    double cost = 0.0;
+    int inliers = 0;
+    const size_t n = bearings_.size();
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d x = R * points_[i] + t;
+      const double d = x.dot(bearings_[i]);
+      const double x2 = x.squaredNorm();
+      if (d > 0 && d * d > c2 * x2) {
+        cost += 1.0 - d / std::sqrt(x2);
+        ++inliers;
+      } else {
+        cost += threshold_;
+      }
+    }
+    *num_inliers = inliers;
+    return cost;
+  }
+
+  void inliers(const CameraPose& model, std::vector<char>* mask) const {
+    const double c2 = min_cos_ * min_cos_;
+    const size_t n = bearings_.size();
+    mask->resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d x = model.rotation * points_[i] + model.translation;
+      const double d = x.dot(bearings_[i]);
+      (*mask)[i] = d > 0 && d * d > c2 * x.squaredNorm();
+    }
+  }
+
+  void refine(CameraPose* model) const {
+    if (!refine_) return;
+    std::vector<char> mask;
+    inliers(*model, &mask);
+    std::vector<int> indices = indices_of(mask);
+    int count = 0;
+    double cost = score(*model, &count);
+    for (int round = 0; round < kMaxRefineRounds; ++round) {
+      if (indices.size() < static_cast<size_t>(kMinPoints)) break;
+      const CameraPose refined = refine_cam_from_world(bearings_, points_, indices, *model, loss_scale_);
+      if (!refined.rotation.allFinite() || !refined.translation.allFinite()) break;
+      const double refined_cost = score(refined, &count);
+      if (!(refined_cost <= cost)) break;
+      inliers(refined, &mask);
+      std::vector<int> refined_indices = indices_of(mask);
+      const bool unchanged = refined_indices == indices;
+      *model = refined;
+      cost = refined_cost;
+      indices = std::move(refined_indices);
+      if (unchanged) break;
+    }
+  }
+
+ private:
+  static std::vector<int> indices_of(const std::vector<char>& mask) {
+    std::vector<int> indices;
+    for (size_t i = 0; i < mask.size(); ++i) {
+      if (mask[i]) indices.push_back(static_cast<int>(i));
+    }
+    return indices;
+  }
+
+  const std::vector<Eigen::Vector3d>& bearings_;
+  const std::vector<Eigen::Vector3d>& points_;
+  double threshold_;
+  double min_cos_;
+  double loss_scale_;
+  bool refine_;
+};
+
 }  // namespace detail
 
 void PoseEstimatorOptions::check() const {
   LMB_CHECK(max_iterations >= 1,
             "PoseEstimatorOptions.max_iterations must be >= 1, got " << max_iterations);
+  LMB_CHECK(min_iterations >= 0 && min_iterations <= max_iterations,
+            "PoseEstimatorOptions.min_iterations must be in 0..max_iterations (" << max_iterations
+                                                                                << "), got " << min_iterations);
   LMB_CHECK(std::isfinite(max_reprojection_error_px) && max_reprojection_error_px > 0,
             "PoseEstimatorOptions.max_reprojection_error_px must be a positive number of pixels, got "
                 << max_reprojection_error_px);
-  LMB_CHECK(confidence > 0 && confidence < 1,
-            "PoseEstimatorOptions.confidence must be in (0, 1), got " << confidence);
-  LMB_CHECK(min_inliers >= detail::kMinSampleSize,
-            "PoseEstimatorOptions.min_inliers must be >= " << detail::kMinSampleSize << ", got "
-                                                          << min_inliers);
+  LMB_CHECK(success_probability > 0 && success_probability < 1,
+            "PoseEstimatorOptions.success_probability must be in (0, 1), got " << success_probability);
+  LMB_CHECK(min_inliers >= detail::kMinPoints,
+            "PoseEstimatorOptions.min_inliers must be >= " << detail::kMinPoints << ", got " << min_inliers);
 }
 
 PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels,
                                   const std::vector<Eigen::Vector3d>& points_world,
-                                  const PoseEstimatorOptions& options) {
+                                  const PoseEstimatorOptions& options, const std::vector<double>& quality) {
   options.check();
   camera.check("estimate_absolute_pose: camera");
   LMB_CHECK(pixels.size() == points_world.size(),
             "estimate_absolute_pose: " << pixels.size() << " pixels but " << points_world.size()
                                        << " world points; they must correspond one to one");
+  LMB_CHECK(quality.empty() || quality.size() == pixels.size(),
+            "estimate_absolute_pose: " << quality.size() << " quality values for " << pixels.size()
+                                       << " correspondences (give one each, or none)");
   const size_t n = pixels.size();
   for (size_t i = 0; i < n; ++i) {
     LMB_CHECK(pixels[i].allFinite(), "estimate_absolute_pose: pixel " << i << " is not finite ("
@@ -233,74 +257,72 @@ PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen:
     LMB_CHECK(points_world[i].allFinite(), "estimate_absolute_pose: world point "
                                                << i << " is not finite ("
                                                << points_world[i].transpose() << ")");
+    LMB_CHECK(quality.empty() || std::isfinite(quality[i]),
+              "estimate_absolute_pose: quality " << i << " is not finite (" << quality[i] << ")");
   }
 
   PoseResult result;
   result.inlier_mask.assign(n, 0);
-  if (n < static_cast<size_t>(detail::kMinSampleSize)) return result;
 
-  // Bearing vectors; a pixel whose undistortion does not converge to a finite point takes no part.
-  opengv::bearingVectors_t bearings(n);
-  opengv::points_t points(n);
-  std::vector<int> valid;
-  valid.reserve(n);
+  // The usable correspondences (a pixel whose undistortion does not converge to a finite point
+  // takes no part), in sampling order: decreasing quality, ties in input order.
+  std::vector<int> order;
+  order.reserve(n);
+  std::vector<Eigen::Vector3d> all_bearings(n);
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector2d normalized = camera.cam_from_img(pixels[i]);
-    bearings[i] = Eigen::Vector3d(normalized.x(), normalized.y(), 1.0).normalized();
-    points[i] = points_world[i];
-    if (bearings[i].allFinite()) valid.push_back(static_cast<int>(i));
+    all_bearings[i] = Eigen::Vector3d(normalized.x(), normalized.y(), 1.0).normalized();
+    if (all_bearings[i].allFinite()) order.push_back(static_cast<int>(i));
   }
-  if (valid.size() < static_cast<size_t>(detail::kMinSampleSize)) return result;
+  const bool progressive = options.progressive_sampling && !quality.empty();
+  if (progressive) {
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return quality[a] > quality[b]; });
+  }
+  result.stats.num_data = static_cast<int>(order.size());
+  result.stats.subset_size = static_cast<int>(order.size());
+  if (order.size() < static_cast<size_t>(detail::kMinPoints)) return result;
+  std::vector<Eigen::Vector3d> bearings, points;
+  bearings.reserve(order.size());
+  points.reserve(order.size());
+  for (const int i : order) {
+    bearings.push_back(all_bearings[i]);
+    points.push_back(points_world[i]);
+  }
 
   const double threshold_angle = std::atan(options.max_reprojection_error_px / camera.mean_focal_length());
   const double threshold = 1.0 - std::cos(threshold_angle);
-  const double loss_scale = 0.5 * threshold_angle;
+  detail::AbsolutePoseEstimator estimator(bearings, points, threshold, 0.5 * threshold_angle, options.refine);
 
-  opengv::absolute_pose::CentralAbsoluteAdapter adapter(bearings, points);
-  auto problem =
-      std::make_shared<detail::SacProblem>(adapter, bearings, points, valid, options.seed);
+  RansacOptions ro;
+  ro.max_iterations = options.max_iterations;
+  ro.min_iterations = options.min_iterations;
+  ro.success_probability = options.success_probability;
+  ro.progressive = progressive;
+  ro.seed = options.seed;
+  ro.min_support = options.min_inliers;
+  const double image_area = static_cast<double>(camera.width) * camera.height;
+  ro.random_inlier_probability =
+      std::clamp(M_PI * options.max_reprojection_error_px * options.max_reprojection_error_px / image_area, 1e-6, 0.5);
 
-  // OpenGV's loop stops once its counter exceeds maxIterations, i.e. after maxIterations + 1
-  // hypotheses: pass one less. It also gives up after 10 * maxIterations failed P3P samples, so
-  // maxIterations must be at least 1.
-  opengv::sac::Ransac<detail::SacProblem> ransac(std::max(options.max_iterations - 1, 1), threshold,
-                                                 options.confidence);
-  ransac.sac_model_ = problem;
-  const bool found = ransac.computeModel(0);
-  result.iterations = ransac.iterations_;
-  if (!found || !ransac.model_coefficients_.allFinite()) return result;
+  CameraPose best, runner_up;
+  result.stats = ransac(estimator, ro, &best, &runner_up);
+  result.iterations = result.stats.iterations;
+  if (result.stats.num_inliers == 0) return result;
 
-  opengv::transformation_t model = ransac.model_coefficients_;
-  std::vector<int> inliers = ransac.inliers_;
-  if (options.refine) {
-    double cost = detail::truncated_cost(*problem, model, valid, threshold);
-    for (int round = 0; round < detail::kMaxRefineRounds; ++round) {
-      if (inliers.size() < static_cast<size_t>(detail::kMinSampleSize)) break;
-      const Eigen::Matrix3d cam_from_world_rotation = model.leftCols<3>().transpose();
-      const detail::RefineResult r = detail::refine_cam_from_world(
-          bearings, points, inliers, cam_from_world_rotation,
-          -(cam_from_world_rotation * model.col(3)), loss_scale);
-      opengv::transformation_t refined;
-      refined.leftCols<3>() = r.rotation.transpose();
-      refined.col(3) = -(r.rotation.transpose() * r.translation);
-      if (!refined.allFinite()) break;
-      const double refined_cost = detail::truncated_cost(*problem, refined, valid, threshold);
-      if (!(refined_cost <= cost)) break;
-      std::vector<int> refined_inliers;
-      problem->selectWithinDistance(refined, threshold, refined_inliers);
-      const bool unchanged = refined_inliers == inliers;
-      model = refined;
-      cost = refined_cost;
-      inliers = std::move(refined_inliers);
-      if (unchanged) break;
+  std::vector<char> mask;
+  estimator.inliers(best, &mask);
+  std::vector<int> inliers;
+  for (size_t k = 0; k < mask.size(); ++k) {
+    if (mask[k]) {
+      result.inlier_mask[order[k]] = 1;
+      inliers.push_back(order[k]);
     }
   }
-
-  result.cam_from_world = detail::cam_from_world_of(model);
-  for (const int i : inliers) result.inlier_mask[i] = 1;
+  result.cam_from_world = detail::rigid_of(best);
   result.num_inliers = static_cast<int>(inliers.size());
+  if (result.stats.runner_up_inliers > 0) result.runner_up_cam_from_world = detail::rigid_of(runner_up);
   result.success = result.num_inliers >= options.min_inliers &&
-                   detail::count_distinct_points(points_world, inliers) >= detail::kMinSampleSize;
+                   detail::count_distinct_points(points_world, inliers) >= detail::kMinPoints;
   return result;
 }
 

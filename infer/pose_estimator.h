@@ -1,24 +1,34 @@
-// Absolute camera pose from 2D-3D correspondences: P3P (Kneip) inside OpenGV's RANSAC, then a
-// robust non-linear refinement on the inliers and a final inlier recount. This wrapper gives
-// OpenGV pixels in, a cam_from_world pose out and a seeded, reproducible RANSAC.
+// Absolute camera pose from 2D-3D correspondences, the third of the pose tiers: minimal solver
+// (infer/p3p.h, Kneip's P3P) -> LO-RANSAC with PROSAC sampling (infer/ransac.h) ->
+// estimate_absolute_pose, which takes pixels, undistorts them, orders the correspondences by the
+// caller's quality (e.g. the classifier's margin), runs the loop with a robust non-linear local
+// optimisation, and returns a cam_from_world pose with the loop's statistics and runner-up.
 //
 // Conventions.
 // - Pixels are in the distorted image with COLMAP's convention (centre of the top-left pixel at
 //   (0.5, 0.5)); the camera model undistorts them (Camera::cam_from_img) into bearing vectors.
 // - Points are in the world frame, in map units (metres for the maps this project builds).
 // - The result is cam_from_world: x_cam = cam_from_world * x_world, camera frame x right, y down,
-//   z forward. (OpenGV itself returns world_from_cam, i.e. the camera's rotation and centre in the
-//   world; the wrapper converts.)
+//   z forward.
 // - Inliers: correspondence i is an inlier when the angle between its observed bearing vector and
 //   the direction from the camera to its point is below atan(max_reprojection_error_px / f), f the
 //   camera's mean focal length; that is about max_reprojection_error_px pixels near the principal
-//   point. Internally the threshold is OpenGV's 1 - cos(angle). A point behind the camera has an
-//   angle above 90 degrees and is never an inlier.
+//   point. Residuals are 1 - cos(angle); the MSAC score sums min(1 - cos(angle), threshold). A
+//   point behind the camera has an angle above 90 degrees and is never an inlier.
+// - Sampling: with a quality per correspondence (higher = more promising) and
+//   progressive_sampling, PROSAC draws from the best-ranked correspondences first (ties keep the
+//   input order); without one, samples are uniform. The stopping rules are PROSAC's (infer/ransac.h)
+//   with beta = pi * max_reprojection_error_px^2 / image area and min_support = min_inliers.
+// - Local optimisation (refine): Levenberg-Marquardt on the angular residuals of the inliers with a
+//   Cauchy loss (scale: half the inlier angle), then an inlier recount, repeated while the inlier
+//   set changes (at most 4 rounds); a refinement is kept only when it lowers the MSAC score. It
+//   runs on every new best minimal model (LO-RANSAC) and on the runner-up.
 //
-// Errors. Invalid input throws lmb::Error: invalid options (check()), an invalid camera, pixel and
-// point arrays of different sizes, a non-finite pixel or point. Having no answer is not an error:
-// fewer than 4 correspondences, fewer than min_inliers inliers, fewer than 4 distinct inlier 3D
-// points (duplicated correspondences) or a degenerate configuration give success == false.
+// Errors. Invalid input throws lmb::Error: invalid options (check()), an invalid camera, pixel,
+// point and quality arrays of different sizes, a non-finite pixel, point or quality. Having no
+// answer is not an error: fewer than 4 usable correspondences, fewer than min_inliers inliers,
+// fewer than 4 distinct inlier 3D points (duplicated correspondences) or a degenerate
+// configuration give success == false.
 //
 // Threading: estimate_absolute_pose keeps no state between calls and may run concurrently from
 // many threads. The result is a function of the inputs and options only (seed included), so the
@@ -33,26 +43,27 @@
 #include "common/camera.h"
 #include "common/rigid3.h"
 #include "infer/export.h"
+#include "infer/ransac.h"
 
 namespace lmb {
 
 struct LMB_INFER_EXPORT PoseEstimatorOptions {
-  // Most RANSAC hypotheses (P3P samples) to evaluate, at least 2 (OpenGV's minimum); RANSAC stops
-  // earlier once `confidence` is reached.
+  // Most RANSAC samples (P3P calls), >= 1; the PROSAC/RANSAC stopping rules usually end earlier.
   int max_iterations = 500;
+  // Fewest samples before a stopping rule may end the search (0..max_iterations).
+  int min_iterations = 0;
   // Inlier threshold in pixels (see the conventions above).
   double max_reprojection_error_px = 8.0;
-  // Probability of having drawn at least one all-inlier sample before RANSAC stops early, in (0, 1).
-  double confidence = 0.9999;
+  // Probability that no better-supported pose was missed when RANSAC stops early, in (0, 1).
+  double success_probability = 0.9999;
   // Seed of RANSAC's sampling: equal seeds (and inputs) give bit-identical results.
   uint64_t seed = 0;
-  // Fewest inliers (after refinement) for success; at least 4.
+  // Fewest inliers (after refinement) for success; at least 4. Also the least support of a
+  // PROSAC stopping subset.
   int min_inliers = 12;
-  // Non-linear refinement on the inliers: Levenberg-Marquardt on the angular residuals with a
-  // Cauchy loss (scale: half the inlier angle), then an inlier recount, repeated while the inlier
-  // set changes (at most 4 rounds). A refinement is kept only when it does not raise the truncated
-  // angular cost (MSAC) over all correspondences. (Not OpenGV's optimize_nonlinear, which
-  // minimizes sum (1 - cos angle)^2 and is several times less accurate with noise.)
+  // PROSAC when a quality order is given; false = uniform sampling always.
+  bool progressive_sampling = true;
+  // Local optimisation (see the conventions above); false = the best minimal model as it is.
   bool refine = true;
 
   // Throws lmb::Error naming the field when a value is out of range.
@@ -69,15 +80,21 @@ struct LMB_INFER_EXPORT PoseResult {
   // like the input.
   std::vector<char> inlier_mask;
   int num_inliers = 0;
-  // RANSAC hypotheses evaluated (samples on which P3P failed are not counted).
-  int iterations = 0;
+  // The loop's statistics: samples, models scored, inlier count and ratio (over the usable
+  // correspondences), MSAC score, refinements, PROSAC subsets, the runner-up's support.
+  RansacStats stats;
+  int iterations = 0;  // RANSAC samples drawn (= stats.iterations)
+  // The runner-up pose (infer/ransac.h); meaningful when stats.runner_up_inliers > 0.
+  Rigid3d runner_up_cam_from_world;
 };
 
-// Estimates cam_from_world from pixels[i] <-> points_world[i] (same sizes). See the conventions
-// and errors above. Runs in O(iterations * n).
+// Estimates cam_from_world from pixels[i] <-> points_world[i] (same sizes). quality: empty, or
+// one finite value per correspondence, higher = sampled earlier (PROSAC). See the conventions and
+// errors above. Runs in O(iterations * n + n log n).
 LMB_INFER_EXPORT PoseResult estimate_absolute_pose(const Camera& camera,
                                                    const std::vector<Eigen::Vector2d>& pixels,
                                                    const std::vector<Eigen::Vector3d>& points_world,
-                                                   const PoseEstimatorOptions& options = {});
+                                                   const PoseEstimatorOptions& options = {},
+                                                   const std::vector<double>& quality = {});
 
 }  // namespace lmb

@@ -80,7 +80,10 @@ const std::vector<OptionField>& option_fields() {
       LMB_OPTION("ransac_iterations", pose.max_iterations, int, "Most RANSAC hypotheses."),
       LMB_OPTION("max_reprojection_error_px", pose.max_reprojection_error_px, double,
                  "RANSAC inlier threshold, pixels."),
-      LMB_OPTION("ransac_confidence", pose.confidence, double, "RANSAC's early-stop confidence, in (0, 1)."),
+      LMB_OPTION("ransac_confidence", pose.success_probability, double,
+                 "RANSAC's early stop: probability that no better-supported pose was missed, in (0, 1)."),
+      LMB_OPTION("prosac", pose.progressive_sampling, bool,
+                 "PROSAC: sample the matches of largest margin first (False = uniform sampling)."),
       LMB_OPTION("seed", pose.seed, uint64_t, "RANSAC seed: equal seeds and inputs give equal results."),
       LMB_OPTION("min_inliers", pose.min_inliers, int, "Fewest inliers for a pose (>= 4)."),
       LMB_OPTION("refine", pose.refine, bool, "Non-linear refinement on the inliers."),
@@ -313,6 +316,22 @@ their inlier mask; timings in milliseconds. Arrays are read-only views into this
       .def_property_readonly("cam_from_world", [](const Result& r) { return r.r.pose.cam_from_world; })
       .def_property_readonly("num_inliers", [](const Result& r) { return r.r.pose.num_inliers; })
       .def_property_readonly("iterations", [](const Result& r) { return r.r.pose.iterations; })
+      .def_property_readonly("ransac", [](const Result& r) {
+        const RansacStats& st = r.r.pose.stats;
+        py::dict d;
+        d["iterations"] = st.iterations;
+        d["models"] = st.models;
+        d["refinements"] = st.refinements;
+        d["num_data"] = st.num_data;
+        d["inlier_ratio"] = st.inlier_ratio;
+        d["score"] = st.score;
+        d["subset_size"] = st.subset_size;
+        d["stop_subset"] = st.stop_subset;
+        d["runner_up_inliers"] = st.runner_up_inliers;
+        d["runner_up_shared"] = st.runner_up_shared;
+        return d;
+      }, "dict: the LO-RANSAC statistics (infer/ransac.h RansacStats): samples, models, refinements, "
+         "correspondences, inlier ratio, MSAC score, PROSAC subsets, the runner-up's support.")
       .def_property_readonly("num_keypoints", [](const Result& r) { return r.r.matches.num_keypoints(); })
       .def_property_readonly("num_matches", [](const Result& r) { return r.r.matches.matches.size(); })
       .def_property_readonly("match_begin", [](py::object self) {

@@ -89,6 +89,8 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--min-inliers", o.pose.min_inliers, "Inliers for a pose")->capture_default_str();
   cmd->add_option("--seed", o.pose.seed, "RANSAC seed (the same for every method)")->capture_default_str();
+  cmd->add_flag("--uniform-sampling{false}", o.pose.progressive_sampling,
+                "Uniform RANSAC sampling instead of PROSAC in each method's match order");
   cmd->add_option("--pose-thresholds", args->pose_thresholds,
                   "Pose recall at each METRES,DEGREES pair, ';'-separated (e.g. '0.2,5;1,2;0.05,1'); a frame "
                   "is correct (frames_correct, PR curve, sweep) within the first pair")

@@ -130,6 +130,11 @@ nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all
   jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
                           {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
   jf["num_inliers"] = r.pose.num_inliers;
+  const RansacStats& st = r.pose.stats;
+  jf["ransac"] = {{"iterations", st.iterations},     {"models", st.models},
+                  {"refinements", st.refinements},   {"subset_size", st.subset_size},
+                  {"stop_subset", st.stop_subset},   {"score", st.score},
+                  {"runner_up_inliers", st.runner_up_inliers}, {"runner_up_shared", st.runner_up_shared}};
   jf["num_correspondences"] = r.correspondence_keypoint.size();
   jf["num_keypoints"] = frame.num_keypoints;
   int matched = 0;
@@ -245,7 +250,8 @@ void run_localize(const LocalizeArgs& a) {
                     {"ransac_iterations", a.options.pose.max_iterations},
                     {"max_reprojection_error_px", a.options.pose.max_reprojection_error_px},
                     {"min_inliers", a.options.pose.min_inliers},
-                    {"seed", a.options.pose.seed}};
+                    {"seed", a.options.pose.seed},
+                    {"prosac", a.options.pose.progressive_sampling}};
   nlohmann::json jframes = nlohmann::json::array();
   for (size_t i = 0; i < frames.size(); ++i) jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
   out["frames"] = std::move(jframes);
@@ -280,6 +286,8 @@ void add_localize_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--min-inliers", args->options.pose.min_inliers, "Inliers for a pose")->capture_default_str();
   cmd->add_option("--seed", args->options.pose.seed, "RANSAC seed")->capture_default_str();
+  cmd->add_flag("--uniform-sampling{false}", args->options.pose.progressive_sampling,
+                "Uniform RANSAC sampling instead of PROSAC in the order of the match margins");
   cmd->add_option("--threads", args->threads, "Frames localized in parallel")->capture_default_str();
   cmd->add_flag("--all-matches", args->all_matches, "Write every ranked match, not only the pose's");
   cmd->callback([args] { run_localize(*args); });

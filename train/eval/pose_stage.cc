@@ -28,6 +28,7 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
     const Keypoint& kp = query.keypoints[static_cast<size_t>(c.keypoint)];
     input.pixels.emplace_back(kp.x, kp.y);
     input.points_world.push_back(c.point_world);
+    input.quality.push_back(c.confidence);
   }
   return input;
 }
@@ -35,7 +36,7 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
 FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
                                  const PoseEstimatorOptions& options) {
   LMB_CHECK(query.camera != nullptr, "estimate_frame_pose: query frame " << query.frame << " has no camera");
-  const PoseResult pose = estimate_absolute_pose(*query.camera, input.pixels, input.points_world, options);
+  const PoseResult pose = estimate_absolute_pose(*query.camera, input.pixels, input.points_world, options, input.quality);
   FrameOutcome o;
   o.localized = pose.success;
   o.cam_from_world = pose.cam_from_world;
@@ -48,7 +49,7 @@ FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
 
 void PoseSweepOptions::check() const {
   LMB_CHECK(!iterations.empty(), "PoseSweepOptions: no iteration budget");
-  for (int it : iterations) LMB_CHECK(it >= 2, "PoseSweepOptions: iteration budget " << it << " must be >= 2");
+  for (int it : iterations) LMB_CHECK(it >= 1, "PoseSweepOptions: iteration budget " << it << " must be >= 1");
   LMB_CHECK(seeds >= 1 && seeds <= 1000, "PoseSweepOptions: seeds " << seeds << " must be in 1..1000");
 }
 

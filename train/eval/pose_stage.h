@@ -1,5 +1,6 @@
 // The pose stage of `lboost eval`, the same for every method: a method's accepted matches of one
-// query frame -> the correspondences given to P3P RANSAC (infer/pose_estimator.h) -> the frame's
+// query frame -> the correspondences given to LO-RANSAC (infer/pose_estimator.h: P3P, PROSAC in
+// the order of the method's own confidence unless options.progressive_sampling is off) -> the frame's
 // outcome (pose, inliers, times) that evaluate_poses (train/eval/metrics.h) scores.
 #pragma once
 
@@ -14,10 +15,13 @@
 
 namespace lmb {
 
-// The 2D-3D correspondences of one frame, as given to estimate_absolute_pose.
+// The 2D-3D correspondences of one frame, as given to estimate_absolute_pose, with the method's
+// confidence in each (its PROSAC order: LandmarkBoost's margin over the background, a baseline's
+// minus descriptor distance).
 struct PoseInput {
   std::vector<Eigen::Vector2d> pixels;
   std::vector<Eigen::Vector3d> points_world;
+  std::vector<double> quality;
 };
 
 // The accepted matches fed to RANSAC: all of them, or with max_correspondences > 0 the
@@ -34,7 +38,7 @@ FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
 
 // The RANSAC budgets and seeds of the pose-recall sweep.
 struct PoseSweepOptions {
-  std::vector<int> iterations = {50, 100, 500};  // each >= 2 (PoseEstimatorOptions::max_iterations)
+  std::vector<int> iterations = {50, 100, 500};  // each >= 1 (PoseEstimatorOptions::max_iterations)
   int seeds = 5;  // seeds base, base + 1, ..., base + seeds - 1, base = the pose options' seed; >= 1
   void check() const;  // throws lmb::Error naming the field
 };

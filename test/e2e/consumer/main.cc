@@ -74,7 +74,7 @@ void check_pose_api() {
   expect(result.num_inliers >= 70 && result.num_inliers <= 72, "70 inliers (+ chance outliers)");
   std::printf("      position error %.2e m, %d inliers, %d iterations\n",
               lmb::position_error(result.cam_from_world, truth), result.num_inliers,
-              result.iterations);
+              result.stats.iterations);
 
   // An lmb::Error thrown inside liblmb_infer.so is caught here by type.
   bool caught = false;
