@@ -105,7 +105,10 @@ void run_bench_pose(const BenchPoseArgs& a) {
   spdlog::info("bench pose: {} query frames, {} seeds; ransac_opengv {} iterations, lo_ransac {} iterations",
                frames.size(), a.seeds, a.baseline_iterations, a.iterations);
 
-  std::vector<Solver> solvers = {{"ransac_opengv"}, {"lo_ransac_prosac"}, {"lo_ransac_uniform"}};
+  std::vector<Solver> solvers(3);
+  solvers[0].name = "ransac_opengv";
+  solvers[1].name = "lo_ransac_prosac";
+  solvers[2].name = "lo_ransac_uniform";
   for (Solver& s : solvers) {
     s.correct.assign(a.seeds, 0);
     s.localized.assign(a.seeds, 0);
