@@ -18,7 +18,12 @@ namespace detail {
 namespace {
 
 constexpr int kMinPoints = 4;
-constexpr int kMaxRefineRounds = 4;
+// Local optimisation budgets: inside the loop (LO) a few Levenberg-Marquardt steps and inlier
+// re-selections rank a hypothesis; the answer's final refinement runs to convergence.
+constexpr int kLoRounds = 2;
+constexpr int kLoIterations = 8;
+constexpr int kFinalRounds = 4;
+constexpr int kFinalIterations = 50;
 
 // Robust non-linear refinement of cam_from_world (R, t) on the given correspondences, by
 // Levenberg-Marquardt on angular residuals with a Cauchy loss.
@@ -31,8 +36,7 @@ constexpr int kMaxRefineRounds = 4;
 // Cauchy loss with scale `scale` (radians).
 CameraPose refine_cam_from_world(const std::vector<Eigen::Vector3d>& bearings,
                                  const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices,
-                                 const CameraPose& start, double scale) {
-  constexpr int kMaxIterations = 50;
+                                 const CameraPose& start, double scale, int max_iterations) {
   const size_t m = indices.size();
   // Tangent-plane bases of the observed bearings.
   std::vector<Eigen::Matrix<double, 2, 3>> tangent(m);
@@ -57,7 +61,7 @@ CameraPose refine_cam_from_world(const std::vector<Eigen::Vector3d>& bearings,
   CameraPose best = start;
   double best_cost = cost_of(best.rotation, best.translation);
   double lambda = 1e-3;
-  for (int it = 0; it < kMaxIterations; ++it) {
+  for (int it = 0; it < max_iterations; ++it) {
     // Normal equations of the IRLS-weighted Gauss-Newton step for the left perturbation
     // R <- exp(w) R, t <- t + v, unknowns (w, v).
     Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
@@ -92,8 +96,8 @@ CameraPose refine_cam_from_world(const std::vector<Eigen::Vector3d>& bearings,
       candidate.translation = best.translation + step.tail<3>();
       const double cost = cost_of(candidate.rotation, candidate.translation);
       if (cost < best_cost) {
-        const bool converged = step.norm() < 1e-12 * (1.0 + best.translation.norm()) ||
-                               best_cost - cost < 1e-12 * best_cost;
+        const bool converged = step.norm() < 1e-10 * (1.0 + best.translation.norm()) ||
+                               best_cost - cost < 1e-10 * best_cost;
         best = candidate;
         best_cost = cost;
         lambda = std::max(lambda * 0.1, 1e-12);
@@ -144,7 +148,24 @@ class AbsolutePoseEstimator {
   void generate_models(const int* sample, std::vector<CameraPose>* models) {
     const Eigen::Vector3d b[3] = {bearings_[sample[0]], bearings_[sample[1]], bearings_[sample[2]]};
     const Eigen::Vector3d p[3] = {points_[sample[0]], points_[sample[1]], points_[sample[2]]};
+    const size_t first = models->size();
     p3p(b, p, models);
+    // Kneip's quartic also yields poses that put a sample point behind the camera or that do not
+    // reproduce its bearing (numerically poor roots): such a model cannot be the pose of an
+    // all-inlier sample, so it is dropped before scoring.
+    const double c2 = min_cos_ * min_cos_;
+    size_t kept = first;
+    for (size_t k = first; k < models->size(); ++k) {
+      const CameraPose& model = (*models)[k];
+      bool consistent = true;
+      for (int j = 0; j < 3 && consistent; ++j) {
+        const Eigen::Vector3d x = model.rotation * p[j] + model.translation;
+        const double d = x.dot(b[j]);
+        consistent = d > 0 && d * d > c2 * x.squaredNorm();
+      }
+      if (consistent) (*models)[kept++] = model;
+    }
+    models->resize(kept);
   }
 
   // Residual 1 - cos(angle) is below the threshold exactly when x.b > 0 and
@@ -182,16 +203,18 @@ class AbsolutePoseEstimator {
     }
   }
 
-  void refine(CameraPose* model) const {
+  void refine(CameraPose* model, bool final) const {
     if (!refine_) return;
+    const int rounds = final ? kFinalRounds : kLoRounds;
+    const int iterations = final ? kFinalIterations : kLoIterations;
     std::vector<char> mask;
     inliers(*model, &mask);
     std::vector<int> indices = indices_of(mask);
     int count = 0;
     double cost = score(*model, &count);
-    for (int round = 0; round < kMaxRefineRounds; ++round) {
+    for (int round = 0; round < rounds; ++round) {
       if (indices.size() < static_cast<size_t>(kMinPoints)) break;
-      const CameraPose refined = refine_cam_from_world(bearings_, points_, indices, *model, loss_scale_);
+      const CameraPose refined = refine_cam_from_world(bearings_, points_, indices, *model, loss_scale_, iterations);
       if (!refined.rotation.allFinite() || !refined.translation.allFinite()) break;
       const double refined_cost = score(refined, &count);
       if (!(refined_cost <= cost)) break;

@@ -19,7 +19,9 @@
 //     void inliers(const Model& model, std::vector<char>* mask) const;
 //     // Local optimisation: improves *model on its own inliers (e.g. non-linear least squares and
 //     // re-selection of the inliers). The loop keeps the result only when its score is lower.
-//     void refine(Model* model) const;
+//     // final = false inside the loop (a few steps suffice to rank hypotheses), true once for the
+//     // answer (to convergence).
+//     void refine(Model* model, bool final) const;
 //   };
 //
 // The loop (Chum, Matas, Kittler, "Locally optimized RANSAC", 2003; Chum, Matas, "Matching with
@@ -29,10 +31,11 @@
 //   plus kSampleSize - 1 others drawn uniformly from U_{n(t)-1}, where n(t) grows by PROSAC's
 //   growth function T'_n (T_N = options.prosac_horizon samples for U_N, by default
 //   max_iterations); once n(t) = N, samples are uniform over all data. Without progressive, every sample is uniform over all data.
-// - Scoring. Every model of every sample is scored (MSAC). When the sample's best model has more
-//   inliers or a lower cost than every minimal model before it, it is refined (local
-//   optimisation) and the refinement kept if its cost is lower; the best model so far (refined or
-//   not) is the answer. A final refinement runs when the answer was never refined.
+// - Scoring. Every model of every sample is scored (MSAC). When the sample's best model has a
+//   lower cost than every minimal model before it, it is refined (local optimisation,
+//   refine(model, false)) and the refinement kept if its cost is lower; the best model so far
+//   (refined or not) is the answer. A final refinement (refine(answer, true)) polishes the answer
+//   and is kept if its cost is not higher.
 // - Stopping (the PROSAC criteria; with uniform sampling they reduce to the standard RANSAC
 //   bound). For each subset size n, I_n is the number of the best model's inliers among the top n
 //   data. n is a stopping subset when I_n is non-random: I_n >= I_min(n) = kSampleSize +
@@ -222,16 +225,13 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options,
 
   double best_score = std::numeric_limits<double>::infinity();
   int best_inliers = 0;
-  bool best_refined = false;
   bool have_best = false;
   double best_minimal_score = std::numeric_limits<double>::infinity();
-  int best_minimal_inliers = 0;
   std::vector<char> best_mask;
-  auto accept = [&](const Model& model, double score, int inliers, bool refined) {
+  auto accept = [&](const Model& model, double score, int inliers) {
     *best_model = model;
     best_score = score;
     best_inliers = inliers;
-    best_refined = refined;
     have_best = true;
     estimator.inliers(model, &best_mask);
     stopping.update(best_mask);
@@ -259,7 +259,7 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options,
       ++stats.models;
       if (!std::isfinite(score)) continue;
       offer(models[k], score, inliers);
-      if (inliers > best_minimal_inliers || score < best_minimal_score) {
+      if (score < best_minimal_score) {
         if (candidate < 0 || score < candidate_score) {
           candidate = static_cast<int>(k);
           candidate_score = score;
@@ -268,28 +268,27 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options,
       }
     }
     if (candidate < 0) continue;
-    best_minimal_inliers = std::max(best_minimal_inliers, candidate_inliers);
     best_minimal_score = std::min(best_minimal_score, candidate_score);
-    if (candidate_score < best_score) accept(models[candidate], candidate_score, candidate_inliers, false);
+    if (candidate_score < best_score) accept(models[candidate], candidate_score, candidate_inliers);
     // Local optimisation of the sample's best model.
     Model refined = models[candidate];
-    estimator.refine(&refined);
+    estimator.refine(&refined, false);
     ++stats.refinements;
     int refined_inliers = 0;
     const double refined_score = estimator.score(refined, &refined_inliers);
-    if (refined_score < best_score) accept(refined, refined_score, refined_inliers, true);
+    if (refined_score < best_score) accept(refined, refined_score, refined_inliers);
   }
   stats.iterations = static_cast<int>(sampler.samples());
   stats.subset_size = sampler.subset_size();
   if (!have_best) return stats;
 
-  if (!best_refined) {
+  {
     Model refined = *best_model;
-    estimator.refine(&refined);
+    estimator.refine(&refined, true);
     ++stats.refinements;
     int refined_inliers = 0;
     const double refined_score = estimator.score(refined, &refined_inliers);
-    if (refined_score < best_score) accept(refined, refined_score, refined_inliers, true);
+    if (refined_score <= best_score) accept(refined, refined_score, refined_inliers);
   }
   stats.num_inliers = best_inliers;
   stats.inlier_ratio = static_cast<double>(best_inliers) / n;
@@ -304,7 +303,7 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options,
     int runner_inliers = k.inliers;
     std::vector<char> runner_mask = k.mask;
     Model refined = runner;
-    estimator.refine(&refined);
+    estimator.refine(&refined, false);
     ++stats.refinements;
     int refined_inliers = 0;
     const double refined_score = estimator.score(refined, &refined_inliers);

@@ -64,7 +64,7 @@ class LineEstimator {
   }
 
   // Least squares on the inliers.
-  void refine(Line* l) const {
+  void refine(Line* l, bool /*final*/) const {
     ++refine_calls;
     if (!refine_enabled) return;
     double sx = 0, sy = 0, sxx = 0, sxy = 0, n = 0;

@@ -9,7 +9,8 @@
 //   lo_ransac_uniform  the same with uniform sampling (ablation)
 // Reported per solver: pose recall (geometric success within 20 cm / 5 deg, over the frames with
 // ground truth) per seed with mean and range, and thread CPU milliseconds of the pose step per
-// frame, with the ratio against ransac_opengv measured in the same run.
+// frame, with the ratio against ransac_opengv measured in the same run; for the LO-RANSAC solvers
+// also the samples (P3P calls), models scored and local optimisations per frame.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -61,6 +62,8 @@ struct Solver {
   std::vector<int> correct;    // per seed
   std::vector<int> localized;  // per seed
   double cpu_ms = 0.0;         // summed over seeds and frames
+  // LO-RANSAC's statistics summed over seeds and frames (infer/ransac.h's RansacStats).
+  double samples = 0.0, models = 0.0, refinements = 0.0;
 };
 
 bool is_correct(const Rigid3d& estimate, const Rigid3d& truth) {
@@ -138,6 +141,9 @@ void run_bench_pose(const BenchPoseArgs& a) {
         solvers[k].cpu_ms += thread_cpu_ms() - t0;
         solvers[k].localized[seed] += r.success;
         solvers[k].correct[seed] += r.success && is_correct(r.cam_from_world, fr.truth);
+        solvers[k].samples += r.stats.iterations;
+        solvers[k].models += r.stats.models;
+        solvers[k].refinements += r.stats.refinements;
       }
     }
   }
@@ -156,8 +162,8 @@ void run_bench_pose(const BenchPoseArgs& a) {
                    {"machine", machine_info().summary()}};
   std::printf("\nPose solvers on %zu query frames x %d seeds (%s); recall = within 20 cm / 5 deg, of all frames\n",
               frames.size(), a.seeds, machine_info().summary().c_str());
-  std::printf("%-20s %10s %8s %8s %8s %12s %9s\n", "solver", "iterations", "recall", "min", "max", "cpu ms/frame",
-              "speed-up");
+  std::printf("%-20s %10s %8s %8s %8s %12s %9s %8s %8s %8s\n", "solver", "iterations", "recall", "min", "max",
+              "cpu ms/frame", "speed-up", "samples", "models", "LO");
   for (size_t k = 0; k < solvers.size(); ++k) {
     const Solver& s = solvers[k];
     double sum = 0, lo_r = 1, hi_r = 0;
@@ -171,8 +177,13 @@ void run_bench_pose(const BenchPoseArgs& a) {
     }
     const double ms = s.cpu_ms / runs;
     const int iterations = k == 0 ? a.baseline_iterations : a.iterations;
-    std::printf("%-20s %10d %8.4f %8.4f %8.4f %12.3f %8.2fx\n", s.name.c_str(), iterations, sum / a.seeds, lo_r, hi_r,
+    std::printf("%-20s %10d %8.4f %8.4f %8.4f %12.3f %8.2fx", s.name.c_str(), iterations, sum / a.seeds, lo_r, hi_r,
                 ms, baseline_ms / ms);
+    if (k == 0) {
+      std::printf(" %8s %8s %8s\n", "-", "-", "-");
+    } else {
+      std::printf(" %8.1f %8.1f %8.2f\n", s.samples / runs, s.models / runs, s.refinements / runs);
+    }
     j["solvers"][s.name] = {{"iterations", iterations},
                             {"recall_per_seed", recall},
                             {"correct_per_seed", s.correct},
@@ -182,6 +193,11 @@ void run_bench_pose(const BenchPoseArgs& a) {
                             {"recall_max", hi_r},
                             {"cpu_ms_per_frame", ms},
                             {"speedup_vs_ransac_opengv", baseline_ms / ms}};
+    if (k > 0) {
+      j["solvers"][s.name]["samples_per_frame"] = s.samples / runs;
+      j["solvers"][s.name]["models_per_frame"] = s.models / runs;
+      j["solvers"][s.name]["refinements_per_frame"] = s.refinements / runs;
+    }
   }
   if (!a.json.empty()) {
     std::ofstream out(a.json);
