@@ -25,39 +25,18 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/boost/boost_model.h"
+#include "test/support/lboost_run.h"
 
 namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = 0;
-  std::string out;
-  std::string err;
-};
+using test::RunResult;
+using test::slurp;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// Runs `prefix lboost args` in `dir`, capturing both streams.
 RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
-  static int counter = 0;
-  const std::string tag = std::to_string(++counter);
-  const fs::path out = dir / ("stdout_" + tag + ".txt"), err = dir / ("stderr_" + tag + ".txt");
-  const std::string command = prefix + LMB_LBOOST + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int status = std::system(command.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+  return test::run_lboost(args, dir, prefix);
 }
 
 void expect_one_error(const RunResult& r, const std::string& command, const std::string& needle) {

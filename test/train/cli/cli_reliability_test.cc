@@ -21,39 +21,18 @@
 #include <gtest/gtest.h>
 
 #include "common/file_io.h"
+#include "test/support/lboost_run.h"
 
 namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = 0;
-  std::string out;
-  std::string err;
-};
+using test::RunResult;
+using test::slurp;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// Runs `prefix lboost args` in `dir`, capturing both streams.
 RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
-  static int counter = 0;
-  const std::string tag = std::to_string(++counter);
-  const fs::path out = dir / ("stdout_" + tag + ".txt"), err = dir / ("stderr_" + tag + ".txt");
-  const std::string command = prefix + LMB_LBOOST + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int status = std::system(command.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+  return test::run_lboost(args, dir, prefix);
 }
 
 // lboost's own error lines (mpirun adds its banner to stderr).

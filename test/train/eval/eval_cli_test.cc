@@ -24,29 +24,18 @@
 #include "infer/model.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
+#include "test/support/lboost_run.h"
 
 namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = 0;
-  std::string out, err;
-};
+using test::RunResult;
+using test::slurp;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-RunResult run(const std::string& args, const fs::path& dir) {
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string command = std::string(LMB_LBOOST) + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int status = std::system(command.c_str());
-  return RunResult{WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
+RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
+  return test::run_lboost(args, dir, prefix);
 }
 
 // The field paths of a report: objects' keys joined by '.', method names as <method>, session
@@ -92,14 +81,17 @@ class EvalCliTest : public ::testing::Test {
     fs::create_directories(dir_);
     const fs::path images = map_.parent_path() / "collection" / "images";
     const std::string m = " --map " + map_.string();
-    ok_ = run("vocab --images " + images.string() + " --out " + (dir_ / "vocab.lbv").string() + " --words 16 --seed 7",
-              dir_).exit_code == 0 &&
-          run("train" + m + " --vocab " + (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "run").string() +
-                  " --rounds 20 --dims-per-round 100 --threads 2",
-              dir_).exit_code == 0 &&
-          run("export --run " + (dir_ / "run").string() + m + " --vocab " + (dir_ / "vocab.lbv").string() +
-                  " --out " + (dir_ / "model.lbm").string(),
-              dir_).exit_code == 0;
+    const auto step = [](const std::string& args) {
+      const RunResult r = run(args, dir_);
+      if (r.exit_code != 0) setup_error_ = args.substr(0, args.find(' ')) + ": " + r.err;
+      return r.exit_code == 0;
+    };
+    ok_ = step("vocab --images " + images.string() + " --out " + (dir_ / "vocab.lbv").string() +
+               " --words 16 --seed 7") &&
+          step("train" + m + " --vocab " + (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "run").string() +
+                  " --rounds 20 --dims-per-round 100 --threads 2") &&
+          step("export --run " + (dir_ / "run").string() + m + " --vocab " + (dir_ / "vocab.lbv").string() +
+                  " --out " + (dir_ / "model.lbm").string());
     if (!ok_) return;
     eval_ = run("eval --model " + (dir_ / "model.lbm").string() + m + " --run " + (dir_ / "run").string() +
                     " --report " + (dir_ / "report.json").string() + " --keypoint-ranks " +
@@ -111,15 +103,17 @@ class EvalCliTest : public ::testing::Test {
   }
   void SetUp() override {
     if (map_.empty()) GTEST_SKIP() << "LMB_TINY_MAP (a map.h5 of `lboost world --preset tiny`) is not available";
-    ASSERT_TRUE(ok_) << "vocab / train / export failed: " << slurp(dir_ / "stderr.txt");
+    ASSERT_TRUE(ok_) << "vocab / train / export failed: " << setup_error_;
   }
 
   static fs::path map_, dir_;
   static bool ok_;
+  static std::string setup_error_;
   static RunResult eval_;
 };
 fs::path EvalCliTest::map_, EvalCliTest::dir_;
 bool EvalCliTest::ok_ = false;
+std::string EvalCliTest::setup_error_;
 RunResult EvalCliTest::eval_;
 
 TEST_F(EvalCliTest, ReportSchemaCountsAndRanges) {

@@ -18,29 +18,18 @@
 #include "common/io/colmap_model.h"
 #include "common/io/gravity_file.h"
 #include "common/io/map_h5.h"
+#include "test/support/lboost_run.h"
 
 namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = 0;
-  std::string out, err;
-};
+using test::RunResult;
+using test::slurp;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-RunResult run(const std::string& args, const fs::path& dir) {
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string command = std::string(LMB_LBOOST) + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int status = std::system(command.c_str());
-  return RunResult{WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
+RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
+  return test::run_lboost(args, dir, prefix);
 }
 
 class GravityCliTest : public ::testing::Test {

@@ -12,29 +12,18 @@
 
 #include "common/io/colmap_model.h"
 #include "synthetic_scene.h"
+#include "test/support/lboost_run.h"
 
 namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = 0;
-  std::string err;
-};
+using test::RunResult;
+using test::slurp;
 
-RunResult run(const std::string& args, const fs::path& dir) {
-  const fs::path err = dir / "stderr.txt";
-  std::ostringstream command;
-  command << LMB_LBOOST << ' ' << args << " > /dev/null 2> " << err.string();
-  const int status = std::system(command.str().c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream in(err);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.err = ss.str();
-  return r;
+RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
+  return test::run_lboost(args, dir, prefix);
 }
 
 void expect_one_error_line(const RunResult& r, const std::string& command, const std::string& needle) {
@@ -100,7 +89,7 @@ TEST_F(MapCliTest, NoLandmarksWritesNothing) {
   const RunResult r = run("map --collection " + (dir_ / "coll").string() + " --out " + out.string(), dir_);
   expect_one_error_line(r, "map", "no landmark");
   EXPECT_FALSE(fs::exists(out));
-  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 2);  // coll, stderr.txt
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);  // coll
 }
 
 TEST_F(MapCliTest, InspectRejectsBadFiles) {

@@ -1,0 +1,47 @@
+// The CLI tests' one runner: runs the build's lboost (LMB_LBOOST, a compile definition of each CLI
+// test target) in a folder and captures its exit code and both streams.
+#pragma once
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace lmb::test {
+
+struct RunResult {
+  int exit_code = 0;  // -1 when lboost did not exit normally (a signal)
+  std::string out;
+  std::string err;
+};
+
+// The whole file, bytes as they are ("" when it cannot be read).
+inline std::string slurp(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Runs `prefix lboost args` (prefix: e.g. "mpiexec -n 2 ") with `dir` holding the captured
+// streams, which are removed afterwards.
+inline RunResult run_lboost(const std::string& args, const std::filesystem::path& dir,
+                            const std::string& prefix = "") {
+  static int counter = 0;
+  const std::string tag = std::to_string(++counter);
+  const std::filesystem::path out = dir / ("stdout_" + tag + ".txt"), err = dir / ("stderr_" + tag + ".txt");
+  const std::string command = prefix + LMB_LBOOST + " " + args + " > " + out.string() + " 2> " + err.string();
+  const int status = std::system(command.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  std::filesystem::remove(out);
+  std::filesystem::remove(err);
+  return r;
+}
+
+}  // namespace lmb::test
