@@ -11,6 +11,7 @@
 
 #include "common/error.h"
 #include "infer/p3p.h"
+#include "infer/pose_refine.h"
 
 namespace lmb {
 
@@ -25,18 +26,11 @@ constexpr int kLoIterations = 8;
 constexpr int kFinalRounds = 4;
 constexpr int kFinalIterations = 50;
 
-// Robust non-linear refinement of cam_from_world (R, t) on the given correspondences, by
-// Levenberg-Marquardt on angular residuals with a Cauchy loss.
-//
-// OpenGV's own optimize_nonlinear minimizes sum (1 - cos angle)^2, about sum angle^4 / 4: with
-// noisy data that is far from the maximum-likelihood pose and lets a single false inlier near the
-// threshold dominate (measured on test/infer/pose_estimator_test's scenes at 0.5 px noise and 50-80 %
-// outliers: worst errors 15-25 mm and 0.31-0.41 degrees, against 2.5-4.7 mm and 0.035-0.050 here). This minimizes sum rho(|r_i|^2) where r_i is the 2D tangent-plane
-// residual of the predicted direction at the observed bearing b_i (|r_i| = sin angle) and rho the
-// Cauchy loss with scale `scale` (radians).
-CameraPose refine_cam_from_world(const std::vector<Eigen::Vector3d>& bearings,
-                                 const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices,
-                                 const CameraPose& start, double scale, int max_iterations) {
+}  // namespace
+
+CameraPose refine_cam_from_world(const Eigen::Vector3d* bearings, const Eigen::Vector3d* points,
+                                 const std::vector<int>& indices, const CameraPose& start, double scale,
+                                 int max_iterations, double tolerance) {
   const size_t m = indices.size();
   // Tangent-plane bases of the observed bearings.
   std::vector<Eigen::Matrix<double, 2, 3>> tangent(m);
@@ -96,8 +90,8 @@ CameraPose refine_cam_from_world(const std::vector<Eigen::Vector3d>& bearings,
       candidate.translation = best.translation + step.tail<3>();
       const double cost = cost_of(candidate.rotation, candidate.translation);
       if (cost < best_cost) {
-        const bool converged = step.norm() < 1e-10 * (1.0 + best.translation.norm()) ||
-                               best_cost - cost < 1e-10 * best_cost;
+        const bool converged = step.norm() < tolerance * (1.0 + best.translation.norm()) ||
+                               best_cost - cost < tolerance * best_cost;
         best = candidate;
         best_cost = cost;
         lambda = std::max(lambda * 0.1, 1e-12);
@@ -118,6 +112,8 @@ int count_distinct_points(const std::vector<Eigen::Vector3d>& points, const std:
   std::sort(distinct.begin(), distinct.end());
   return static_cast<int>(std::unique(distinct.begin(), distinct.end()) - distinct.begin());
 }
+
+namespace {
 
 Rigid3d rigid_of(const CameraPose& pose) {
   Eigen::Quaterniond q(pose.rotation);
@@ -214,7 +210,8 @@ class AbsolutePoseEstimator {
     double cost = score(*model, &count);
     for (int round = 0; round < rounds; ++round) {
       if (indices.size() < static_cast<size_t>(kMinPoints)) break;
-      const CameraPose refined = refine_cam_from_world(bearings_, points_, indices, *model, loss_scale_, iterations);
+      const CameraPose refined =
+          refine_cam_from_world(bearings_.data(), points_.data(), indices, *model, loss_scale_, iterations);
       if (!refined.rotation.allFinite() || !refined.translation.allFinite()) break;
       const double refined_cost = score(refined, &count);
       if (!(refined_cost <= cost)) break;

@@ -1,13 +1,11 @@
 #include "train/cli/legacy_pose_estimator.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
 #include <memory>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <opengv/absolute_pose/CentralAbsoluteAdapter.hpp>
 #include <opengv/sac/Ransac.hpp>
@@ -15,6 +13,7 @@
 
 #include "common/error.h"
 #include "common/random.h"
+#include "infer/pose_refine.h"
 
 namespace lmb::legacy {
 
@@ -25,6 +24,9 @@ using OpenGvProblem = opengv::sac_problems::absolute_pose::AbsolutePoseSacProble
 
 // KNEIP samples 4 correspondences: P3P on three, the fourth picks among P3P's solutions.
 constexpr int kMinSampleSize = 4;
+// Refinement: at most this many Levenberg-Marquardt steps, to this relative tolerance.
+constexpr int kRefineIterations = 50;
+constexpr double kRefineTolerance = 1e-12;
 constexpr int kMaxRefineRounds = 4;
 
 // OpenGV's absolute-pose problem with two changes.
@@ -91,107 +93,6 @@ double truncated_cost(const SacProblem& problem, const opengv::transformation_t&
   double cost = 0.0;
   for (const double d : distances) cost += std::isfinite(d) ? std::min(d, threshold) : threshold;
   return cost;
-}
-
-int count_distinct_points(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& inliers) {
-  std::vector<std::array<double, 3>> distinct;
-  distinct.reserve(inliers.size());
-  for (const int i : inliers) distinct.push_back({points[i].x(), points[i].y(), points[i].z()});
-  std::sort(distinct.begin(), distinct.end());
-  return static_cast<int>(std::unique(distinct.begin(), distinct.end()) - distinct.begin());
-}
-
-// Robust non-linear refinement of cam_from_world (R, t) on the given correspondences, by
-// Levenberg-Marquardt on angular residuals with a Cauchy loss.
-//
-// OpenGV's own optimize_nonlinear minimizes sum (1 - cos angle)^2, about sum angle^4 / 4: with
-// noisy data that is far from the maximum-likelihood pose and lets a single false inlier near the
-// threshold dominate (measured on test/infer/pose_estimator_test's scenes at 0.5 px noise and 50-80 %
-// outliers: worst errors 15-25 mm and 0.31-0.41 degrees, against 2.5-4.7 mm and 0.035-0.050 here). This minimizes sum rho(|r_i|^2) where r_i is the 2D tangent-plane
-// residual of the predicted direction at the observed bearing b_i (|r_i| = sin angle) and rho the
-// Cauchy loss with scale `scale` (radians).
-struct RefineResult {
-  Eigen::Matrix3d rotation;
-  Eigen::Vector3d translation;
-};
-
-RefineResult refine_cam_from_world(const opengv::bearingVectors_t& bearings,
-                                   const opengv::points_t& points, const std::vector<int>& indices,
-                                   const Eigen::Matrix3d& rotation0, const Eigen::Vector3d& translation0,
-                                   double scale) {
-  constexpr int kMaxIterations = 50;
-  const size_t m = indices.size();
-  // Tangent-plane bases of the observed bearings.
-  std::vector<Eigen::Matrix<double, 2, 3>> tangent(m);
-  for (size_t k = 0; k < m; ++k) {
-    const Eigen::Vector3d& b = bearings[indices[k]];
-    const Eigen::Vector3d e1 = b.unitOrthogonal();
-    tangent[k].row(0) = e1.transpose();
-    tangent[k].row(1) = b.cross(e1).transpose();
-  }
-  const double scale2 = scale * scale;
-  auto cost_of = [&](const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
-    double cost = 0;
-    for (size_t k = 0; k < m; ++k) {
-      const Eigen::Vector3d x = rotation * points[indices[k]] + translation;
-      const double r2 = (tangent[k] * x.normalized()).squaredNorm();
-      // A point behind the camera gets the largest residual the loss allows for |r| = 1.
-      cost += std::log1p((x.dot(bearings[indices[k]]) > 0 ? r2 : 1.0) / scale2);
-    }
-    return cost;
-  };
-
-  RefineResult best{rotation0, translation0};
-  double best_cost = cost_of(best.rotation, best.translation);
-  double lambda = 1e-3;
-  for (int it = 0; it < kMaxIterations; ++it) {
-    // Normal equations of the IRLS-weighted Gauss-Newton step for the left perturbation
-    // R <- exp(w) R, t <- t + v, unknowns (w, v).
-    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
-    for (size_t k = 0; k < m; ++k) {
-      const Eigen::Vector3d rx = best.rotation * points[indices[k]];
-      const Eigen::Vector3d x = rx + best.translation;
-      const double norm = x.norm();
-      const Eigen::Vector3d d = x / norm;
-      const Eigen::Vector2d r = tangent[k] * d;
-      const double weight = 1.0 / (1.0 + r.squaredNorm() / scale2);
-      Eigen::Matrix<double, 3, 6> dx;
-      dx.leftCols<3>() << 0, rx.z(), -rx.y(), -rx.z(), 0, rx.x(), rx.y(), -rx.x(), 0;  // -[Rx]_x
-      dx.rightCols<3>().setIdentity();
-      const Eigen::Matrix<double, 2, 6> J =
-          tangent[k] * ((Eigen::Matrix3d::Identity() - d * d.transpose()) / norm) * dx;
-      H.noalias() += weight * J.transpose() * J;
-      g.noalias() += weight * J.transpose() * r;
-    }
-    bool improved = false;
-    while (lambda < 1e10) {
-      Eigen::Matrix<double, 6, 6> damped = H;
-      damped.diagonal() += lambda * H.diagonal().cwiseMax(1e-12);
-      const Eigen::Matrix<double, 6, 1> step = -damped.ldlt().solve(g);
-      if (!step.allFinite()) break;
-      RefineResult candidate;
-      const double angle = step.head<3>().norm();
-      candidate.rotation =
-          (angle > 0 ? Eigen::AngleAxisd(angle, step.head<3>() / angle).toRotationMatrix()
-                     : Eigen::Matrix3d::Identity()) *
-          best.rotation;
-      candidate.translation = best.translation + step.tail<3>();
-      const double cost = cost_of(candidate.rotation, candidate.translation);
-      if (cost < best_cost) {
-        const bool converged = step.norm() < 1e-12 * (1.0 + best.translation.norm()) ||
-                               best_cost - cost < 1e-12 * best_cost;
-        best = candidate;
-        best_cost = cost;
-        lambda = std::max(lambda * 0.1, 1e-12);
-        improved = !converged;
-        break;
-      }
-      lambda *= 10;
-    }
-    if (!improved) break;
-  }
-  return best;
 }
 
 // OpenGV's model is world_from_cam: [R | c] with R the camera's axes in the world and c its centre.
@@ -262,9 +163,11 @@ LegacyPoseResult estimate_absolute_pose(const Camera& camera, const std::vector<
     for (int round = 0; round < detail::kMaxRefineRounds; ++round) {
       if (inliers.size() < static_cast<size_t>(detail::kMinSampleSize)) break;
       const Eigen::Matrix3d cam_from_world_rotation = model.leftCols<3>().transpose();
-      const detail::RefineResult r = detail::refine_cam_from_world(
-          bearings, points, inliers, cam_from_world_rotation,
-          -(cam_from_world_rotation * model.col(3)), loss_scale);
+      // The refinement inference uses, with this estimator's own budget and tolerance.
+      const CameraPose r = lmb::detail::refine_cam_from_world(
+          bearings.data(), points.data(), inliers,
+          CameraPose{cam_from_world_rotation, -(cam_from_world_rotation * model.col(3))}, loss_scale,
+          detail::kRefineIterations, detail::kRefineTolerance);
       opengv::transformation_t refined;
       refined.leftCols<3>() = r.rotation.transpose();
       refined.col(3) = -(r.rotation.transpose() * r.translation);
@@ -284,7 +187,7 @@ LegacyPoseResult estimate_absolute_pose(const Camera& camera, const std::vector<
   result.cam_from_world = detail::cam_from_world_of(model);
   result.num_inliers = static_cast<int>(inliers.size());
   result.success = result.num_inliers >= options.min_inliers &&
-                   detail::count_distinct_points(points_world, inliers) >= detail::kMinSampleSize;
+                   lmb::detail::count_distinct_points(points_world, inliers) >= detail::kMinSampleSize;
   return result;
 }
 
