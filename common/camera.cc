@@ -16,9 +16,8 @@ CameraModel camera_model_from_name(const std::string& name, const std::string& w
   if (name == "RADIAL") return CameraModel::kRadial;
   if (name == "OPENCV") return CameraModel::kOpenCV;
   if (name == "FULL_OPENCV") return CameraModel::kFullOpenCV;
-  LMB_FAIL(where << ": unsupported camera model '"
-           << name
-           << "' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)");
+  LMB_FAIL(where << ": unsupported camera model '" << name
+                 << "' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)");
 }
 
 CameraModel camera_model_from_id(int colmap_id) {
@@ -31,7 +30,8 @@ CameraModel camera_model_from_id(int colmap_id) {
     case 6: return CameraModel::kFullOpenCV;
     default: break;
   }
-  LMB_FAIL("unsupported camera model id " << colmap_id
+  LMB_FAIL("unsupported camera model id "
+           << colmap_id
            << " (supported COLMAP ids: 0 SIMPLE_PINHOLE, 1 PINHOLE, 2 SIMPLE_RADIAL, 3 RADIAL,"
               " 4 OPENCV, 6 FULL_OPENCV)");
 }
@@ -63,40 +63,33 @@ int camera_model_num_params(CameraModel model) {
 namespace {
 
 bool single_focal(CameraModel m) {
-  return m == CameraModel::kSimplePinhole || m == CameraModel::kSimpleRadial ||
-         m == CameraModel::kRadial;
+  return m == CameraModel::kSimplePinhole || m == CameraModel::kSimpleRadial || m == CameraModel::kRadial;
 }
 
 }  // namespace
 
 void Camera::check(const std::string& where) const {
   const int expected = camera_model_num_params(model);
-  LMB_CHECK(static_cast<int>(params.size()) == expected,
-            where << ": camera model " << camera_model_name(model) << " takes " << expected
-                  << " parameters, got " << params.size());
-  LMB_CHECK(width > 0 && height > 0,
-            where << ": image size must be positive, got " << width << "x" << height);
+  LMB_CHECK(static_cast<int>(params.size()) == expected, where << ": camera model " << camera_model_name(model)
+                                                               << " takes " << expected << " parameters, got "
+                                                               << params.size());
+  LMB_CHECK(width > 0 && height > 0, where << ": image size must be positive, got " << width << "x" << height);
   for (size_t i = 0; i < params.size(); ++i) {
     LMB_CHECK(std::isfinite(params[i]), where << ": camera parameter " << i << " is not finite");
   }
-  LMB_CHECK(params[0] > 0 && (single_focal(model) || params[1] > 0),
-            where << ": focal length must be positive");
+  LMB_CHECK(params[0] > 0 && (single_focal(model) || params[1] > 0), where << ": focal length must be positive");
 }
 
-double Camera::mean_focal_length() const {
-  return single_focal(model) ? params[0] : 0.5 * (params[0] + params[1]);
-}
+double Camera::mean_focal_length() const { return single_focal(model) ? params[0] : 0.5 * (params[0] + params[1]); }
 
 Eigen::Vector2d Camera::principal_point() const {
-  return single_focal(model) ? Eigen::Vector2d(params[1], params[2])
-                             : Eigen::Vector2d(params[2], params[3]);
+  return single_focal(model) ? Eigen::Vector2d(params[1], params[2]) : Eigen::Vector2d(params[2], params[3]);
 }
 
 bool Camera::has_distortion() const {
   switch (model) {
     case CameraModel::kSimplePinhole:
-    case CameraModel::kPinhole:
-      return false;
+    case CameraModel::kPinhole: return false;
     default:
       for (int i = single_focal(model) ? 3 : 4; i < static_cast<int>(params.size()); ++i) {
         if (params[i] != 0.0) return true;
@@ -111,8 +104,7 @@ Eigen::Vector2d Camera::distortion(const Eigen::Vector2d& n) const {
   const std::vector<double>& p = params;
   switch (model) {
     case CameraModel::kSimplePinhole:
-    case CameraModel::kPinhole:
-      return Eigen::Vector2d::Zero();
+    case CameraModel::kPinhole: return Eigen::Vector2d::Zero();
     case CameraModel::kSimpleRadial: {
       const double radial = p[3] * r2;
       return Eigen::Vector2d(u * radial, v * radial);

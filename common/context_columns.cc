@@ -84,8 +84,8 @@ LMB_COLUMNS_TARGET inline __m128i bins8(__m256i x, __m512i magic) {
 // whose bins are 0, so no lane branches).
 LMB_COLUMNS_TARGET void column_bins_avx512(const ColumnTables& t, const int32_t* ix0p, const int32_t* ix1p,
                                            const int32_t* iy0p, const int32_t* iy1p, const int32_t* rxp,
-                                           const int32_t* ryp, const int32_t* wordp, const uint8_t* words,
-                                           int32_t num, uint8_t* out) {
+                                           const int32_t* ryp, const int32_t* wordp, const uint8_t* words, int32_t num,
+                                           uint8_t* out) {
   const __m512i ix0 = _mm512_loadu_si512(ix0p), ix1 = _mm512_loadu_si512(ix1p);
   const __m512i iy0 = _mm512_loadu_si512(iy0p), iy1 = _mm512_loadu_si512(iy1p);
   const __m512i rx = _mm512_loadu_si512(rxp), ry = _mm512_loadu_si512(ryp);
@@ -97,10 +97,10 @@ LMB_COLUMNS_TARGET void column_bins_avx512(const ColumnTables& t, const int32_t*
                                         dominance16(t, ix1, iy0)),
                        dominance16(t, ix0, iy0)),
       _mm512_maskz_mov_epi32(inside, one));
-  const __m512i magic_lo = _mm512_i32gather_epi64(_mm512_castsi512_si256(total),
-                                                  reinterpret_cast<const long long*>(t.bin_magic), 8);
-  const __m512i magic_hi = _mm512_i32gather_epi64(_mm512_extracti64x4_epi64(total, 1),
-                                                  reinterpret_cast<const long long*>(t.bin_magic), 8);
+  const __m512i magic_lo =
+      _mm512_i32gather_epi64(_mm512_castsi512_si256(total), reinterpret_cast<const long long*>(t.bin_magic), 8);
+  const __m512i magic_hi =
+      _mm512_i32gather_epi64(_mm512_extracti64x4_epi64(total, 1), reinterpret_cast<const long long*>(t.bin_magic), 8);
   const __m512i half = _mm512_srli_epi32(total, 1);
   const __m512i W = _mm512_set1_epi32(t.num_words);
   const __m512i ax0 = _mm512_mullo_epi32(ix0, W), ax1 = _mm512_mullo_epi32(ix1, W);
@@ -117,8 +117,8 @@ LMB_COLUMNS_TARGET void column_bins_avx512(const ColumnTables& t, const int32_t*
     const __m512i t10 = gather_bytes(t.tables8, _mm512_add_epi32(row1, col0));
     const __m512i t00 = gather_bytes(t.tables8, _mm512_add_epi32(row0, col0));
     const __mmask16 anchor = inside & _mm512_cmpeq_epi32_mask(own, w);
-    const __m512i count = _mm512_sub_epi32(
-        _mm512_add_epi32(_mm512_sub_epi32(_mm512_sub_epi32(t11, t01), t10), t00), _mm512_maskz_mov_epi32(anchor, one));
+    const __m512i count = _mm512_sub_epi32(_mm512_add_epi32(_mm512_sub_epi32(_mm512_sub_epi32(t11, t01), t10), t00),
+                                           _mm512_maskz_mov_epi32(anchor, one));
     const __m512i x = _mm512_add_epi32(_mm512_mullo_epi32(count, _mm512_set1_epi32(255)), half);
     const __m128i lo = bins8(_mm512_castsi512_si256(x), magic_lo);
     const __m128i hi = bins8(_mm512_extracti64x4_epi64(x, 1), magic_hi);
@@ -133,9 +133,8 @@ LMB_COLUMNS_TARGET void column_bins_avx512(const ColumnTables& t, const int32_t*
 
 }  // namespace
 
-LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, const int32_t* ids,
-                                                        int32_t count, const uint8_t* descriptors,
-                                                        uint8_t* out, size_t stride) const {
+LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, const int32_t* ids, int32_t count,
+                                                        const uint8_t* descriptors, uint8_t* out, size_t stride) const {
   check_plan(plan, descriptors, count);
   LMB_CHECK(count >= 0 && count <= n_ && stride >= static_cast<size_t>(count),
             "compute_dims_columns: " << count << " keypoints of " << n_ << ", stride " << stride);
@@ -173,8 +172,8 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims_columns(const DimPlan& plan, con
   // dominance structure and byte tables (the rest, and other CPUs, one keypoint at a time).
   static_assert(kDomBlock == 48, "dominance8 divides by 48");
   const bool vector_columns = kHasAvx512Columns && tables.dom != nullptr && tables.tables8 != nullptr;
-  const ColumnTables columns{tables.dom, n_ + 1, tables.bin_magic, tables.row8_x, tables.local8_y, tables.tables8,
-                             num_words_};
+  const ColumnTables columns{tables.dom,      n_ + 1,         tables.bin_magic, tables.row8_x,
+                             tables.local8_y, tables.tables8, num_words_};
 #endif
   for (int32_t u = 0; u < U; ++u) {
     const float x0 = plan.corners_[0][u], x1 = plan.corners_[1][u];

@@ -20,19 +20,15 @@ namespace lmb {
 void EmbeddingLayout::check() const {
   LMB_CHECK(num_regions >= 1 && num_regions <= kMaxContextRegions,
             "embedding layout: num_regions = " << num_regions << " out of range");
-  LMB_CHECK(num_words >= 1 && num_words <= 256,
-            "embedding layout: num_words = " << num_words << " must be in 1..256");
+  LMB_CHECK(num_words >= 1 && num_words <= 256, "embedding layout: num_words = " << num_words << " must be in 1..256");
   LMB_CHECK(descriptor_bytes >= 0 && descriptor_bytes <= 1024,
             "embedding layout: descriptor_bytes = " << descriptor_bytes << " must be in 0..1024");
-  LMB_CHECK(static_cast<int64_t>(num_regions) * num_words + 8 * descriptor_bytes <
-                (int64_t{1} << 31),
-            "embedding layout: " << num_regions << " regions x " << num_words
-                                 << " words exceed 2^31 dimensions");
+  LMB_CHECK(static_cast<int64_t>(num_regions) * num_words + 8 * descriptor_bytes < (int64_t{1} << 31),
+            "embedding layout: " << num_regions << " regions x " << num_words << " words exceed 2^31 dimensions");
 }
 
 Eigen::Vector2d gravity_direction_in_image(const Eigen::Vector3d& gravity_in_cam, bool* degenerate) {
-  LMB_CHECK(gravity_in_cam.allFinite(),
-            "gravity_in_cam = (" << gravity_in_cam.transpose() << ") is not finite");
+  LMB_CHECK(gravity_in_cam.allFinite(), "gravity_in_cam = (" << gravity_in_cam.transpose() << ") is not finite");
   const double norm = gravity_in_cam.norm();
   LMB_CHECK(norm > 0.0, "gravity_in_cam is the zero vector");
   const double in_plane = std::hypot(gravity_in_cam.x(), gravity_in_cam.y());
@@ -42,8 +38,7 @@ Eigen::Vector2d gravity_direction_in_image(const Eigen::Vector3d& gravity_in_cam
   return Eigen::Vector2d(gravity_in_cam.x() / in_plane, gravity_in_cam.y() / in_plane);
 }
 
-void normalize_keypoint(const Camera& camera, const Keypoint& keypoint, Eigen::Vector2d* position,
-                        double* scale) {
+void normalize_keypoint(const Camera& camera, const Keypoint& keypoint, Eigen::Vector2d* position, double* scale) {
   LMB_CHECK(std::isfinite(keypoint.x) && std::isfinite(keypoint.y),
             "keypoint position (" << keypoint.x << ", " << keypoint.y << ") is not finite");
   LMB_CHECK(std::isfinite(keypoint.scale) && keypoint.scale > 0.f,
@@ -53,18 +48,16 @@ void normalize_keypoint(const Camera& camera, const Keypoint& keypoint, Eigen::V
   *position = camera.cam_from_img(pixel);
   *scale = (camera.cam_from_img(pixel + half) - camera.cam_from_img(pixel - half)).norm();
   LMB_CHECK(position->allFinite() && std::isfinite(*scale) && *scale > 0.0,
-            "keypoint at pixel (" << keypoint.x << ", " << keypoint.y << ") size "
-                                  << keypoint.scale
+            "keypoint at pixel (" << keypoint.x << ", " << keypoint.y << ") size " << keypoint.scale
                                   << " does not map to a finite normalized position and scale");
 }
 
-FrameKeypoints align_frame_keypoints(const std::vector<Eigen::Vector2d>& positions,
-                                     const std::vector<double>& scales,
-                                     const std::vector<uint8_t>& words,
-                                     const Eigen::Vector2d& gravity_dir, const std::string& where) {
-  LMB_CHECK(positions.size() == scales.size() && positions.size() == words.size(),
-            where << ": " << positions.size() << " positions, " << scales.size() << " scales, "
-                  << words.size() << " words");
+FrameKeypoints align_frame_keypoints(const std::vector<Eigen::Vector2d>& positions, const std::vector<double>& scales,
+                                     const std::vector<uint8_t>& words, const Eigen::Vector2d& gravity_dir,
+                                     const std::string& where) {
+  LMB_CHECK(
+      positions.size() == scales.size() && positions.size() == words.size(),
+      where << ": " << positions.size() << " positions, " << scales.size() << " scales, " << words.size() << " words");
   LMB_CHECK(gravity_dir.allFinite() && std::abs(gravity_dir.norm() - 1.0) < 1e-6,
             where << ": gravity direction (" << gravity_dir.transpose() << ") is not a unit vector");
   const double gx = gravity_dir.x(), gy = gravity_dir.y();
@@ -82,16 +75,14 @@ FrameKeypoints align_frame_keypoints(const std::vector<Eigen::Vector2d>& positio
     f.x[i] = static_cast<float>(gy * p.x() - gx * p.y());
     f.y[i] = static_cast<float>(gx * p.x() + gy * p.y());
     f.scale[i] = static_cast<float>(scales[i]);
-    LMB_CHECK(std::isfinite(f.x[i]) && std::isfinite(f.y[i]) && f.scale[i] > 0.f &&
-                  std::isfinite(f.scale[i]),
+    LMB_CHECK(std::isfinite(f.x[i]) && std::isfinite(f.y[i]) && f.scale[i] > 0.f && std::isfinite(f.scale[i]),
               where << ": keypoint " << i << " is out of float range");
   }
   return f;
 }
 
-FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypoint* keypoints,
-                                               const uint8_t* words, int32_t n,
-                                               const Eigen::Vector3d& gravity_in_cam,
+FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypoint* keypoints, const uint8_t* words,
+                                               int32_t n, const Eigen::Vector3d& gravity_in_cam,
                                                const std::string& where) {
   Eigen::Vector2d gravity_dir;
   try {
@@ -108,8 +99,7 @@ FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypo
       LMB_FAIL(where << ": keypoint " << i << ": " << e.what());
     }
   }
-  return align_frame_keypoints(positions, scales, std::vector<uint8_t>(words, words + n),
-                               gravity_dir, where);
+  return align_frame_keypoints(positions, scales, std::vector<uint8_t>(words, words + n), gravity_dir, where);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -117,8 +107,7 @@ FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypo
 
 FrameContext::FrameContext(const ContextRegions& regions, int32_t num_words)
     : regions_(&regions), num_words_(num_words) {
-  LMB_CHECK(num_words >= 1 && num_words <= 256,
-            "frame context: num_words = " << num_words << " must be in 1..256");
+  LMB_CHECK(num_words >= 1 && num_words <= 256, "frame context: num_words = " << num_words << " must be in 1..256");
   LMB_CHECK(regions.size() >= 1, "frame context: no context regions");
 }
 
@@ -129,7 +118,7 @@ void FrameContext::Axis::build(int32_t n) {
   const float range = n > 0 ? sorted[n - 1] - lo : 0.f;
   last = static_cast<float>(cells - 1);
   inv = range > 0.f ? static_cast<float>(cells) / range : 0.f;
-  if (!std::isfinite(inv)) inv = 0.f;  // one cell: correct, only slower
+  if (!std::isfinite(inv)) inv = 0.f;                                                 // one cell: correct, only slower
   sorted.resize(static_cast<size_t>(n) + 2, std::numeric_limits<float>::infinity());  // sentinels
   start.resize(static_cast<size_t>(cells) + 1);
   int32_t c = 0;
@@ -158,8 +147,7 @@ inline int32_t FrameContext::Axis::rank(float v) const {
     return i + static_cast<int32_t>((i < e) & (sorted[i] < v)) +
            static_cast<int32_t>((i + 1 < e) & (sorted[i + 1] < v));
   }
-  return static_cast<int32_t>(std::lower_bound(sorted.data() + i, sorted.data() + e, v) -
-                              sorted.data());
+  return static_cast<int32_t>(std::lower_bound(sorted.data() + i, sorted.data() + e, v) - sorted.data());
 }
 
 namespace {
@@ -178,10 +166,9 @@ const bool kHasAvx2 = (__builtin_cpu_init(), __builtin_cpu_supports("avx2"));
 // rounded up to a multiple of 8 readable entries); else p[0] + s[0] * corners[i] of one keypoint
 // and m corners.
 template <bool kPerKeypoint>
-__attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const uint16_t* start,
-                                                     float lo, float inv, float last, const float* p,
-                                                     const float* s, const float* corners, int32_t m,
-                                                     int32_t* out) {
+__attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const uint16_t* start, float lo, float inv,
+                                                     float last, const float* p, const float* s, const float* corners,
+                                                     int32_t m, int32_t* out) {
   // Three passes over the corners (m <= kMaxRankBatch), so that the gathers of one pass do not
   // wait on each other: bounds and cells; the cells' first ranks; the first two coordinates.
   assert(m <= kMaxRankBatch);
@@ -215,11 +202,10 @@ __attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const 
     const __m256i first = _mm256_load_si256(reinterpret_cast<const __m256i*>(firsts + i));
     const __m256i end = _mm256_load_si256(reinterpret_cast<const __m256i*>(ends + i));
     const __m256 v0 = _mm256_i32gather_ps(sorted, first, 4);  // sentinels past n
-    const __m256i below0 = _mm256_and_si256(_mm256_cmpgt_epi32(end, first),
-                                            _mm256_castps_si256(_mm256_cmp_ps(v0, bound, _CMP_LT_OQ)));
+    const __m256i below0 =
+        _mm256_and_si256(_mm256_cmpgt_epi32(end, first), _mm256_castps_si256(_mm256_cmp_ps(v0, bound, _CMP_LT_OQ)));
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + i), _mm256_sub_epi32(first, below0));
-    const int crowded = _mm256_movemask_ps(
-        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_sub_epi32(end, first), one)));
+    const int crowded = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_sub_epi32(end, first), one)));
     for (int32_t l = 0; crowded != 0 && l < 8; ++l) {  // rare: a binary search, as in rank()
       if (crowded & (1 << l)) {
         out[i + l] = static_cast<int32_t>(
@@ -232,8 +218,7 @@ __attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const 
 
 }  // namespace
 
-void FrameContext::Axis::ranks(float p, float s, const float* corners, int32_t m,
-                               int32_t* out) const {
+void FrameContext::Axis::ranks(float p, float s, const float* corners, int32_t m, int32_t* out) const {
 #if defined(__x86_64__)
   if (kHasAvx2) {
     axis_ranks_avx2<false>(sorted.data(), start.data(), lo, inv, last, &p, &s, corners, m, out);
@@ -243,8 +228,7 @@ void FrameContext::Axis::ranks(float p, float s, const float* corners, int32_t m
   for (int32_t i = 0; i < m; ++i) out[i] = rank(detail::region_bound(p, s, corners[i]));
 }
 
-void FrameContext::Axis::keypoint_ranks(const float* p, const float* s, float corner, int32_t m,
-                                        int32_t* out) const {
+void FrameContext::Axis::keypoint_ranks(const float* p, const float* s, float corner, int32_t m, int32_t* out) const {
 #if defined(__x86_64__)
   if (kHasAvx2) {
     axis_ranks_avx2<true>(sorted.data(), start.data(), lo, inv, last, p, s, &corner, m, out);
@@ -261,9 +245,7 @@ void sort_by(const std::vector<float>& v, std::vector<int32_t>& order, std::vect
   const int32_t n = static_cast<int32_t>(v.size());
   order.resize(static_cast<size_t>(n));
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&v](int32_t a, int32_t b) {
-    return v[a] < v[b] || (v[a] == v[b] && a < b);
-  });
+  std::sort(order.begin(), order.end(), [&v](int32_t a, int32_t b) { return v[a] < v[b] || (v[a] == v[b] && a < b); });
   sorted.resize(static_cast<size_t>(n));
   for (int32_t i = 0; i < n; ++i) sorted[i] = v[order[i]];
 }
@@ -285,22 +267,18 @@ void prefix_sum_2d(uint16_t* t, int64_t side) {
 
 void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) {
   const int32_t n = frame.size();
-  LMB_CHECK(frame.y.size() == frame.x.size() && frame.scale.size() == frame.x.size() &&
-                frame.word.size() == frame.x.size(),
-            where << ": keypoint arrays of different lengths (x " << frame.x.size() << ", y "
-                  << frame.y.size() << ", scale " << frame.scale.size() << ", word "
-                  << frame.word.size() << ")");
-  LMB_CHECK(n <= kMaxFrameKeypoints,
-            where << ": " << n << " keypoints exceed the limit of " << kMaxFrameKeypoints);
+  LMB_CHECK(
+      frame.y.size() == frame.x.size() && frame.scale.size() == frame.x.size() && frame.word.size() == frame.x.size(),
+      where << ": keypoint arrays of different lengths (x " << frame.x.size() << ", y " << frame.y.size() << ", scale "
+            << frame.scale.size() << ", word " << frame.word.size() << ")");
+  LMB_CHECK(n <= kMaxFrameKeypoints, where << ": " << n << " keypoints exceed the limit of " << kMaxFrameKeypoints);
   for (int32_t i = 0; i < n; ++i) {
     LMB_CHECK(std::isfinite(frame.x[i]) && std::isfinite(frame.y[i]),
               where << ": keypoint " << i << " position is not finite");
     LMB_CHECK(std::isfinite(frame.scale[i]) && frame.scale[i] > 0.f,
-              where << ": keypoint " << i << " scale " << frame.scale[i]
-                    << " must be finite and > 0");
-    LMB_CHECK(frame.word[i] < num_words_, where << ": keypoint " << i << " word "
-                                                << int(frame.word[i]) << " >= vocabulary size "
-                                                << num_words_);
+              where << ": keypoint " << i << " scale " << frame.scale[i] << " must be finite and > 0");
+    LMB_CHECK(frame.word[i] < num_words_,
+              where << ": keypoint " << i << " word " << int(frame.word[i]) << " >= vocabulary size " << num_words_);
   }
   n_ = n;
   x_ = frame.x;
@@ -313,9 +291,8 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
   std::vector<int32_t> local_x(static_cast<size_t>(n)), local_y(static_cast<size_t>(n));
   rank_x_.resize(static_cast<size_t>(n));
   rank_y_.resize(static_cast<size_t>(n));
-  auto build_ranks = [&](const std::vector<float>& v, std::vector<float>& sorted,
-                         std::vector<uint16_t>& table, std::vector<int32_t>& local,
-                         std::vector<int32_t>& rank) {
+  auto build_ranks = [&](const std::vector<float>& v, std::vector<float>& sorted, std::vector<uint16_t>& table,
+                         std::vector<int32_t>& local, std::vector<int32_t>& rank) {
     sort_by(v, order_, sorted);
     table.assign(static_cast<size_t>(n + 1) * W, 0);
     for (int32_t i = 0; i < n; ++i) {
@@ -343,9 +320,8 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
     const int64_t side = word_side_[w];
     table_offset_[w + 1] = table_offset_[w] + side * side;
   }
-  LMB_CHECK(table_offset_[W] <= (int64_t{1} << 30),
-            where << ": the per-word tables would need " << table_offset_[W]
-                  << " entries (too many keypoints of one visual word)");
+  LMB_CHECK(table_offset_[W] <= (int64_t{1} << 30), where << ": the per-word tables would need " << table_offset_[W]
+                                                          << " entries (too many keypoints of one visual word)");
   tables_.assign(static_cast<size_t>(table_offset_[W]), 0);
   for (int32_t i = 0; i < n; ++i) {
     const int32_t w = word_[i];
@@ -363,8 +339,7 @@ void FrameContext::reset(const FrameKeypoints& frame, const std::string& where) 
 // keypoints), so more of them stay in L1.
 void FrameContext::build_byte_tables() {
   const int32_t n = n_, W = num_words_;
-  small_words_ = n <= kMaxDominanceKeypoints &&
-                 *std::max_element(word_side_.begin(), word_side_.end()) <= 256;
+  small_words_ = n <= kMaxDominanceKeypoints && *std::max_element(word_side_.begin(), word_side_.end()) <= 256;
   if (small_words_) {
     offset8_.resize(static_cast<size_t>(W));
     stride8_.resize(static_cast<size_t>(W));
@@ -379,8 +354,7 @@ void FrameContext::build_byte_tables() {
       const int32_t side = word_side_[w];
       for (int32_t a = 0; a < side; ++a) {
         for (int32_t b = 0; b < side; ++b) {
-          tables8_[offset8_[w] + a * stride8_[w] + b] =
-              static_cast<uint8_t>(tables_[table_offset_[w] + a * side + b]);
+          tables8_[offset8_[w] + a * stride8_[w] + b] = static_cast<uint8_t>(tables_[table_offset_[w] + a * side + b]);
         }
       }
     }
@@ -393,7 +367,6 @@ void FrameContext::build_byte_tables() {
     local8_y_.assign(local_rank_y_.begin(), local_rank_y_.end());
     local8_y_.resize(local8_y_.size() + 3, 0);  // read as 32-bit words
   }
-
 }
 
 // Blocked dominance counts over all keypoints (see dom_ in the header); for frames up to
@@ -425,8 +398,7 @@ void FrameContext::build_dominance() {
   }
 }
 
-void FrameContext::counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts,
-                                      int32_t* total) const {
+void FrameContext::counts_from_bounds(int32_t k, const Bounds& b, int32_t* counts, int32_t* total) const {
   const int32_t W = num_words_;
   int32_t sum = 0;
   if (b.ix0 == b.ix1 || b.iy0 == b.iy1) {
@@ -479,9 +451,8 @@ void FrameContext::embed_context(int32_t k, uint8_t* out) const {
   }
 }
 
-void FrameContext::compute_dims(int32_t k, const int32_t* dims, int32_t num_dims,
-                                const uint8_t* descriptor, int32_t descriptor_bytes,
-                                uint8_t* out) const {
+void FrameContext::compute_dims(int32_t k, const int32_t* dims, int32_t num_dims, const uint8_t* descriptor,
+                                int32_t descriptor_bytes, uint8_t* out) const {
   assert(k >= 0 && k < n_);
   const int32_t W = num_words_;
   const int32_t context_dims = regions_->size() * W;
@@ -504,30 +475,24 @@ void FrameContext::compute_dims(int32_t k, const int32_t* dims, int32_t num_dims
   }
 }
 
-void FrameContext::compute_dims_all(const int32_t* dims, int32_t num_dims,
-                                    const uint8_t* descriptors, int32_t descriptor_bytes,
-                                    uint8_t* out) const {
+void FrameContext::compute_dims_all(const int32_t* dims, int32_t num_dims, const uint8_t* descriptors,
+                                    int32_t descriptor_bytes, uint8_t* out) const {
   for (int32_t k = 0; k < n_; ++k) {
-    compute_dims(k, dims, num_dims,
-                 descriptors ? descriptors + static_cast<size_t>(k) * descriptor_bytes : nullptr,
+    compute_dims(k, dims, num_dims, descriptors ? descriptors + static_cast<size_t>(k) * descriptor_bytes : nullptr,
                  descriptor_bytes, out + static_cast<size_t>(k) * num_dims);
   }
 }
 
-DimPlan::DimPlan(const ContextRegions& regions, const EmbeddingLayout& layout,
-                 std::vector<int32_t> dims)
+DimPlan::DimPlan(const ContextRegions& regions, const EmbeddingLayout& layout, std::vector<int32_t> dims)
     : layout_(layout), dims_(std::move(dims)) {
   layout_.check();
   LMB_CHECK(layout_.num_regions == regions.size(),
-            "dim plan: layout has " << layout_.num_regions << " regions, the region set "
-                                    << regions.size());
+            "dim plan: layout has " << layout_.num_regions << " regions, the region set " << regions.size());
   for (size_t i = 0; i < dims_.size(); ++i) {
     LMB_CHECK(dims_[i] >= 0 && dims_[i] < layout_.num_dims(),
-              "dim plan: dims[" << i << "] = " << dims_[i] << " is outside 0.."
-                                << layout_.num_dims() - 1);
+              "dim plan: dims[" << i << "] = " << dims_[i] << " is outside 0.." << layout_.num_dims() - 1);
     LMB_CHECK(i == 0 || dims_[i] > dims_[i - 1],
-              "dim plan: dims must be sorted ascending without repeats (dims[" << i << "] = "
-                                                                             << dims_[i] << ")");
+              "dim plan: dims must be sorted ascending without repeats (dims[" << i << "] = " << dims_[i] << ")");
   }
   const int32_t n = static_cast<int32_t>(dims_.size());
   int32_t i = 0;
@@ -570,8 +535,8 @@ FrameContext::BinTables FrameContext::bin_tables() const {
 }
 
 // Cloned for AVX2: the popcounts of dominance() become single instructions.
-LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
-                                                const uint8_t* descriptor, uint8_t* out) const {
+LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan, const uint8_t* descriptor,
+                                                uint8_t* out) const {
   assert(k >= 0 && k < n_);
   assert(plan.layout_.num_words == num_words_ && plan.layout_.num_regions == regions_->size());
   const int32_t U = plan.num_used_regions();
@@ -604,16 +569,14 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan,
 
 void FrameContext::check_plan(const DimPlan& plan, const uint8_t* descriptors, int32_t count) const {
   LMB_CHECK(plan.layout().num_words == num_words_ && plan.layout().num_regions == regions_->size(),
-            "dim plan: made for " << plan.layout().num_regions << " regions x "
-                                  << plan.layout().num_words << " words, the frame context has "
-                                  << regions_->size() << " x " << num_words_);
-  LMB_CHECK(descriptors != nullptr || plan.size() == 0 || count == 0 ||
-                plan.dims().back() < plan.layout().num_context_dims(),
-            "dim plan: descriptor dims requested without descriptors");
+            "dim plan: made for " << plan.layout().num_regions << " regions x " << plan.layout().num_words
+                                  << " words, the frame context has " << regions_->size() << " x " << num_words_);
+  LMB_CHECK(
+      descriptors != nullptr || plan.size() == 0 || count == 0 || plan.dims().back() < plan.layout().num_context_dims(),
+      "dim plan: descriptor dims requested without descriptors");
 }
 
-void FrameContext::compute_dims_all(const DimPlan& plan, const uint8_t* descriptors,
-                                    uint8_t* out) const {
+void FrameContext::compute_dims_all(const DimPlan& plan, const uint8_t* descriptors, uint8_t* out) const {
   check_plan(plan, descriptors, n_);
   const int32_t bytes = plan.layout().descriptor_bytes;
   for (int32_t k = 0; k < n_; ++k) {
@@ -625,9 +588,8 @@ void FrameContext::compute_dims_all(const DimPlan& plan, const uint8_t* descript
 // ---------------------------------------------------------------------------------------------
 // Reference
 
-int32_t region_counts_brute_force(const ContextRegions& regions, int32_t num_words,
-                                  const FrameKeypoints& frame, int32_t k, int32_t r,
-                                  int32_t* counts) {
+int32_t region_counts_brute_force(const ContextRegions& regions, int32_t num_words, const FrameKeypoints& frame,
+                                  int32_t k, int32_t r, int32_t* counts) {
   const RegionRect& q = regions[r];
   const float px = frame.x[k], py = frame.y[k], s = frame.scale[k];
   const float lo_x = detail::region_bound(px, s, q.x0);
@@ -647,8 +609,8 @@ int32_t region_counts_brute_force(const ContextRegions& regions, int32_t num_wor
   return total;
 }
 
-void embed_context_brute_force(const ContextRegions& regions, int32_t num_words,
-                               const FrameKeypoints& frame, int32_t k, uint8_t* out) {
+void embed_context_brute_force(const ContextRegions& regions, int32_t num_words, const FrameKeypoints& frame, int32_t k,
+                               uint8_t* out) {
   std::vector<int32_t> counts(static_cast<size_t>(num_words));
   for (int32_t r = 0; r < regions.size(); ++r) {
     const int32_t total = region_counts_brute_force(regions, num_words, frame, k, r, counts.data());

@@ -69,8 +69,7 @@ struct EmbeddingLayout {
 // The bin of a word count in a region of `total` keypoints: (255 * count + total / 2) / total,
 // 0 when total is 0.
 inline uint8_t context_bin(int32_t count, int32_t total) {
-  return total > 0 ? static_cast<uint8_t>((255 * static_cast<int64_t>(count) + total / 2) / total)
-                   : uint8_t{0};
+  return total > 0 ? static_cast<uint8_t>((255 * static_cast<int64_t>(count) + total / 2) / total) : uint8_t{0};
 }
 
 // context_bin without a division: with m = context_bin_magic(total),
@@ -89,13 +88,11 @@ inline uint8_t context_bin_fast(int32_t count, int32_t total, uint64_t magic) {
 
 // The image-plane direction of gravity (unit 2-vector), see the file comment. Sets *degenerate
 // when the fallback (0, 1) was used. Throws lmb::Error for a zero or non-finite vector.
-Eigen::Vector2d gravity_direction_in_image(const Eigen::Vector3d& gravity_in_cam,
-                                           bool* degenerate = nullptr);
+Eigen::Vector2d gravity_direction_in_image(const Eigen::Vector3d& gravity_in_cam, bool* degenerate = nullptr);
 
 // Normalized position and scale of a detector keypoint (see the file comment). Throws lmb::Error
 // when the size is not finite and > 0 or the position is not finite.
-void normalize_keypoint(const Camera& camera, const Keypoint& keypoint, Eigen::Vector2d* position,
-                        double* scale);
+void normalize_keypoint(const Camera& camera, const Keypoint& keypoint, Eigen::Vector2d* position, double* scale);
 
 // One frame's keypoints in the gravity-aligned normalized plane, with their visual words.
 struct FrameKeypoints {
@@ -110,16 +107,14 @@ struct FrameKeypoints {
 // Rotates normalized positions into the gravity-aligned frame (gravity_dir: a unit image-plane
 // direction from gravity_direction_in_image). All vectors have the same length. Throws lmb::Error
 // (prefixed by `where`) for non-finite positions, non-finite or non-positive scales.
-FrameKeypoints align_frame_keypoints(const std::vector<Eigen::Vector2d>& positions,
-                                     const std::vector<double>& scales,
-                                     const std::vector<uint8_t>& words,
-                                     const Eigen::Vector2d& gravity_dir, const std::string& where);
+FrameKeypoints align_frame_keypoints(const std::vector<Eigen::Vector2d>& positions, const std::vector<double>& scales,
+                                     const std::vector<uint8_t>& words, const Eigen::Vector2d& gravity_dir,
+                                     const std::string& where);
 
 // The whole chain for detector keypoints of one frame: normalize_keypoint, gravity_direction_in_image,
 // align_frame_keypoints. `words` has n entries. Throws lmb::Error prefixed by `where`.
-FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypoint* keypoints,
-                                               const uint8_t* words, int32_t n,
-                                               const Eigen::Vector3d& gravity_in_cam,
+FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypoint* keypoints, const uint8_t* words,
+                                               int32_t n, const Eigen::Vector3d& gravity_in_cam,
                                                const std::string& where);
 
 // A model's used dimensions, prepared once for fast per-keypoint evaluation: the used regions and
@@ -143,9 +138,9 @@ class DimPlan {
   std::vector<int32_t> used_regions_;  // region ids, ascending
   // Their rectangles' corners, one array each (x0, x1, y0, y1), padded to a multiple of 8.
   std::vector<float> corners_[4];
-  std::vector<int32_t> dim_begin_;     // dims of used region u: [dim_begin_[u], dim_begin_[u+1])
-  std::vector<uint8_t> dim_word_;      // the word of each context dim
-  int32_t num_context_ = 0;            // dims_[0, num_context_) are context dims
+  std::vector<int32_t> dim_begin_;  // dims of used region u: [dim_begin_[u], dim_begin_[u+1])
+  std::vector<uint8_t> dim_word_;   // the word of each context dim
+  int32_t num_context_ = 0;         // dims_[0, num_context_) are context dims
 };
 
 // Per-frame spatial index answering "how many keypoints of word w lie in region r of keypoint k" in
@@ -155,13 +150,12 @@ class DimPlan {
 // the axis's sorted coordinates: the grid cell of a coordinate is a monotone function of it, so
 // the cell's first rank and the next cell's bracket the answer exactly, and the keypoints of the
 // cell are compared with the bound directly (16 cells a keypoint: most hold none or one; a binary
-// search when there are more than two, or with AVX2 more than one). Then 4 table reads per word; count_all is the sum over the words. The anchor is
-// removed by comparing its own ranks with the region's rank ranges. (A table over all keypoints
-// for count_all was measured slower: at (n+1)^2 entries it does not stay in cache.) The DimPlan
-// overloads read only the plan's words of a region and take count_all from a blocked dominance
-// structure of ~n^2 / 6 bytes (48-keypoint bitmasks packed with block prefix counts): 4 reads and
-// popcounts instead of one table lookup per word; bins divide by multiplying with a per-frame
-// table of context_bin_magic.
+// search when there are more than two, or with AVX2 more than one). Then 4 table reads per word; count_all is the sum
+// over the words. The anchor is removed by comparing its own ranks with the region's rank ranges. (A table over all
+// keypoints for count_all was measured slower: at (n+1)^2 entries it does not stay in cache.) The DimPlan overloads
+// read only the plan's words of a region and take count_all from a blocked dominance structure of ~n^2 / 6 bytes
+// (48-keypoint bitmasks packed with block prefix counts): 4 reads and popcounts instead of one table lookup per word;
+// bins divide by multiplying with a per-frame table of context_bin_magic.
 //
 // Usage: construct once per thread (buffers are reused), reset() per frame, then query from one
 // thread; the const query methods are safe to call concurrently after reset().
@@ -199,8 +193,8 @@ class FrameContext {
                     int32_t descriptor_bytes, uint8_t* out) const;
   // compute_dims for every keypoint of the frame: out is n x num_dims, row-major (keypoint rows).
   // descriptors: n rows of descriptor_bytes bytes, in frame order.
-  void compute_dims_all(const int32_t* dims, int32_t num_dims, const uint8_t* descriptors,
-                        int32_t descriptor_bytes, uint8_t* out) const;
+  void compute_dims_all(const int32_t* dims, int32_t num_dims, const uint8_t* descriptors, int32_t descriptor_bytes,
+                        uint8_t* out) const;
   // The same with a prepared plan (faster: the regions' bounds are ranked 8 at a time, only the
   // plan's words of a region are counted, and count_all comes from the dominance structure). out
   // has plan.size() bytes; descriptor has plan.layout().descriptor_bytes bytes. The plan must come
@@ -214,8 +208,8 @@ class FrameContext {
   // frame's n rows, in frame order. Region by region over the keypoints in x order (not
   // keypoint by keypoint), so that the table rows a region's corners read stay in L1 from one
   // keypoint to the next: faster when most of a frame's keypoints need the same dims.
-  void compute_dims_columns(const DimPlan& plan, const int32_t* ids, int32_t count,
-                            const uint8_t* descriptors, uint8_t* out, size_t stride) const;
+  void compute_dims_columns(const DimPlan& plan, const int32_t* ids, int32_t count, const uint8_t* descriptors,
+                            uint8_t* out, size_t stride) const;
 
  private:
   struct Bounds {
@@ -305,17 +299,16 @@ class FrameContext {
   std::vector<uint8_t> tables8_, local8_y_;
   std::vector<int32_t> row8_x_;
   std::vector<int32_t> offset8_, stride8_;
-  std::vector<uint64_t> bin_magic_;     // context_bin_magic(t) for t in 0..n
-  std::vector<int32_t> order_;          // scratch
+  std::vector<uint64_t> bin_magic_;  // context_bin_magic(t) for t in 0..n
+  std::vector<int32_t> order_;       // scratch
 };
 
 // Reference implementation: the naive loop over every other keypoint of the frame, region by
 // region, with the same float expressions as FrameContext. out has R*W bytes.
-void embed_context_brute_force(const ContextRegions& regions, int32_t num_words,
-                               const FrameKeypoints& frame, int32_t k, uint8_t* out);
+void embed_context_brute_force(const ContextRegions& regions, int32_t num_words, const FrameKeypoints& frame, int32_t k,
+                               uint8_t* out);
 // Brute-force counts of one region (anchor excluded); returns count_all.
-int32_t region_counts_brute_force(const ContextRegions& regions, int32_t num_words,
-                                  const FrameKeypoints& frame, int32_t k, int32_t r,
-                                  int32_t* counts);
+int32_t region_counts_brute_force(const ContextRegions& regions, int32_t num_words, const FrameKeypoints& frame,
+                                  int32_t k, int32_t r, int32_t* counts);
 
 }  // namespace lmb

@@ -61,9 +61,9 @@ inline FrameContext::Bounds FrameContext::bounds(int32_t k, const RegionRect& q)
 // The bins of one region (rank ranges ix0..iy1) of keypoint k for the plan's dims [begin, end)
 // (their words in dim_word), written to out[j * stride]. The tables come through t's local
 // pointers: the byte stores may alias any member, which would make the compiler reload them.
-inline void FrameContext::region_bins(const BinTables& t, int32_t k, int32_t ix0, int32_t ix1, int32_t iy0,
-                                      int32_t iy1, const uint8_t* dim_word, int32_t begin, int32_t end,
-                                      uint8_t* out, size_t stride) const {
+inline void FrameContext::region_bins(const BinTables& t, int32_t k, int32_t ix0, int32_t ix1, int32_t iy0, int32_t iy1,
+                                      const uint8_t* dim_word, int32_t begin, int32_t end, uint8_t* out,
+                                      size_t stride) const {
   if (ix0 == ix1 || iy0 == iy1) {  // empty (the anchor cannot be inside)
     for (int32_t j = begin; j < end; ++j) out[j * stride] = 0;
     return;

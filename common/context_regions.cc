@@ -11,13 +11,11 @@ namespace lmb {
 
 void ContextRegionOptions::check() const {
   LMB_CHECK(num_regions >= 1 && num_regions <= kMaxContextRegions,
-            "context regions: num_regions = " << num_regions << " must be in 1.."
-                                              << kMaxContextRegions);
+            "context regions: num_regions = " << num_regions << " must be in 1.." << kMaxContextRegions);
   LMB_CHECK(std::isfinite(min_area) && min_area > 0.0,
             "context regions: min_area = " << min_area << " must be finite and > 0");
   LMB_CHECK(std::isfinite(max_area) && max_area >= min_area,
-            "context regions: max_area = " << max_area << " must be finite and >= min_area ("
-                                           << min_area << ")");
+            "context regions: max_area = " << max_area << " must be finite and >= min_area (" << min_area << ")");
   LMB_CHECK(max_area <= 1e8, "context regions: max_area = " << max_area << " exceeds 1e8");
   LMB_CHECK(std::isfinite(max_aspect) && max_aspect >= 1.0 && max_aspect <= 1e3,
             "context regions: max_aspect = " << max_aspect << " must be in [1, 1000]");
@@ -35,12 +33,10 @@ void validate_rects(const std::vector<RegionRect>& rects, const std::string& whe
             where << ": " << rects.size() << " regions exceed " << kMaxContextRegions);
   for (size_t r = 0; r < rects.size(); ++r) {
     const RegionRect& q = rects[r];
-    LMB_CHECK(std::isfinite(q.x0) && std::isfinite(q.x1) && std::isfinite(q.y0) &&
-                  std::isfinite(q.y1),
+    LMB_CHECK(std::isfinite(q.x0) && std::isfinite(q.x1) && std::isfinite(q.y0) && std::isfinite(q.y1),
               where << ": region " << r << " has a non-finite corner");
-    LMB_CHECK(q.x1 > q.x0 && q.y1 > q.y0,
-              where << ": region " << r << " is empty ([" << q.x0 << ", " << q.x1 << ") x ["
-                    << q.y0 << ", " << q.y1 << "))");
+    LMB_CHECK(q.x1 > q.x0 && q.y1 > q.y0, where << ": region " << r << " is empty ([" << q.x0 << ", " << q.x1 << ") x ["
+                                                << q.y0 << ", " << q.y1 << "))");
   }
 }
 
@@ -84,8 +80,7 @@ void ContextRegions::validate(const std::string& where) const { validate_rects(r
 
 bool ContextRegions::operator==(const ContextRegions& other) const {
   return rects_.size() == other.rects_.size() &&
-         (rects_.empty() ||
-          std::memcmp(rects_.data(), other.rects_.data(), rects_.size() * sizeof(RegionRect)) == 0);
+         (rects_.empty() || std::memcmp(rects_.data(), other.rects_.data(), rects_.size() * sizeof(RegionRect)) == 0);
 }
 
 void write_context_regions(cereal::PortableBinaryOutputArchive& ar, const ContextRegions& regions) {

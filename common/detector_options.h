@@ -25,8 +25,7 @@ struct DetectorOptions {
   // Throws lmb::Error naming the field.
   void check() const {
     detector_descriptor_bytes(detector);
-    LMB_CHECK(max_keypoints > 0,
-              "detector options: max_keypoints must be positive, got " << max_keypoints);
+    LMB_CHECK(max_keypoints > 0, "detector options: max_keypoints must be positive, got " << max_keypoints);
     LMB_CHECK(brisk_threshold > 0 && brisk_threshold < 256,
               "detector options: brisk_threshold must be in 1..255, got " << brisk_threshold);
     LMB_CHECK(brisk_octaves >= 0 && brisk_octaves <= 8,

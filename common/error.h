@@ -21,13 +21,13 @@ namespace detail {
 
 // LMB_CHECK(cond, "stream" << "able" << message): throws lmb::Error with the message when cond is
 // false. The message is what the user reads, so name the file, field and reason.
-#define LMB_CHECK(cond, msg)                                        \
-  do {                                                              \
-    if (!(cond)) {                                                  \
-      std::ostringstream lmb_check_stream_;                         \
-      lmb_check_stream_ << msg;                                     \
+#define LMB_CHECK(cond, msg)                                                   \
+  do {                                                                         \
+    if (!(cond)) {                                                             \
+      std::ostringstream lmb_check_stream_;                                    \
+      lmb_check_stream_ << msg;                                                \
       ::lmb::detail::throw_error(__FILE__, __LINE__, lmb_check_stream_.str()); \
-    }                                                               \
+    }                                                                          \
   } while (false)
 
 #define LMB_FAIL(msg) LMB_CHECK(false, msg)

@@ -152,8 +152,8 @@ std::string feature_space_difference(const FeatureSpace& trained, const FeatureS
   }
   if (trained.vocabulary_fingerprint != now.vocabulary_fingerprint || trained.num_words != now.num_words) {
     return "the vocabulary differs (training: " + std::to_string(trained.num_words) + " words, fingerprint " +
-           hex(trained.vocabulary_fingerprint) + "; now: " + std::to_string(now.num_words) +
-           " words, fingerprint " + hex(now.vocabulary_fingerprint) + ")";
+           hex(trained.vocabulary_fingerprint) + "; now: " + std::to_string(now.num_words) + " words, fingerprint " +
+           hex(now.vocabulary_fingerprint) + ")";
   }
   if (trained.map_fingerprint != now.map_fingerprint || trained.descriptor_bytes != now.descriptor_bytes) {
     return "the map differs (training: " + std::to_string(trained.map_landmarks) + " landmarks, " +
@@ -173,8 +173,7 @@ void write_feature_space(cereal::PortableBinaryOutputArchive& ar, const FeatureS
   ar(s.num_dims);
   if (s.is_synthetic()) return;
   write_context_regions(ar, s.regions);
-  ar(s.num_words, s.descriptor_bytes, s.vocabulary_fingerprint, s.map_fingerprint, s.map_landmarks,
-     s.map_keypoints);
+  ar(s.num_words, s.descriptor_bytes, s.vocabulary_fingerprint, s.map_fingerprint, s.map_landmarks, s.map_keypoints);
 }
 
 FeatureSpace read_feature_space(BoundedReader& r) {
@@ -191,15 +190,15 @@ FeatureSpace read_feature_space(BoundedReader& r) {
   r.value(s.map_landmarks);
   r.value(s.map_keypoints);
   LMB_CHECK(s.num_words >= kMinVocabularyWords && s.num_words <= kMaxVocabularyWords,
-            r.what() << ": feature space: num_words = " << s.num_words << " outside " << kMinVocabularyWords
-                     << ".." << kMaxVocabularyWords);
+            r.what() << ": feature space: num_words = " << s.num_words << " outside " << kMinVocabularyWords << ".."
+                     << kMaxVocabularyWords);
   LMB_CHECK(s.descriptor_bytes >= 1 && s.descriptor_bytes <= kMaxDescriptorBytes,
             r.what() << ": feature space: descriptor_bytes = " << s.descriptor_bytes << " outside 1.."
                      << kMaxDescriptorBytes);
   const int64_t dims = int64_t{s.regions.size()} * s.num_words + 8 * int64_t{s.descriptor_bytes};
-  LMB_CHECK(dims == s.num_dims, r.what() << ": feature space: num_dims = " << s.num_dims << ", but "
-                                         << s.regions.size() << " regions x " << s.num_words << " words + "
-                                         << 8 * s.descriptor_bytes << " bits = " << dims);
+  LMB_CHECK(dims == s.num_dims, r.what() << ": feature space: num_dims = " << s.num_dims << ", but " << s.regions.size()
+                                         << " regions x " << s.num_words << " words + " << 8 * s.descriptor_bytes
+                                         << " bits = " << dims);
   return s;
 }
 

@@ -1,8 +1,8 @@
 #include "common/file_io.h"
 
 #include <fcntl.h>
-#include <sys/file.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <unistd.h>
@@ -68,7 +68,8 @@ AtomicFile::AtomicFile(fs::path path) : path_(std::move(path)) {
     if (fd_ < 0 && errno != EEXIST) {
       const int err = errno;
       done_ = true;
-      if (err == ENOENT) LMB_FAIL(path_.string() << ": cannot create the file: folder " << dir.string() << " does not exist");
+      if (err == ENOENT)
+        LMB_FAIL(path_.string() << ": cannot create the file: folder " << dir.string() << " does not exist");
       LMB_FAIL(path_.string() << ": cannot create the file: " << std::strerror(err));
     }
   }
@@ -206,9 +207,7 @@ AppendFile::AppendFile(const fs::path& path) : path_(path) {
   LMB_CHECK(fd_ >= 0, path.string() << ": cannot open for appending: " << std::strerror(err));
 }
 
-AppendFile::AppendFile(AppendFile&& other) noexcept : path_(std::move(other.path_)), fd_(other.fd_) {
-  other.fd_ = -1;
-}
+AppendFile::AppendFile(AppendFile&& other) noexcept : path_(std::move(other.path_)), fd_(other.fd_) { other.fd_ = -1; }
 
 AppendFile& AppendFile::operator=(AppendFile&& other) noexcept {
   if (this != &other) {

@@ -36,8 +36,8 @@ inline __attribute__((always_inline)) void hamming_rows_body(const uint8_t* q, c
 }
 
 template <int kWords>
-__attribute__((target("popcnt"))) void hamming_rows_popcnt(const uint8_t* q, const uint8_t* rows, int64_t n,
-                                                           int bytes, uint16_t* out) {
+__attribute__((target("popcnt"))) void hamming_rows_popcnt(const uint8_t* q, const uint8_t* rows, int64_t n, int bytes,
+                                                           uint16_t* out) {
   hamming_rows_body<kWords>(q, rows, n, bytes, out);
 }
 
@@ -68,8 +68,7 @@ inline __attribute__((always_inline)) int hamming_min_body(const uint8_t* q, con
 }
 
 template <int kWords>
-__attribute__((target("popcnt"))) int hamming_min_popcnt(const uint8_t* q, const uint8_t* rows, int64_t n,
-                                                         int bytes) {
+__attribute__((target("popcnt"))) int hamming_min_popcnt(const uint8_t* q, const uint8_t* rows, int64_t n, int bytes) {
   return hamming_min_body<kWords>(q, rows, n, bytes);
 }
 

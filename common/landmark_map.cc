@@ -6,12 +6,9 @@ namespace lmb {
 
 const char* session_kind_name(SessionKind kind) {
   switch (kind) {
-    case SessionKind::kMap:
-      return "map";
-    case SessionKind::kQuery:
-      return "query";
-    case SessionKind::kOutside:
-      return "outside";
+    case SessionKind::kMap: return "map";
+    case SessionKind::kQuery: return "query";
+    case SessionKind::kOutside: return "outside";
   }
   return "unknown";
 }
@@ -31,8 +28,8 @@ int32_t LandmarkMap::find_session(const std::string& name) const {
 }
 
 void assign_sessions_from_query_flags(LandmarkMap* map) {
-  LMB_CHECK(map->sessions.empty(), "assign_sessions_from_query_flags: the map already has "
-                                       << map->sessions.size() << " sessions");
+  LMB_CHECK(map->sessions.empty(),
+            "assign_sessions_from_query_flags: the map already has " << map->sessions.size() << " sessions");
   map->sessions.push_back(MapSession{"map", SessionKind::kMap});
   bool any_query = false;
   for (const MapFrame& f : map->frames) any_query = any_query || f.is_query;

@@ -9,9 +9,7 @@
 
 namespace lmb {
 
-std::string MachineInfo::summary() const {
-  return cpu_model + ", " + std::to_string(logical_cores) + " logical cores";
-}
+std::string MachineInfo::summary() const { return cpu_model + ", " + std::to_string(logical_cores) + " logical cores"; }
 
 MachineInfo machine_info() {
   MachineInfo m;

@@ -7,8 +7,8 @@
 namespace lmb {
 
 struct MachineInfo {
-  std::string cpu_model;  // /proc/cpuinfo "model name" of the first processor ("unknown" if absent)
-  int logical_cores = 0;  // std::thread::hardware_concurrency()
+  std::string cpu_model;        // /proc/cpuinfo "model name" of the first processor ("unknown" if absent)
+  int logical_cores = 0;        // std::thread::hardware_concurrency()
   std::string summary() const;  // e.g. "AMD EPYC, 2 logical cores"
 };
 

@@ -26,9 +26,7 @@ struct Rigid3d {
 };
 
 // Position error (same units as the translation) and rotation error (degrees) between two poses.
-inline double position_error(const Rigid3d& a, const Rigid3d& b) {
-  return (a.center() - b.center()).norm();
-}
+inline double position_error(const Rigid3d& a, const Rigid3d& b) { return (a.center() - b.center()).norm(); }
 inline double rotation_error_deg(const Rigid3d& a, const Rigid3d& b) {
   return a.rotation.angularDistance(b.rotation) * 180.0 / M_PI;
 }

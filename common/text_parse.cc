@@ -10,8 +10,7 @@
 
 namespace lmb {
 
-double parse_finite_number(const std::string& token, const std::string& where,
-                           const std::string& field) {
+double parse_finite_number(const std::string& token, const std::string& where, const std::string& field) {
   const char* begin = token.c_str();
   char* end = nullptr;
   errno = 0;

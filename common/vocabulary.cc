@@ -16,16 +16,12 @@ namespace lmb {
 Vocabulary::Vocabulary(int descriptor_bytes, std::vector<uint8_t> words)
     : descriptor_bytes_(descriptor_bytes), words_(std::move(words)) {
   LMB_CHECK(descriptor_bytes >= 1 && descriptor_bytes <= kMaxDescriptorBytes,
-            "vocabulary: descriptor_bytes = " << descriptor_bytes << " must be in 1.."
-                                              << kMaxDescriptorBytes);
+            "vocabulary: descriptor_bytes = " << descriptor_bytes << " must be in 1.." << kMaxDescriptorBytes);
   LMB_CHECK(words_.size() % static_cast<size_t>(descriptor_bytes) == 0,
-            "vocabulary: " << words_.size() << " bytes of words are not a multiple of "
-                           << descriptor_bytes);
+            "vocabulary: " << words_.size() << " bytes of words are not a multiple of " << descriptor_bytes);
   const size_t k = words_.size() / static_cast<size_t>(descriptor_bytes);
-  LMB_CHECK(k >= static_cast<size_t>(kMinVocabularyWords) &&
-                k <= static_cast<size_t>(kMaxVocabularyWords),
-            "vocabulary: " << k << " words; must be in " << kMinVocabularyWords << ".."
-                           << kMaxVocabularyWords);
+  LMB_CHECK(k >= static_cast<size_t>(kMinVocabularyWords) && k <= static_cast<size_t>(kMaxVocabularyWords),
+            "vocabulary: " << k << " words; must be in " << kMinVocabularyWords << ".." << kMaxVocabularyWords);
   num_words_ = static_cast<int>(k);
 }
 
@@ -45,9 +41,9 @@ void Vocabulary::quantize(const uint8_t* descriptors, int64_t n, uint8_t* out) c
 
 void Vocabulary::check_descriptor_bytes(int bytes, const std::string& what) const {
   LMB_CHECK(num_words_ > 0, what << ": the vocabulary is empty");
-  LMB_CHECK(bytes == descriptor_bytes_,
-            what << ": descriptors of " << bytes << " bytes, but the vocabulary's words have "
-                 << descriptor_bytes_ << " bytes (another detector?)");
+  LMB_CHECK(bytes == descriptor_bytes_, what << ": descriptors of " << bytes
+                                             << " bytes, but the vocabulary's words have " << descriptor_bytes_
+                                             << " bytes (another detector?)");
 }
 
 std::string Vocabulary::to_payload() const {
@@ -66,20 +62,18 @@ Vocabulary Vocabulary::from_payload(const std::string& payload, const std::strin
   // constructor), then the two int32 counts.
   const size_t header = 1 + 2 * sizeof(int32_t);
   LMB_CHECK(payload.size() >= header, what << ": truncated vocabulary header (" << payload.size()
-                                             << " payload bytes, expected at least " << header << ")");
+                                           << " payload bytes, expected at least " << header << ")");
   std::istringstream is(payload);
   cereal::PortableBinaryInputArchive ar(is);
   int32_t k = 0, b = 0;
   ar(k, b);
   LMB_CHECK(k >= kMinVocabularyWords && k <= kMaxVocabularyWords,
-            what << ": num_words = " << k << " must be in " << kMinVocabularyWords << ".."
-                 << kMaxVocabularyWords);
+            what << ": num_words = " << k << " must be in " << kMinVocabularyWords << ".." << kMaxVocabularyWords);
   LMB_CHECK(b >= 1 && b <= kMaxDescriptorBytes,
             what << ": descriptor_bytes = " << b << " must be in 1.." << kMaxDescriptorBytes);
   const size_t body = static_cast<size_t>(k) * static_cast<size_t>(b);
-  LMB_CHECK(payload.size() == header + body,
-            what << ": payload of " << payload.size() << " bytes, expected " << header + body
-                 << " for " << k << " words of " << b << " bytes");
+  LMB_CHECK(payload.size() == header + body, what << ": payload of " << payload.size() << " bytes, expected "
+                                                  << header + body << " for " << k << " words of " << b << " bytes");
   std::vector<uint8_t> words(body);
   ar(cereal::binary_data(words.data(), words.size()));
   return Vocabulary(b, std::move(words));
@@ -96,9 +90,9 @@ Vocabulary Vocabulary::load(const std::filesystem::path& path) {
 }
 
 void VocabularyTrainOptions::check() const {
-  LMB_CHECK(num_words >= kMinVocabularyWords && num_words <= kMaxVocabularyWords,
-            "vocabulary: words = " << num_words << " must be in " << kMinVocabularyWords << ".."
-                                   << kMaxVocabularyWords);
+  LMB_CHECK(
+      num_words >= kMinVocabularyWords && num_words <= kMaxVocabularyWords,
+      "vocabulary: words = " << num_words << " must be in " << kMinVocabularyWords << ".." << kMaxVocabularyWords);
   LMB_CHECK(max_iterations >= 1 && max_iterations <= 100000,
             "vocabulary: max_iterations = " << max_iterations << " must be in 1..100000");
 }
@@ -141,7 +135,7 @@ Vocabulary train_vocabulary(const uint8_t* descriptors, int64_t n, int descripto
   LMB_CHECK(bytes >= 1 && bytes <= kMaxDescriptorBytes,
             "vocabulary: descriptor_bytes = " << bytes << " must be in 1.." << kMaxDescriptorBytes);
   LMB_CHECK(n >= k, "vocabulary: " << n << " training descriptors for " << k
-                                    << " words; need at least as many descriptors as words");
+                                   << " words; need at least as many descriptors as words");
   VocabularyTrainStats local_stats;
   VocabularyTrainStats& st = stats ? *stats : local_stats;
   st = VocabularyTrainStats{};

@@ -87,8 +87,7 @@ struct VocabularyTrainStats {
 // set, is called with (iteration, cost) after each iteration (iteration 0 = initialisation).
 // Throws lmb::Error when n < num_words or the options are invalid.
 Vocabulary train_vocabulary(const uint8_t* descriptors, int64_t n, int descriptor_bytes,
-                            const VocabularyTrainOptions& options,
-                            VocabularyTrainStats* stats = nullptr,
+                            const VocabularyTrainOptions& options, VocabularyTrainStats* stats = nullptr,
                             const std::function<void(int, int64_t)>& on_iteration = {});
 
 }  // namespace lmb

@@ -144,8 +144,8 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
   } catch (const Error& e) {
     LMB_FAIL(what << ": " << e.what());
   }
-  LMB_CHECK(image.size() == a.bytes,
-            what << ": " << image.size() << " bytes, the bundle index says " << a.bytes << " (a different or damaged file)");
+  LMB_CHECK(image.size() == a.bytes, what << ": " << image.size() << " bytes, the bundle index says " << a.bytes
+                                          << " (a different or damaged file)");
   const uint32_t crc = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
   LMB_CHECK(crc == a.crc32, what << ": CRC-32 mismatch with the bundle index (a different or damaged file)");
   std::shared_ptr<const Model> model =
@@ -167,9 +167,10 @@ void AreaBundle::release_except(const std::vector<int32_t>& keep) {
   }
 }
 
-BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints,
-                                        const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
-                                        const PositionPrior* prior, const LocalizerOptions& options) {
+BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
+                                        const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                                        const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
+                                        const LocalizerOptions& options) {
   options.check();
   BundleLocalizeResult out;
   for (int32_t id : bundle.select(prior)) {

@@ -35,10 +35,10 @@ namespace lmb {
 
 struct LMB_INFER_EXPORT BundleArea {
   int32_t id = 0;
-  std::string file;          // the model file, relative to the bundle folder
-  uint64_t bytes = 0;        // its size
-  uint32_t crc32 = 0;        // CRC-32 of the whole file
-  int64_t landmarks = 0;     // its classes
+  std::string file;                                   // the model file, relative to the bundle folder
+  uint64_t bytes = 0;                                 // its size
+  uint32_t crc32 = 0;                                 // CRC-32 of the whole file
+  int64_t landmarks = 0;                              // its classes
   Eigen::Vector3d cell_lo = Eigen::Vector3d::Zero();  // the area's cell (world frame, metres);
   Eigen::Vector3d cell_hi = Eigen::Vector3d::Zero();  // ends may be -inf / +inf
   // Euclidean distance from p to the cell (0 inside).
@@ -86,22 +86,19 @@ class LMB_INFER_EXPORT AreaBundle {
 };
 
 struct LMB_INFER_EXPORT BundleLocalizeResult {
-  int32_t area = -1;                 // the area whose pose won (-1: no area localized the frame)
-  LocalizeResult result;             // its result (empty when area is -1)
-  std::vector<int32_t> scored;       // the areas scored (selected and loaded)
-  std::vector<int32_t> inliers;      // per scored area: its pose's inliers (0 without a pose)
-  std::vector<std::string> errors;   // one line per selected area that could not be loaded
+  int32_t area = -1;                // the area whose pose won (-1: no area localized the frame)
+  LocalizeResult result;            // its result (empty when area is -1)
+  std::vector<int32_t> scored;      // the areas scored (selected and loaded)
+  std::vector<int32_t> inliers;     // per scored area: its pose's inliers (0 without a pose)
+  std::vector<std::string> errors;  // one line per selected area that could not be loaded
 };
 
 // Localizes a frame in the areas `prior` selects (every area when prior is null), each through
 // its own model with `options`; the successful pose with the most inliers wins (ties: the smaller
 // area id). Areas that fail to load are reported in `errors` and skipped. Arguments as
 // Localizer::localize.
-LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
-                                                         const std::vector<Keypoint>& keypoints,
-                                                         const uint8_t* descriptors,
-                                                         const Eigen::Vector3d& gravity_in_cam,
-                                                         const PositionPrior* prior,
-                                                         const LocalizerOptions& options = {});
+LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(
+    AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+    const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior, const LocalizerOptions& options = {});
 
 }  // namespace lmb

@@ -75,9 +75,7 @@ lmb_status lmb_model_load_from_memory(const void* data, size_t size, lmb_model**
 
 void lmb_model_free(lmb_model* model) { delete model; }
 
-int lmb_model_descriptor_bytes(const lmb_model* model) {
-  return model ? model->model->descriptor_bytes() : -1;
-}
+int lmb_model_descriptor_bytes(const lmb_model* model) { return model ? model->model->descriptor_bytes() : -1; }
 
 int lmb_model_num_classes(const lmb_model* model) { return model ? model->model->num_classes() : -1; }
 
@@ -95,16 +93,16 @@ void lmb_localize_options_init(lmb_localize_options* options) {
   options->seed = d.pose.seed;
 }
 
-lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera,
-                        const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
-                        int descriptor_bytes, const double gravity_in_cam[3],
-                        const lmb_localize_options* options, lmb_pose* out_pose,
-                        lmb_match* out_matches, int max_matches, int* num_matches) {
+lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
+                        const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                        const lmb_localize_options* options, lmb_pose* out_pose, lmb_match* out_matches,
+                        int max_matches, int* num_matches) {
   const char* fn = "lmb_localize";
   if (num_matches != nullptr) *num_matches = 0;
   if (out_pose != nullptr) *out_pose = lmb_pose{};
   if (model == nullptr || camera == nullptr || gravity_in_cam == nullptr || out_pose == nullptr) {
-    return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: model, camera, gravity_in_cam and out_pose must not be NULL");
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                "lmb_localize: model, camera, gravity_in_cam and out_pose must not be NULL");
   }
   if (n < 0 || (n > 0 && (keypoints == nullptr || descriptors == nullptr))) {
     return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: n < 0 or NULL keypoints/descriptors");
@@ -113,9 +111,9 @@ lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera,
     return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: max_matches < 0 or NULL out_matches");
   }
   if (descriptor_bytes != model->model->descriptor_bytes()) {
-    return fail(LMB_ERROR_INVALID_ARGUMENT,
-                "lmb_localize: descriptors have " + std::to_string(descriptor_bytes) +
-                    " bytes, the model expects " + std::to_string(model->model->descriptor_bytes()));
+    return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: descriptors have " + std::to_string(descriptor_bytes) +
+                                                " bytes, the model expects " +
+                                                std::to_string(model->model->descriptor_bytes()));
   }
   if (camera->num_params < 0 || (camera->num_params > 0 && camera->params == nullptr)) {
     return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: camera params NULL or num_params < 0");

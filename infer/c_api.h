@@ -71,15 +71,15 @@ typedef struct lmb_keypoint {
 } lmb_keypoint;
 
 typedef struct lmb_localize_options {
-  int top_k;                         /* matches kept per keypoint (default 1) */
-  int use_inverted_file;             /* 0: score all classes; 1: the word's candidates (default 0) */
-  double min_margin;                 /* score above the background's (default 0) */
-  int pose_top_k;                    /* matches per keypoint fed to the pose (default 1) */
-  int max_correspondences;           /* best-margin matches fed to the pose, 0 = all (default 0) */
-  int ransac_iterations;             /* default 500 */
-  double max_reprojection_error_px;  /* inlier threshold, default 8 */
-  int min_inliers;                   /* default 12 */
-  uint64_t seed;                     /* RANSAC seed, default 0 */
+  int top_k;                        /* matches kept per keypoint (default 1) */
+  int use_inverted_file;            /* 0: score all classes; 1: the word's candidates (default 0) */
+  double min_margin;                /* score above the background's (default 0) */
+  int pose_top_k;                   /* matches per keypoint fed to the pose (default 1) */
+  int max_correspondences;          /* best-margin matches fed to the pose, 0 = all (default 0) */
+  int ransac_iterations;            /* default 500 */
+  double max_reprojection_error_px; /* inlier threshold, default 8 */
+  int min_inliers;                  /* default 12 */
+  uint64_t seed;                    /* RANSAC seed, default 0 */
 } lmb_localize_options;
 
 typedef struct lmb_pose {
@@ -91,10 +91,10 @@ typedef struct lmb_pose {
 } lmb_pose;
 
 typedef struct lmb_match {
-  int32_t keypoint;   /* index into the input keypoints */
-  int32_t rank;       /* 0 = the keypoint's best match */
-  int32_t class_id;   /* landmark class */
-  int64_t landmark;   /* map landmark id */
+  int32_t keypoint; /* index into the input keypoints */
+  int32_t rank;     /* 0 = the keypoint's best match */
+  int32_t class_id; /* landmark class */
+  int64_t landmark; /* map landmark id */
   double score;
   double position[3]; /* landmark position, world frame */
   int inlier;         /* 1 when this match is an inlier of the pose */
@@ -124,9 +124,8 @@ LMB_INFER_EXPORT void lmb_localize_options_init(lmb_localize_options* options);
  * not NULL and that number exceeds max_matches, the first max_matches are written, the pose is
  * still computed, and the call returns LMB_ERROR_BUFFER_TOO_SMALL. */
 LMB_INFER_EXPORT lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera,
-                                         const lmb_keypoint* keypoints, int n,
-                                         const uint8_t* descriptors, int descriptor_bytes,
-                                         const double gravity_in_cam[3],
+                                         const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
+                                         int descriptor_bytes, const double gravity_in_cam[3],
                                          const lmb_localize_options* options, lmb_pose* out_pose,
                                          lmb_match* out_matches, int max_matches, int* num_matches);
 

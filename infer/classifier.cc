@@ -17,8 +17,7 @@
 namespace lmb {
 
 void ClassifierOptions::check() const {
-  LMB_CHECK(top_k >= 1 && top_k <= 1000000, "classifier options: top_k = " << top_k
-                                                                          << " must be in 1..1000000");
+  LMB_CHECK(top_k >= 1 && top_k <= 1000000, "classifier options: top_k = " << top_k << " must be in 1..1000000");
   LMB_CHECK(!std::isnan(min_margin) && min_margin != std::numeric_limits<double>::infinity(),
             "classifier options: min_margin = " << min_margin << " must be a number below +inf");
   LMB_CHECK(!std::isnan(min_score) && min_score != std::numeric_limits<double>::infinity(),
@@ -33,9 +32,7 @@ const Model& checked(const std::shared_ptr<const Model>& model) {
 }  // namespace
 
 Classifier::Classifier(std::shared_ptr<const Model> model, const ClassifierOptions& options)
-    : model_(std::move(model)),
-      options_(options),
-      context_(checked(model_).regions(), checked(model_).num_words()) {
+    : model_(std::move(model)), options_(options), context_(checked(model_).regions(), checked(model_).num_words()) {
   options_.check();
   const size_t U = model_->used_dims().size();
   values_.assign(U * kBatch, 0);
@@ -48,9 +45,7 @@ Classifier::Classifier(std::shared_ptr<const Model> model, const ClassifierOptio
   cutoff_score_.assign(kBatch, -std::numeric_limits<double>::infinity());
 }
 
-void Classifier::index_frame(const FrameKeypoints& frame, const std::string& where) {
-  context_.reset(frame, where);
-}
+void Classifier::index_frame(const FrameKeypoints& frame, const std::string& where) { context_.reset(frame, where); }
 
 void Classifier::compute_used_values(int32_t k, const uint8_t* descriptor, uint8_t* values) const {
   context_.compute_dims(k, model_->used_plan(), descriptor, values);
@@ -92,8 +87,8 @@ static_assert(Classifier::kBatch == 32, "a batch's fire bits of one stump are a 
 
 // fire[s] bit j = lane j's value of stump s's dim is above the stump's threshold. values: kBatch
 // lanes of used dim u at values[u * stride]. Cloned for AVX2 (common/cpu_dispatch.h).
-LMB_CLONES_AVX2 void fire_masks_impl(const Model::DenseStump* stumps, size_t num_stumps,
-                                     const uint8_t* values, size_t stride, uint32_t* fire) {
+LMB_CLONES_AVX2 void fire_masks_impl(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values,
+                                     size_t stride, uint32_t* fire) {
   using Bytes = uint8_t __attribute__((vector_size(32), aligned(1)));
   using Words = uint64_t __attribute__((vector_size(32), aligned(8)));
   for (size_t s = 0; s < num_stumps; ++s) {
@@ -113,8 +108,7 @@ LMB_CLONES_AVX2 void fire_masks_impl(const Model::DenseStump* stumps, size_t num
 // computed) from the stump's two doubles by the lane's fire bit. Cloned for AVX2; IEEE additions
 // give the same doubles in both clones.
 LMB_CLONES_AVX2 void accumulate_lanes_clones(double bias, const int32_t* stumps, int64_t count,
-                                             const Model::DenseStump* dense, const uint32_t* fire,
-                                             double* out) {
+                                             const Model::DenseStump* dense, const uint32_t* fire, double* out) {
   // Shifting the fire bits left by shift[v] puts bit kLanes * v + i at the sign of lane i.
   LaneMask shift[kVectors];
   for (int32_t v = 0; v < kVectors; ++v) {
@@ -141,8 +135,9 @@ struct Lanes512 {
   __m512d acc[4];
 };
 
-__attribute__((target("avx512f"), always_inline)) inline void add_stump_avx512(
-    Lanes512& l, int32_t s, const Model::DenseStump* dense, const uint32_t* fire) {
+__attribute__((target("avx512f"), always_inline)) inline void add_stump_avx512(Lanes512& l, int32_t s,
+                                                                               const Model::DenseStump* dense,
+                                                                               const uint32_t* fire) {
   const uint32_t f = fire[s];
   const __m512d a = _mm512_set1_pd(dense[s].above), b = _mm512_set1_pd(dense[s].below);
   for (int32_t v = 0; v < 4; ++v) {
@@ -151,10 +146,10 @@ __attribute__((target("avx512f"), always_inline)) inline void add_stump_avx512(
   }
 }
 
-__attribute__((target("avx512f"))) void accumulate_two_avx512(
-    double bias0, const int32_t* stumps0, int64_t count0, double bias1, const int32_t* stumps1,
-    int64_t count1, const Model::DenseStump* dense, const uint32_t* fire, double* out0,
-    double* out1) {
+__attribute__((target("avx512f"))) void accumulate_two_avx512(double bias0, const int32_t* stumps0, int64_t count0,
+                                                              double bias1, const int32_t* stumps1, int64_t count1,
+                                                              const Model::DenseStump* dense, const uint32_t* fire,
+                                                              double* out0, double* out1) {
   Lanes512 p, q;
   for (int32_t v = 0; v < 4; ++v) {
     p.acc[v] = _mm512_set1_pd(bias0);
@@ -174,21 +169,17 @@ __attribute__((target("avx512f"))) void accumulate_two_avx512(
 }
 
 __attribute__((target("avx512f"), always_inline)) inline __m512d add_group_avx512(
-    __m512d acc, const detail::GroupItem& item, int64_t e, const Model::DenseStump* dense,
-    const uint32_t* fire) {
+    __m512d acc, const detail::GroupItem& item, int64_t e, const Model::DenseStump* dense, const uint32_t* fire) {
   const int32_t s = item.stumps[e];
   const __mmask8 bits = static_cast<__mmask8>(fire[s] >> (8 * item.group));
-  return _mm512_add_pd(acc, _mm512_mask_blend_pd(bits, _mm512_set1_pd(dense[s].below),
-                                                 _mm512_set1_pd(dense[s].above)));
+  return _mm512_add_pd(acc, _mm512_mask_blend_pd(bits, _mm512_set1_pd(dense[s].below), _mm512_set1_pd(dense[s].above)));
 }
 
 // Up to four (class, 8-lane group) items at once, one AVX-512 register each (four independent
 // chains of additions): out[i][l] = items[i].bias + the outputs of items[i]'s stumps in lane
 // 8 group + l, in list order (the same additions as accumulate_lanes).
-__attribute__((target("avx512f"))) void accumulate_groups_avx512(const detail::GroupItem* items,
-                                                                 int32_t n,
-                                                                 const Model::DenseStump* dense,
-                                                                 const uint32_t* fire) {
+__attribute__((target("avx512f"))) void accumulate_groups_avx512(const detail::GroupItem* items, int32_t n,
+                                                                 const Model::DenseStump* dense, const uint32_t* fire) {
   __m512d acc[4];
   int64_t common = std::numeric_limits<int64_t>::max();
   for (int32_t i = 0; i < n; ++i) {
@@ -244,8 +235,10 @@ struct ScreenView {
 // [0, 65535] (above 65535 only t_j = 65535 passes: a looser test, never a stricter one). The goals
 // come in the order that packus (which interleaves its operands by 128-bit lane) undoes:
 // goal_lo[4 i + r] = goal[8 i + r], goal_hi[4 i + r] = goal[8 i + 4 + r] (permuted_goals).
-__attribute__((target("avx512f,avx512bw"), always_inline)) inline uint32_t goal_bits_avx512(
-    __m512i sums, uint16_t low, int32_t shift, __m512i goal_lo, __m512i goal_hi) {
+__attribute__((target("avx512f,avx512bw"), always_inline)) inline uint32_t goal_bits_avx512(__m512i sums, uint16_t low,
+                                                                                            int32_t shift,
+                                                                                            __m512i goal_lo,
+                                                                                            __m512i goal_hi) {
   const __m512i t = _mm512_sub_epi16(sums, _mm512_set1_epi16(static_cast<int16_t>(low)));
   const __m512i s = _mm512_set1_epi32(shift);
   const __m512i threshold = _mm512_packus_epi32(_mm512_sub_epi32(goal_lo, s), _mm512_sub_epi32(goal_hi, s));
@@ -253,7 +246,7 @@ __attribute__((target("avx512f,avx512bw"), always_inline)) inline uint32_t goal_
 }
 
 __attribute__((target("avx512f"), always_inline)) inline void permuted_goals(const int32_t* goal, __m512i* lo,
-                                                                            __m512i* hi) {
+                                                                             __m512i* hi) {
   const __m512i first = _mm512_setr_epi32(0, 1, 2, 3, 8, 9, 10, 11, 16, 17, 18, 19, 24, 25, 26, 27);
   const __m512i second = _mm512_add_epi32(first, _mm512_set1_epi32(4));
   const __m512i g0 = _mm512_loadu_si512(goal), g1 = _mm512_loadu_si512(goal + 16);
@@ -265,9 +258,10 @@ __attribute__((target("avx512f"), always_inline)) inline void permuted_goals(con
 // register: one masked addition a stump and batch (the fire bits are the mask), the integer
 // test at every checkpoint (the class is dropped when no valid lane of any batch passes) and at
 // the end. Lane j of batch b is bit 32 b + j of the result.
-__attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(
-    const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
-    const int32_t* const* goal, const uint32_t* valid) {
+__attribute__((target("avx512f,avx512bw"))) uint64_t screen_class_avx512(const Model& model, int32_t cls,
+                                                                         int32_t batches, const uint32_t* const* fire,
+                                                                         const int32_t* const* goal,
+                                                                         const uint32_t* valid) {
   const ScreenView v(model, cls);
   const uint32_t* fire0 = fire[0];
   const uint32_t* fire1 = fire[batches > 1 ? 1 : 0];
@@ -328,8 +322,8 @@ const bool kHasAvx512bw = (__builtin_cpu_init(), __builtin_cpu_supports("avx512b
 
 // Screening sums of stumps[0, count) added into sums (modulo 2^16) with 16-lane vectors: a lane
 // adds q where its fire bit is set (its bit of the broadcast mask ANDed with the lane's own bit).
-LMB_CLONES_AVX2 void add_screen_sums(const uint16_t* stumps, int64_t count, const int16_t* q,
-                                     const uint32_t* fire, uint16_t* sums) {
+LMB_CLONES_AVX2 void add_screen_sums(const uint16_t* stumps, int64_t count, const int16_t* q, const uint32_t* fire,
+                                     uint16_t* sums) {
   using Half = uint16_t __attribute__((vector_size(32), aligned(2)));
   Half bit;
   for (int32_t i = 0; i < 16; ++i) bit[i] = static_cast<uint16_t>(1u << i);
@@ -364,18 +358,18 @@ uint32_t goal_bits(const uint16_t* sums, uint16_t low, int32_t shift, const int3
 // otherwise be exported from the shared library whatever the visibility.)
 namespace detail {
 
-void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values,
-                size_t stride, uint32_t* fire) {
+void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values, size_t stride,
+                uint32_t* fire) {
   fire_masks_impl(stumps, num_stumps, values, stride, fire);
 }
 
-void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count,
-                              const Model::DenseStump* dense, const uint32_t* fire, double* out) {
+void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count, const Model::DenseStump* dense,
+                              const uint32_t* fire, double* out) {
   accumulate_lanes_clones(bias, stumps, count, dense, fire, out);
 }
 
-void accumulate_lanes(double bias, const int32_t* stumps, int64_t count,
-                      const Model::DenseStump* dense, const uint32_t* fire, double* out) {
+void accumulate_lanes(double bias, const int32_t* stumps, int64_t count, const Model::DenseStump* dense,
+                      const uint32_t* fire, double* out) {
 #if defined(__x86_64__)
   if (kHasAvx512) {
     double unused[Classifier::kBatch];
@@ -385,21 +379,18 @@ void accumulate_lanes(double bias, const int32_t* stumps, int64_t count,
   accumulate_lanes_clones(bias, stumps, count, dense, fire, out);
 }
 
-void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1,
-                    const int32_t* stumps1, int64_t count1, const Model::DenseStump* dense,
-                    const uint32_t* fire, double* out0, double* out1) {
+void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1, const int32_t* stumps1,
+                    int64_t count1, const Model::DenseStump* dense, const uint32_t* fire, double* out0, double* out1) {
 #if defined(__x86_64__)
   if (kHasAvx512) {
-    return accumulate_two_avx512(bias0, stumps0, count0, bias1, stumps1, count1, dense, fire,
-                                 out0, out1);
+    return accumulate_two_avx512(bias0, stumps0, count0, bias1, stumps1, count1, dense, fire, out0, out1);
   }
 #endif
   accumulate_lanes_clones(bias0, stumps0, count0, dense, fire, out0);
   accumulate_lanes_clones(bias1, stumps1, count1, dense, fire, out1);
 }
 
-void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense,
-                       const uint32_t* fire) {
+void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense, const uint32_t* fire) {
 #if defined(__x86_64__)
   if (kHasAvx512) {
     for (int32_t i = 0; i < n; i += 4) accumulate_groups_avx512(items + i, std::min(4, n - i), dense, fire);
@@ -439,8 +430,7 @@ uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const ui
   return bits;
 }
 
-void screen_goals(const Model& model, const double* background, double min_margin, double min_score,
-                  int32_t* goal) {
+void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal) {
   const double step = model.screen_step();
   const double safe = step * double{Model::kScreenUnitsLimit / 4};  // 2^27 steps
   const double inf = std::numeric_limits<double>::infinity();
@@ -460,8 +450,8 @@ namespace {
 // Whether any of the kBatch lanes passes offer()'s tests with the cutoff one relaxed to >= (as
 // finish_batch's scalar loop): most classes pass in no lane. Lanes past the batch's count may
 // pass spuriously; the scalar loop skips them.
-LMB_CLONES_AVX2 bool any_lane_passes(const double* score, const double* background,
-                                     const double* cutoff, double min_margin, double min_score) {
+LMB_CLONES_AVX2 bool any_lane_passes(const double* score, const double* background, const double* cutoff,
+                                     double min_margin, double min_score) {
   LaneMask any = {};
   const Batch margin = Batch{} + min_margin, floor = Batch{} + min_score;
   for (int32_t v = 0; v < kVectors; ++v) {
@@ -475,9 +465,7 @@ LMB_CLONES_AVX2 bool any_lane_passes(const double* score, const double* backgrou
 }
 
 // The ranking order: higher score first, then smaller class.
-inline bool better(double s, int32_t c, double ts, int32_t tc) {
-  return s > ts || (s == ts && c < tc);
-}
+inline bool better(double s, int32_t c, double ts, int32_t tc) { return s > ts || (s == ts && c < tc); }
 
 }  // namespace
 
@@ -488,9 +476,7 @@ void Classifier::offer(int32_t j, int32_t cls, double score, double bg) {
   if (lane.size() >= k && !better(score, cls, cutoff_[j].score, cutoff_[j].cls)) return;
   lane.push_back({score, cls});
   if (lane.size() >= 2 * k + 64) {  // keep the best k; later offers must beat the k-th
-    const auto by_rank = [](const Candidate& x, const Candidate& y) {
-      return better(x.score, x.cls, y.score, y.cls);
-    };
+    const auto by_rank = [](const Candidate& x, const Candidate& y) { return better(x.score, x.cls, y.score, y.cls); };
     std::nth_element(lane.begin(), lane.begin() + static_cast<std::ptrdiff_t>(k - 1), lane.end(), by_rank);
     cutoff_[j] = lane[k - 1];
     cutoff_score_[j] = cutoff_[j].score;
@@ -524,8 +510,7 @@ void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) 
     if (min_score != -std::numeric_limits<double>::infinity()) min_score -= lift;
     background = lowered;
   }
-  detail::screen_goals(m, background, options_.min_margin, min_score,
-                       goal_.data() + static_cast<size_t>(b) * kBatch);
+  detail::screen_goals(m, background, options_.min_margin, min_score, goal_.data() + static_cast<size_t>(b) * kBatch);
 }
 
 namespace {
@@ -658,9 +643,7 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
       }
     }
   }
-  const auto by_rank = [](const Candidate& x, const Candidate& y) {
-    return better(x.score, x.cls, y.score, y.cls);
-  };
+  const auto by_rank = [](const Candidate& x, const Candidate& y) { return better(x.score, x.cls, y.score, y.cls); };
   for (int32_t j = 0; j < count; ++j) {
     std::vector<Candidate>& lane = lanes_[j];
     const size_t keep = std::min(lane.size(), static_cast<size_t>(options_.top_k));
@@ -676,8 +659,8 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   }
 }
 
-KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t* descriptors,
-                                     const std::string& where, double* embedding_ms) {
+KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t* descriptors, const std::string& where,
+                                     double* embedding_ms) {
   using Clock = std::chrono::steady_clock;
   const Model& m = *model_;
   const int32_t n = frame.size();

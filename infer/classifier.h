@@ -76,10 +76,10 @@ struct LMB_INFER_EXPORT ClassifierOptions {
 
 // One ranked candidate of a keypoint.
 struct ClassMatch {
-  int32_t cls = -1;                       // landmark class, 0..C-1
+  int32_t cls = -1;                          // landmark class, 0..C-1
   landmark_t landmark = kInvalidLandmarkId;  // its map landmark id
-  double score = 0.0;                     // its class score
-  double background_score = 0.0;          // the keypoint's background score
+  double score = 0.0;                        // its class score
+  double background_score = 0.0;             // the keypoint's background score
 };
 
 // The ranked matches of n keypoints in CSR form: keypoint k's matches, best first, are
@@ -99,8 +99,8 @@ struct GroupItem {
   double bias;
   const int32_t* stumps;  // the class's stump list (class_stump_index() entries)
   int64_t count;
-  int32_t group;          // lanes 8 group .. 8 group + 7
-  double* out;            // 8 sums
+  int32_t group;  // lanes 8 group .. 8 group + 7
+  double* out;    // 8 sums
 };
 }  // namespace detail
 
@@ -117,8 +117,8 @@ class LMB_INFER_EXPORT Classifier {
   // descriptor_bytes(). Throws lmb::Error (prefixed by `where`) when a word is out of range or the
   // geometry is invalid. embedding_ms (optional): receives the milliseconds spent building the
   // frame index and computing feature values (the rest is scoring and ranking).
-  KeypointMatches classify(const FrameKeypoints& frame, const uint8_t* descriptors,
-                           const std::string& where = "frame", double* embedding_ms = nullptr);
+  KeypointMatches classify(const FrameKeypoints& frame, const uint8_t* descriptors, const std::string& where = "frame",
+                           double* embedding_ms = nullptr);
 
   // Lower-level steps (tests, benchmarks), valid after index_frame(frame):
   void index_frame(const FrameKeypoints& frame, const std::string& where = "frame");
@@ -159,11 +159,11 @@ class LMB_INFER_EXPORT Classifier {
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;
   FrameContext context_;
-  std::vector<uint8_t> values_;       // used_dims().size() rows of kBatch lanes (dim-major)
-  std::vector<uint8_t> word_values_;  // one keypoint's values of its word's (or all used) dims
-  std::vector<uint8_t> frame_values_; // or all used dims of the frame's keypoints (dim-major)
-  std::vector<uint32_t> fire_;        // per batch of the group, per stump: bit j = fires in lane j
-  std::vector<double> class_out_;     // kBatch scores of one class
+  std::vector<uint8_t> values_;        // used_dims().size() rows of kBatch lanes (dim-major)
+  std::vector<uint8_t> word_values_;   // one keypoint's values of its word's (or all used) dims
+  std::vector<uint8_t> frame_values_;  // or all used dims of the frame's keypoints (dim-major)
+  std::vector<uint32_t> fire_;         // per batch of the group, per stump: bit j = fires in lane j
+  std::vector<double> class_out_;      // kBatch scores of one class
   struct Kept {
     int32_t cls;
     uint32_t lanes;  // lanes where its screening bound passed
@@ -171,15 +171,15 @@ class LMB_INFER_EXPORT Classifier {
   std::vector<std::vector<Kept>> kept_;  // per batch of the group: classes kept by screening
   std::vector<double> kept_out_;         // kBatch exact scores of each kept class of a batch
   std::vector<detail::GroupItem> groups_;
-  std::vector<double> background_;    // per batch of the group: kBatch background scores
-  std::vector<int32_t> goal_;         // per batch of the group: kBatch screening goals
-  std::vector<int32_t> all_classes_;  // 0..C-1
+  std::vector<double> background_;             // per batch of the group: kBatch background scores
+  std::vector<int32_t> goal_;                  // per batch of the group: kBatch screening goals
+  std::vector<int32_t> all_classes_;           // 0..C-1
   std::vector<std::vector<Candidate>> lanes_;  // per lane: passing candidates (pruned to top_k)
   std::vector<Candidate> cutoff_;              // per lane: worst kept once pruned
   std::vector<double> cutoff_score_;           // per lane: cutoff_[j].score
   std::vector<int32_t> order_, word_begin_;    // keypoints grouped by word
   std::vector<std::pair<int32_t, ClassMatch>> pending_;
-  const uint8_t* descriptors_ = nullptr;       // the frame's, during classify()
+  const uint8_t* descriptors_ = nullptr;  // the frame's, during classify()
   int64_t classes_screened_ = 0, classes_scored_ = 0;
 };
 
@@ -191,15 +191,14 @@ namespace detail {
 // (the same doubles as the scalar sum); the AVX-512 kernel where the CPU has it, else
 // accumulate_lanes_generic (AVX2 or baseline clone). accumulate_two: two classes at once, each
 // with the same additions as accumulate_lanes. out arrays hold kBatch doubles.
-void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values,
-                size_t stride, uint32_t* fire);
-void accumulate_lanes(double bias, const int32_t* stumps, int64_t count,
-                      const Model::DenseStump* dense, const uint32_t* fire, double* out);
-void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count,
-                              const Model::DenseStump* dense, const uint32_t* fire, double* out);
-void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1,
-                    const int32_t* stumps1, int64_t count1, const Model::DenseStump* dense,
-                    const uint32_t* fire, double* out0, double* out1);
+void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values, size_t stride,
+                uint32_t* fire);
+void accumulate_lanes(double bias, const int32_t* stumps, int64_t count, const Model::DenseStump* dense,
+                      const uint32_t* fire, double* out);
+void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count, const Model::DenseStump* dense,
+                              const uint32_t* fire, double* out);
+void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1, const int32_t* stumps1,
+                    int64_t count1, const Model::DenseStump* dense, const uint32_t* fire, double* out0, double* out1);
 // Screening of class `cls` (Model::screen_step, its screening list and checkpoints) in
 // `batches` (1 or 2) batches at once: bit 32 b + j of the result is set when lane j of batch b is
 // valid (bit j of valid[b]) and the class's integer score bound from the fire masks fire[b] passes
@@ -211,14 +210,12 @@ void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double
 // The exact sums of n items: out[l] = bias + the outputs of the item's stumps in lane
 // 8 group + l, added in list order (the same doubles as accumulate_lanes); AVX-512 four items
 // at a time where the CPU has it, else accumulate_lanes_generic's clone.
-void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense,
-                       const uint32_t* fire);
+void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense, const uint32_t* fire);
 uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
                       const int32_t* const* goal, const uint32_t* valid);
 uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire, const int32_t* goal,
                               uint32_t valid);
-void screen_goals(const Model& model, const double* background, double min_margin, double min_score,
-                  int32_t* goal);
+void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal);
 }  // namespace detail
 
 }  // namespace lmb

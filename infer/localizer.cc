@@ -11,11 +11,11 @@ namespace lmb {
 
 void LocalizerOptions::check() const {
   classifier.check();
-  LMB_CHECK(max_correspondences >= 0, "localizer options: max_correspondences = " << max_correspondences
-                                                                                 << " must be >= 0");
+  LMB_CHECK(max_correspondences >= 0,
+            "localizer options: max_correspondences = " << max_correspondences << " must be >= 0");
   LMB_CHECK(pose_top_k >= 1 && pose_top_k <= classifier.top_k,
-            "localizer options: pose_top_k = " << pose_top_k << " must be in 1..classifier.top_k ("
-                                               << classifier.top_k << ")");
+            "localizer options: pose_top_k = " << pose_top_k << " must be in 1..classifier.top_k (" << classifier.top_k
+                                               << ")");
   pose.check();
 }
 
@@ -26,8 +26,7 @@ Localizer::Localizer(std::shared_ptr<const Model> model, const LocalizerOptions&
 }
 
 LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
-                                   const uint8_t* descriptors,
-                                   const Eigen::Vector3d& gravity_in_cam) const {
+                                   const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) const {
   return localize(camera, keypoints, descriptors, gravity_in_cam, options_);
 }
 
@@ -51,8 +50,8 @@ LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypo
   const Clock::time_point t_words = Clock::now();
   result.timings.words_ms = ms(t_words - t_start);
 
-  const FrameKeypoints frame = frame_keypoints_from_detections(camera, keypoints.data(), words.data(),
-                                                               n, gravity_in_cam, "localize");
+  const FrameKeypoints frame =
+      frame_keypoints_from_detections(camera, keypoints.data(), words.data(), n, gravity_in_cam, "localize");
   Classifier classifier(model_, options.classifier);
   const Clock::time_point t_frame = Clock::now();
   double embedding_ms = 0.0;

@@ -11,9 +11,9 @@
 // background (score - background score) as the PROSAC order.
 //
 // Inputs: keypoints in pixels of the distorted image with COLMAP's convention (centre of the
-// top-left pixel at (0.5, 0.5); add 0.5 to an OpenCV KeyPoint::pt), scale = detector diameter in pixels (lmb::Keypoint); descriptors:
-// keypoints.size() rows of model.descriptor_bytes() bytes; gravity_in_cam: the direction of gravity
-// (down) in the camera frame (x right, y down, z forward), any non-zero length.
+// top-left pixel at (0.5, 0.5); add 0.5 to an OpenCV KeyPoint::pt), scale = detector diameter in pixels
+// (lmb::Keypoint); descriptors: keypoints.size() rows of model.descriptor_bytes() bytes; gravity_in_cam: the direction
+// of gravity (down) in the camera frame (x right, y down, z forward), any non-zero length.
 //
 // Errors: invalid input (null descriptors, invalid camera, non-finite or non-positive keypoint
 // sizes, zero gravity) throws lmb::Error. Failing to localize is not an error: pose.success false.
@@ -44,7 +44,7 @@ struct LMB_INFER_EXPORT LocalizerOptions {
   // At most this many correspondences, those with the largest margin over the background
   // (score - background score; ties: keypoint order); 0 = all.
   int max_correspondences = 0;
-  PoseEstimatorOptions pose;     // RANSAC samples, inlier threshold (px), seed, PROSAC, refinement
+  PoseEstimatorOptions pose;  // RANSAC samples, inlier threshold (px), seed, PROSAC, refinement
 
   // Throws lmb::Error naming the field.
   void check() const;
@@ -60,8 +60,8 @@ struct LocalizeTimings {
 };
 
 struct LocalizeResult {
-  KeypointMatches matches;              // ranked matches of every keypoint
-  PoseResult pose;                      // cam_from_world, inlier mask of correspondences, RANSAC stats
+  KeypointMatches matches;  // ranked matches of every keypoint
+  PoseResult pose;          // cam_from_world, inlier mask of correspondences, RANSAC stats
   // One entry per correspondence given to the pose estimator (pose.inlier_mask is aligned):
   std::vector<int32_t> correspondence_keypoint;  // keypoint index
   std::vector<int32_t> correspondence_match;     // index into matches.matches
@@ -73,12 +73,11 @@ class LMB_INFER_EXPORT Localizer {
   // Throws lmb::Error for a null model or invalid options.
   explicit Localizer(std::shared_ptr<const Model> model, const LocalizerOptions& options = {});
 
-  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
-                          const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) const;
+  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                          const Eigen::Vector3d& gravity_in_cam) const;
   // The same with explicit options (per-call settings; options.check() first).
-  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
-                          const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
-                          const LocalizerOptions& options) const;
+  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                          const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions& options) const;
 
   const Model& model() const { return *model_; }
   const std::shared_ptr<const Model>& shared_model() const { return model_; }

@@ -37,8 +37,7 @@ std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t cou
                                           const std::string& what) {
   // Every id takes at least one byte: a count above the byte count is corrupt (checked before
   // allocating).
-  LMB_CHECK(count <= bytes.size(),
-            what << ": corrupt id list: " << count << " ids in " << bytes.size() << " bytes");
+  LMB_CHECK(count <= bytes.size(), what << ": corrupt id list: " << count << " ids in " << bytes.size() << " bytes");
   std::vector<int32_t> ids(count);
   size_t pos = 0;
   int64_t prev = -1;
@@ -59,8 +58,8 @@ std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t cou
     ids[i] = static_cast<int32_t>(id);
     prev = id;
   }
-  LMB_CHECK(pos == bytes.size(), what << ": corrupt id list: " << bytes.size() - pos
-                                      << " extra bytes after " << count << " ids");
+  LMB_CHECK(pos == bytes.size(),
+            what << ": corrupt id list: " << bytes.size() - pos << " extra bytes after " << count << " ids");
   return ids;
 }
 
@@ -70,8 +69,7 @@ namespace {
 
 constexpr size_t kMaxDetectorNameBytes = 256;
 
-void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inclusive,
-                     const std::string& where) {
+void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inclusive, const std::string& where) {
   for (size_t i = 0; i < ids.size(); ++i) {
     LMB_CHECK(ids[i] >= lo && ids[i] <= hi_inclusive,
               where << ": class " << ids[i] << " outside " << lo << ".." << hi_inclusive);
@@ -83,48 +81,41 @@ void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inc
 
 void ModelData::check(const std::string& where) const {
   LMB_CHECK(descriptor_bytes >= 1 && descriptor_bytes <= kMaxDescriptorBytes,
-            where << ": descriptor_bytes = " << descriptor_bytes << " outside 1.."
-                  << kMaxDescriptorBytes);
-  LMB_CHECK(vocabulary.num_words() >= kMinVocabularyWords,
-            where << ": vocabulary is empty");
+            where << ": descriptor_bytes = " << descriptor_bytes << " outside 1.." << kMaxDescriptorBytes);
+  LMB_CHECK(vocabulary.num_words() >= kMinVocabularyWords, where << ": vocabulary is empty");
   LMB_CHECK(vocabulary.descriptor_bytes() == descriptor_bytes,
-            where << ": vocabulary has " << vocabulary.descriptor_bytes()
-                  << "-byte words, descriptors have " << descriptor_bytes << " bytes");
+            where << ": vocabulary has " << vocabulary.descriptor_bytes() << "-byte words, descriptors have "
+                  << descriptor_bytes << " bytes");
   regions.validate(where + ": regions");
   const EmbeddingLayout l = layout();
   l.check();
   LMB_CHECK(num_classes >= 1, where << ": num_classes = " << num_classes << " must be >= 1");
   const size_t C = static_cast<size_t>(num_classes);
-  LMB_CHECK(class_landmark.size() == C, where << ": class_landmark has " << class_landmark.size()
-                                              << " entries, expected " << C);
-  LMB_CHECK(class_position.size() == C, where << ": class_position has " << class_position.size()
-                                              << " entries, expected " << C);
+  LMB_CHECK(class_landmark.size() == C,
+            where << ": class_landmark has " << class_landmark.size() << " entries, expected " << C);
+  LMB_CHECK(class_position.size() == C,
+            where << ": class_position has " << class_position.size() << " entries, expected " << C);
   for (size_t c = 0; c < C; ++c) {
-    LMB_CHECK(class_landmark[c] >= 0, where << ": class " << c << " has landmark id "
-                                            << class_landmark[c]);
+    LMB_CHECK(class_landmark[c] >= 0, where << ": class " << c << " has landmark id " << class_landmark[c]);
     LMB_CHECK(class_position[c].allFinite(), where << ": class " << c << " has a non-finite position");
   }
-  LMB_CHECK(bias.size() == C + 1, where << ": bias has " << bias.size() << " entries, expected "
-                                        << C + 1);
+  LMB_CHECK(bias.size() == C + 1, where << ": bias has " << bias.size() << " entries, expected " << C + 1);
   for (size_t c = 0; c <= C; ++c) {
     LMB_CHECK(std::isfinite(bias[c]), where << ": class " << c << " has a non-finite bias");
   }
   for (size_t m = 0; m < stumps.size(); ++m) {
     const SharedStump& s = stumps[m];
     const std::string sw = where + ": stump " + std::to_string(m);
-    LMB_CHECK(s.dim >= 0 && s.dim < l.num_dims(),
-              sw << ": dim " << s.dim << " outside [0, " << l.num_dims() << ")");
+    LMB_CHECK(s.dim >= 0 && s.dim < l.num_dims(), sw << ": dim " << s.dim << " outside [0, " << l.num_dims() << ")");
     LMB_CHECK(s.theta < 255, sw << ": threshold 255 never fires");
     LMB_CHECK(std::isfinite(s.a) && std::isfinite(s.b), sw << ": non-finite a or b");
     LMB_CHECK(!s.classes.empty(), sw << ": empty sharing set");
     check_ascending(s.classes, 0, num_classes, sw);
   }
   LMB_CHECK(static_cast<int32_t>(inverted_file.size()) == vocabulary.num_words(),
-            where << ": inverted file has " << inverted_file.size() << " lists, expected "
-                  << vocabulary.num_words());
+            where << ": inverted file has " << inverted_file.size() << " lists, expected " << vocabulary.num_words());
   for (size_t w = 0; w < inverted_file.size(); ++w) {
-    check_ascending(inverted_file[w], 0, num_classes - 1,
-                    where + ": inverted file word " + std::to_string(w));
+    check_ascending(inverted_file[w], 0, num_classes - 1, where + ": inverted file word " + std::to_string(w));
   }
   if (fusion.enabled()) {
     const std::string fw = where + ": descriptor fusion";
@@ -138,8 +129,8 @@ void ModelData::check(const std::string& where) const {
     const uint64_t rows = static_cast<uint64_t>(fusion.exemplar_begin[C]);
     LMB_CHECK(fusion.exemplars.size() / static_cast<uint64_t>(descriptor_bytes) == rows &&
                   fusion.exemplars.size() % static_cast<uint64_t>(descriptor_bytes) == 0,
-              fw << ": " << fusion.exemplars.size() << " exemplar bytes for " << rows << " rows of "
-                 << descriptor_bytes << " bytes");
+              fw << ": " << fusion.exemplars.size() << " exemplar bytes for " << rows << " rows of " << descriptor_bytes
+                 << " bytes");
     const size_t distances = 8 * static_cast<size_t>(descriptor_bytes) + 1;
     LMB_CHECK(fusion.distance_score.size() == distances,
               fw << ": distance_score has " << fusion.distance_score.size() << " entries, expected " << distances);
@@ -234,15 +225,13 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
     int32_t num_lists = 0;
     r.value(num_lists);
     LMB_CHECK(num_lists == d.vocabulary.num_words(),
-              what << ": inverted file has " << num_lists << " lists, expected "
-                   << d.vocabulary.num_words());
+              what << ": inverted file has " << num_lists << " lists, expected " << d.vocabulary.num_words());
     d.inverted_file.resize(static_cast<size_t>(num_lists));
     for (int32_t w = 0; w < num_lists; ++w) {
       uint32_t n = 0;
       r.value(n);
-      d.inverted_file[w] = detail::decode_ascending_ids(
-          r.byte_string("inverted file"), n, d.num_classes - 1,
-          what + ": inverted file word " + std::to_string(w));
+      d.inverted_file[w] = detail::decode_ascending_ids(r.byte_string("inverted file"), n, d.num_classes - 1,
+                                                        what + ": inverted file word " + std::to_string(w));
     }
     if (version == kModelVersion) {
       DescriptorFusion& f = d.fusion;
@@ -256,8 +245,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
       f.distance_score.resize(r.count(sizeof(double), "fusion distance scores"));
       for (double& v : f.distance_score) r.value(v);
     }
-    LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left()
-                                        << " unexpected bytes after the model");
+    LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left() << " unexpected bytes after the model");
   } catch (const cereal::Exception& e) {
     LMB_FAIL(what << ": truncated or corrupt model payload (" << e.what() << ")");
   }
@@ -281,8 +269,7 @@ Model::Model(ModelData data) : data_(std::move(data)) {
   for (size_t m = 0; m < M; ++m) {
     const SharedStump& s = data_.stumps[m];
     DenseStump& d = dense_stumps_[m];
-    d.used = static_cast<int32_t>(std::lower_bound(used_dims_.begin(), used_dims_.end(), s.dim) -
-                                  used_dims_.begin());
+    d.used = static_cast<int32_t>(std::lower_bound(used_dims_.begin(), used_dims_.end(), s.dim) - used_dims_.begin());
     d.theta = s.theta;
     d.above = s.a + s.b;  // BoostModel: (fires ? a : 0.0) + b, the same double
     d.below = s.b;
@@ -326,9 +313,9 @@ Model::Model(ModelData data) : data_(std::move(data)) {
       }
     }
     word_used_begin_[w + 1] = static_cast<int32_t>(word_used_.size());
-    word_plans_.emplace_back(data_.regions, layout_,
-                             std::vector<int32_t>(word_used_dims_.begin() + word_used_begin_[w],
-                                                  word_used_dims_.end()));
+    word_plans_.emplace_back(
+        data_.regions, layout_,
+        std::vector<int32_t>(word_used_dims_.begin() + word_used_begin_[w], word_used_dims_.end()));
   }
   used_plan_ = DimPlan(data_.regions, layout_, used_dims_);
   if (data_.fusion.enabled()) {
@@ -384,8 +371,8 @@ void Model::build_screen() {
     for (size_t m = 0; m < M && fits; ++m) {
       // Only stumps of some landmark class are screened (the background is always scored exactly).
       const std::vector<int32_t>& members = data_.stumps[m].classes;
-      const double r = members.front() < C ? std::nearbyint((dense_stumps_[m].above - dense_stumps_[m].below) / step)
-                                           : 0.0;
+      const double r =
+          members.front() < C ? std::nearbyint((dense_stumps_[m].above - dense_stumps_[m].below) / step) : 0.0;
       fits = std::fabs(r) <= 32767.0;
       q[m] = fits ? static_cast<int64_t>(r) : 0;
     }
@@ -473,8 +460,7 @@ std::shared_ptr<const Model> Model::load(const std::filesystem::path& path) {
   return std::make_shared<const Model>(parse_model_data(payload, path.string(), version));
 }
 
-std::shared_ptr<const Model> Model::from_bytes(const uint8_t* data, size_t size,
-                                               const std::string& what) {
+std::shared_ptr<const Model> Model::from_bytes(const uint8_t* data, size_t size, const std::string& what) {
   LMB_CHECK(data != nullptr || size == 0, what << ": null buffer");
   uint32_t version = 0;
   const std::string payload =

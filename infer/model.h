@@ -74,11 +74,11 @@ struct ModelData {
   int32_t descriptor_bytes = 0;    // descriptor length; equals the vocabulary's
   ContextRegions regions;
   Vocabulary vocabulary;
-  int32_t num_classes = 0;                       // landmark classes C; class C is the background
-  std::vector<landmark_t> class_landmark;        // size C: the map landmark id of each class
-  std::vector<Eigen::Vector3d> class_position;   // size C: world frame, map units (metres)
-  std::vector<double> bias;                      // size C + 1, folded constants
-  std::vector<SharedStump> stumps;               // in training order (non-empty sharing sets)
+  int32_t num_classes = 0;                      // landmark classes C; class C is the background
+  std::vector<landmark_t> class_landmark;       // size C: the map landmark id of each class
+  std::vector<Eigen::Vector3d> class_position;  // size C: world frame, map units (metres)
+  std::vector<double> bias;                     // size C + 1, folded constants
+  std::vector<SharedStump> stumps;              // in training order (non-empty sharing sets)
   // Inverted file: inverted_file[w] lists (ascending) the landmark classes (< C) whose training
   // observations quantize to word w. Size: vocabulary.num_words().
   std::vector<std::vector<int32_t>> inverted_file;
@@ -114,8 +114,7 @@ class LMB_INFER_EXPORT Model {
   // wrong version, length or CRC mismatch, truncated or corrupt payload.
   static std::shared_ptr<const Model> load(const std::filesystem::path& path);
   // The same from a file image in memory (header + payload). `what` names the source in errors.
-  static std::shared_ptr<const Model> from_bytes(const uint8_t* data, size_t size,
-                                                 const std::string& what = "model");
+  static std::shared_ptr<const Model> from_bytes(const uint8_t* data, size_t size, const std::string& what = "model");
   // Writes model.lbm atomically (temp file, fsync, rename). Throws lmb::Error.
   void save(const std::filesystem::path& path) const;
   // The whole file image (header + payload).
@@ -141,10 +140,10 @@ class LMB_INFER_EXPORT Model {
 
   // Dense scoring: stumps as flat arrays, sharing sets in CSR form.
   struct DenseStump {
-    int32_t used = 0;     // index into used_dims()
+    int32_t used = 0;  // index into used_dims()
     uint8_t theta = 0;
-    double above = 0.0;   // a + b
-    double below = 0.0;   // b
+    double above = 0.0;  // a + b
+    double below = 0.0;  // b
   };
   const std::vector<DenseStump>& dense_stumps() const { return dense_stumps_; }
   const std::vector<int64_t>& stump_class_begin() const { return stump_class_begin_; }  // M + 1
@@ -210,10 +209,10 @@ class LMB_INFER_EXPORT Model {
   static constexpr int32_t kScreenUnitsLimit = 1 << 29;
   static constexpr int32_t kScreenPassAll = -(1 << 29) - 2;  // a goal every lane passes
   double screen_step() const { return screen_step_; }
-  const std::vector<int16_t>& screen_q() const { return screen_q_; }            // M
-  const std::vector<double>& screen_offset() const { return screen_offset_; }   // C
-  const std::vector<int32_t>& screen_units() const { return screen_units_; }    // C
-  const std::vector<uint16_t>& screen_low() const { return screen_low_; }       // C: low_c mod 2^16
+  const std::vector<int16_t>& screen_q() const { return screen_q_; }           // M
+  const std::vector<double>& screen_offset() const { return screen_offset_; }  // C
+  const std::vector<int32_t>& screen_units() const { return screen_units_; }   // C
+  const std::vector<uint16_t>& screen_low() const { return screen_low_; }      // C: low_c mod 2^16
   // Class c's screening list: entries [class_stump_begin()[c], class_stump_begin()[c + 1]).
   const std::vector<uint16_t>& screen_list() const { return screen_list_; }
   // Class c's checkpoints are entries [screen_check_begin()[c], screen_check_begin()[c + 1]) of
@@ -255,11 +254,11 @@ class LMB_INFER_EXPORT Model {
 
 namespace detail {
 // LEB128 varint gap coding of an ascending id list (first id, then differences), and its
-// bounds-checked inverse (internal: not exported from the shared library): decode throws lmb::Error naming `what` when the bytes end early, hold
-// extra bytes, a gap is zero after the first id, or an id exceeds max_id.
+// bounds-checked inverse (internal: not exported from the shared library): decode throws lmb::Error naming `what` when
+// the bytes end early, hold extra bytes, a gap is zero after the first id, or an id exceeds max_id.
 std::string encode_ascending_ids(const std::vector<int32_t>& ids);
-std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t count,
-                                          int32_t max_id, const std::string& what);
+std::vector<int32_t> decode_ascending_ids(const std::string& bytes, uint32_t count, int32_t max_id,
+                                          const std::string& what);
 }  // namespace detail
 
 }  // namespace lmb

@@ -5,8 +5,7 @@
 
 namespace lmb {
 
-int p3p(const Eigen::Vector3d bearings[3], const Eigen::Vector3d points[3],
-        std::vector<CameraPose>* solutions) {
+int p3p(const Eigen::Vector3d bearings[3], const Eigen::Vector3d points[3], std::vector<CameraPose>* solutions) {
   opengv::bearingVectors_t b(bearings, bearings + 3);
   opengv::points_t p(points, points + 3);
   opengv::absolute_pose::CentralAbsoluteAdapter adapter(b, p);

@@ -31,8 +31,8 @@ std::array<double, PoseEvidence::kNumFeatures> PoseEvidence::features() const {
 }
 
 const std::array<const char*, PoseEvidence::kNumFeatures>& PoseEvidence::feature_names() {
-  static const std::array<const char*, kF> names = {
-      "log_inliers", "inlier_ratio", "runner_up_ratio", "inlier_rank", "spread", "offered_share", "log_offered"};
+  static const std::array<const char*, kF> names = {"log_inliers", "inlier_ratio",  "runner_up_ratio", "inlier_rank",
+                                                    "spread",      "offered_share", "log_offered"};
   return names;
 }
 
@@ -40,8 +40,8 @@ PoseEvidence pose_evidence(const Camera& camera, const std::vector<Eigen::Vector
                            const std::vector<double>& quality, const PoseResult& pose, int num_keypoints) {
   const size_t n = pixels.size();
   LMB_CHECK(pose.inlier_mask.size() == n, "pose_evidence: the pose has " << pose.inlier_mask.size()
-                                                                          << " inlier flags for " << n
-                                                                          << " correspondences");
+                                                                         << " inlier flags for " << n
+                                                                         << " correspondences");
   LMB_CHECK(quality.empty() || quality.size() == n,
             "pose_evidence: " << quality.size() << " quality values for " << n << " correspondences");
   LMB_CHECK(num_keypoints >= 0, "pose_evidence: num_keypoints = " << num_keypoints << " is negative");
@@ -107,8 +107,8 @@ void PoseCalibrationFitOptions::check() const {
 PoseCalibration fit_pose_calibration(const std::vector<PoseEvidence>& evidence, const std::vector<char>& right,
                                      const PoseCalibrationFitOptions& options) {
   options.check();
-  LMB_CHECK(evidence.size() == right.size(), "fit_pose_calibration: " << evidence.size() << " poses but "
-                                                                       << right.size() << " labels");
+  LMB_CHECK(evidence.size() == right.size(),
+            "fit_pose_calibration: " << evidence.size() << " poses but " << right.size() << " labels");
   std::vector<std::array<double, kF>> x;
   std::vector<double> y;
   for (size_t i = 0; i < evidence.size(); ++i) {
@@ -168,9 +168,8 @@ PoseCalibration fit_pose_calibration(const std::vector<PoseEvidence>& evidence, 
 
 double precision_threshold(const std::vector<double>& probability, const std::vector<char>& right,
                            double target_precision) {
-  LMB_CHECK(probability.size() == right.size(), "precision_threshold: " << probability.size()
-                                                                         << " probabilities but " << right.size()
-                                                                         << " labels");
+  LMB_CHECK(probability.size() == right.size(),
+            "precision_threshold: " << probability.size() << " probabilities but " << right.size() << " labels");
   LMB_CHECK(target_precision > 0.0 && target_precision <= 1.0,
             "precision_threshold: target precision " << target_precision << " is outside (0, 1]");
   std::vector<size_t> order(probability.size());

@@ -83,15 +83,14 @@ CameraPose refine_cam_from_world(const Eigen::Vector3d* bearings, const Eigen::V
       if (!step.allFinite()) break;
       CameraPose candidate;
       const double angle = step.head<3>().norm();
-      candidate.rotation =
-          (angle > 0 ? Eigen::AngleAxisd(angle, step.head<3>() / angle).toRotationMatrix()
-                     : Eigen::Matrix3d::Identity()) *
-          best.rotation;
+      candidate.rotation = (angle > 0 ? Eigen::AngleAxisd(angle, step.head<3>() / angle).toRotationMatrix()
+                                      : Eigen::Matrix3d::Identity()) *
+                           best.rotation;
       candidate.translation = best.translation + step.tail<3>();
       const double cost = cost_of(candidate.rotation, candidate.translation);
       if (cost < best_cost) {
-        const bool converged = step.norm() < tolerance * (1.0 + best.translation.norm()) ||
-                               best_cost - cost < tolerance * best_cost;
+        const bool converged =
+            step.norm() < tolerance * (1.0 + best.translation.norm()) || best_cost - cost < tolerance * best_cost;
         best = candidate;
         best_cost = cost;
         lambda = std::max(lambda * 0.1, 1e-12);
@@ -245,11 +244,10 @@ class AbsolutePoseEstimator {
 }  // namespace detail
 
 void PoseEstimatorOptions::check() const {
-  LMB_CHECK(max_iterations >= 1,
-            "PoseEstimatorOptions.max_iterations must be >= 1, got " << max_iterations);
+  LMB_CHECK(max_iterations >= 1, "PoseEstimatorOptions.max_iterations must be >= 1, got " << max_iterations);
   LMB_CHECK(min_iterations >= 0 && min_iterations <= max_iterations,
-            "PoseEstimatorOptions.min_iterations must be in 0..max_iterations (" << max_iterations
-                                                                                << "), got " << min_iterations);
+            "PoseEstimatorOptions.min_iterations must be in 0..max_iterations (" << max_iterations << "), got "
+                                                                                 << min_iterations);
   LMB_CHECK(std::isfinite(max_reprojection_error_px) && max_reprojection_error_px > 0,
             "PoseEstimatorOptions.max_reprojection_error_px must be a positive number of pixels, got "
                 << max_reprojection_error_px);
@@ -260,8 +258,8 @@ void PoseEstimatorOptions::check() const {
 }
 
 PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels,
-                                  const std::vector<Eigen::Vector3d>& points_world,
-                                  const PoseEstimatorOptions& options, const std::vector<double>& quality) {
+                                  const std::vector<Eigen::Vector3d>& points_world, const PoseEstimatorOptions& options,
+                                  const std::vector<double>& quality) {
   options.check();
   camera.check("estimate_absolute_pose: camera");
   LMB_CHECK(pixels.size() == points_world.size(),
@@ -272,11 +270,10 @@ PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen:
                                        << " correspondences (give one each, or none)");
   const size_t n = pixels.size();
   for (size_t i = 0; i < n; ++i) {
-    LMB_CHECK(pixels[i].allFinite(), "estimate_absolute_pose: pixel " << i << " is not finite ("
-                                                                       << pixels[i].transpose() << ")");
-    LMB_CHECK(points_world[i].allFinite(), "estimate_absolute_pose: world point "
-                                               << i << " is not finite ("
-                                               << points_world[i].transpose() << ")");
+    LMB_CHECK(pixels[i].allFinite(),
+              "estimate_absolute_pose: pixel " << i << " is not finite (" << pixels[i].transpose() << ")");
+    LMB_CHECK(points_world[i].allFinite(),
+              "estimate_absolute_pose: world point " << i << " is not finite (" << points_world[i].transpose() << ")");
     LMB_CHECK(quality.empty() || std::isfinite(quality[i]),
               "estimate_absolute_pose: quality " << i << " is not finite (" << quality[i] << ")");
   }

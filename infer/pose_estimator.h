@@ -91,8 +91,7 @@ struct LMB_INFER_EXPORT PoseResult {
 // Estimates cam_from_world from pixels[i] <-> points_world[i] (same sizes). quality: empty, or
 // one finite value per correspondence, higher = sampled earlier (PROSAC). See the conventions and
 // errors above. Runs in O(iterations * n + n log n).
-LMB_INFER_EXPORT PoseResult estimate_absolute_pose(const Camera& camera,
-                                                   const std::vector<Eigen::Vector2d>& pixels,
+LMB_INFER_EXPORT PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels,
                                                    const std::vector<Eigen::Vector3d>& points_world,
                                                    const PoseEstimatorOptions& options = {},
                                                    const std::vector<double>& quality = {});

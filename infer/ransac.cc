@@ -8,14 +8,14 @@ namespace lmb {
 
 void RansacOptions::check() const {
   LMB_CHECK(max_iterations >= 1, "RansacOptions.max_iterations must be >= 1, got " << max_iterations);
-  LMB_CHECK(min_iterations >= 0 && min_iterations <= max_iterations,
-            "RansacOptions.min_iterations must be in 0..max_iterations (" << max_iterations << "), got "
-                                                                          << min_iterations);
+  LMB_CHECK(
+      min_iterations >= 0 && min_iterations <= max_iterations,
+      "RansacOptions.min_iterations must be in 0..max_iterations (" << max_iterations << "), got " << min_iterations);
   LMB_CHECK(success_probability > 0 && success_probability < 1,
             "RansacOptions.success_probability must be in (0, 1), got " << success_probability);
-  LMB_CHECK(std::isfinite(prosac_horizon) && (prosac_horizon == 0 || prosac_horizon >= 1),
-            "RansacOptions.prosac_horizon must be 0 (= max_iterations) or a finite number >= 1, got "
-                << prosac_horizon);
+  LMB_CHECK(
+      std::isfinite(prosac_horizon) && (prosac_horizon == 0 || prosac_horizon >= 1),
+      "RansacOptions.prosac_horizon must be 0 (= max_iterations) or a finite number >= 1, got " << prosac_horizon);
   LMB_CHECK(random_inlier_probability > 0 && random_inlier_probability < 1,
             "RansacOptions.random_inlier_probability must be in (0, 1), got " << random_inlier_probability);
   LMB_CHECK(non_randomness > 0 && non_randomness < 1,
@@ -66,7 +66,7 @@ void ProsacSampler::draw_uniform(int count, int range, int* out) {
 
 void ProsacSampler::draw(int* sample) {
   ++t_;
-  while (n_ < num_data_ && static_cast<double>(t_) > grow_at_[n_]) {
+  while (n_<num_data_&& static_cast<double>(t_)> grow_at_[n_]) {
     left_at_[n_] = t_ - 1;
     ++n_;
   }

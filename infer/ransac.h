@@ -30,7 +30,8 @@
 //   the most promising). Sample t (1-based) is drawn from the top n(t) data U_n: datum n(t) - 1
 //   plus kSampleSize - 1 others drawn uniformly from U_{n(t)-1}, where n(t) grows by PROSAC's
 //   growth function T'_n (T_N = options.prosac_horizon samples for U_N, by default
-//   max_iterations); once n(t) = N, samples are uniform over all data. Without progressive, every sample is uniform over all data.
+//   max_iterations); once n(t) = N, samples are uniform over all data. Without progressive, every sample is uniform
+//   over all data.
 // - Scoring. Every model of every sample is scored (MSAC). When the sample's best model has a
 //   lower cost than every minimal model before it, it is refined (local optimisation,
 //   refine(model, false)) and the refinement kept if its cost is lower; the best model so far
@@ -100,15 +101,15 @@ struct LMB_INFER_EXPORT RansacOptions {
 };
 
 struct LMB_INFER_EXPORT RansacStats {
-  int num_data = 0;        // N
-  int iterations = 0;      // samples drawn
-  int models = 0;          // models scored (solver outputs, refinements excluded)
-  int num_inliers = 0;     // of the answer
-  double inlier_ratio = 0.0;                                   // num_inliers / N
-  double score = std::numeric_limits<double>::infinity();      // MSAC cost of the answer
-  int refinements = 0;     // local optimisations run (answer and runner-up)
-  int subset_size = 0;     // PROSAC's sampling subset n at the end (N with uniform sampling)
-  int stop_subset = 0;     // the stopping subset n that ended the search; 0 = the iteration cap
+  int num_data = 0;                                        // N
+  int iterations = 0;                                      // samples drawn
+  int models = 0;                                          // models scored (solver outputs, refinements excluded)
+  int num_inliers = 0;                                     // of the answer
+  double inlier_ratio = 0.0;                               // num_inliers / N
+  double score = std::numeric_limits<double>::infinity();  // MSAC cost of the answer
+  int refinements = 0;                                     // local optimisations run (answer and runner-up)
+  int subset_size = 0;  // PROSAC's sampling subset n at the end (N with uniform sampling)
+  int stop_subset = 0;  // the stopping subset n that ended the search; 0 = the iteration cap
   // The runner-up (see the file comment): 0 inliers when there is none.
   int runner_up_inliers = 0;
   int runner_up_shared = 0;  // of its inliers, those also inliers of the answer
@@ -156,13 +157,12 @@ class LMB_INFER_EXPORT ProsacStopping {
   int sample_size_;
   bool progressive_;
   double log_failure_;
-  std::vector<int> min_inliers_;                      // I_min(n), n in [0, N]
-  std::vector<std::pair<int, double>> candidates_;    // (n, k_n) of the stopping subsets
+  std::vector<int> min_inliers_;                    // I_min(n), n in [0, N]
+  std::vector<std::pair<int, double>> candidates_;  // (n, k_n) of the stopping subsets
 };
 
 template <typename Estimator>
-RansacStats ransac(Estimator& estimator, const RansacOptions& options,
-                   typename Estimator::Model* best_model,
+RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename Estimator::Model* best_model,
                    typename Estimator::Model* runner_up_model = nullptr);
 
 // ---- Implementation ------------------------------------------------------------------------
@@ -170,8 +170,8 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options,
 constexpr int kRunnerUpPool = 8;
 
 template <typename Estimator>
-RansacStats ransac(Estimator& estimator, const RansacOptions& options,
-                   typename Estimator::Model* best_model, typename Estimator::Model* runner_up_model) {
+RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename Estimator::Model* best_model,
+                   typename Estimator::Model* runner_up_model) {
   using Model = typename Estimator::Model;
   constexpr int m = Estimator::kSampleSize;
   static_assert(m >= 1, "kSampleSize must be >= 1");

@@ -12,8 +12,8 @@
 #include <functional>
 #include <limits>
 #include <optional>
-#include <stdexcept>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -39,10 +39,10 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Row {
-  std::string file;    // the kind of input
-  std::string defect;  // what is wrong with it
+  std::string file;                               // the kind of input
+  std::string defect;                             // what is wrong with it
   std::function<void(const fs::path& dir)> load;  // writes the bad input under dir and loads it
-  std::string message;  // the exact lmb::Error message, the scratch folder written as DIR
+  std::string message;                            // the exact lmb::Error message, the scratch folder written as DIR
 };
 
 std::string read_bytes(const fs::path& path) {
@@ -61,9 +61,7 @@ std::string as_string(const std::vector<uint8_t>& v) { return std::string(v.begi
 
 // ---- model.lbm and vocab.lbv --------------------------------------------------------------
 
-ModelData good_model_data() {
-  return test::make_code_model_data({{0, 0, 2}, {1, 0, 2}, {0, 1, 3}});
-}
+ModelData good_model_data() { return test::make_code_model_data({{0, 0, 2}, {1, 0, 2}, {0, 1, 3}}); }
 std::string good_model_file() { return as_string(Model(good_model_data()).to_bytes()); }
 // The writer refuses invalid models, so bad values are patched into a valid payload: `edit` marks a
 // double field with kMark, then the payload's only copy of kMark is replaced by `value`
@@ -212,60 +210,77 @@ std::vector<Row> rows() {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<Row> r;
   // model.lbm
-  r.push_back({"model.lbm", "missing file", [](const fs::path& dir) { Model::load(dir / "model.lbm"); }, "DIR/model.lbm: cannot open file: No such file or directory"});
-  r.push_back({"model.lbm", "a folder", [](const fs::path& dir) {
+  r.push_back({"model.lbm", "missing file", [](const fs::path& dir) { Model::load(dir / "model.lbm"); },
+               "DIR/model.lbm: cannot open file: No such file or directory"});
+  r.push_back({"model.lbm", "a folder",
+               [](const fs::path& dir) {
                  fs::create_directories(dir / "model.lbm");
                  Model::load(dir / "model.lbm");
-               }, "DIR/model.lbm: is a folder, not a file"});
-  r.push_back({"model.lbm", "empty file", model_with([] { return std::string(); }), "DIR/model.lbm: file too short (0 bytes) for a LMBMODEL header"});
-  r.push_back({"model.lbm", "a vocabulary file instead", model_with(good_vocab_file), "DIR/model.lbm: not a LMBMODEL file (wrong magic)"});
-  r.push_back({"model.lbm", "format version 3", model_with([] { return with_byte(good_model_file(), 8, 3); }), "DIR/model.lbm: format version 3 is not supported (this build reads versions 1 to 2)"});
+               },
+               "DIR/model.lbm: is a folder, not a file"});
+  r.push_back({"model.lbm", "empty file", model_with([] { return std::string(); }),
+               "DIR/model.lbm: file too short (0 bytes) for a LMBMODEL header"});
+  r.push_back({"model.lbm", "a vocabulary file instead", model_with(good_vocab_file),
+               "DIR/model.lbm: not a LMBMODEL file (wrong magic)"});
+  r.push_back({"model.lbm", "format version 3", model_with([] { return with_byte(good_model_file(), 8, 3); }),
+               "DIR/model.lbm: format version 3 is not supported (this build reads versions 1 to 2)"});
   r.push_back({"model.lbm", "truncated (last byte cut)", model_with([] {
                  std::string s = good_model_file();
                  s.pop_back();
                  return s;
-               }), "DIR/model.lbm: truncated or padded: header says 2024 payload bytes, file has 2023"});
+               }),
+               "DIR/model.lbm: truncated or padded: header says 2024 payload bytes, file has 2023"});
   r.push_back({"model.lbm", "one payload bit flipped", model_with([] {
                  std::string s = good_model_file();
                  s[s.size() - 5] ^= 0x10;
                  return s;
-               }), "DIR/model.lbm: CRC mismatch (file is corrupt)"});
+               }),
+               "DIR/model.lbm: CRC mismatch (file is corrupt)"});
   r.push_back({"model.lbm", "payload cut behind a valid header", model_with([] {
                  const std::string p = serialize_model_data(good_model_data());
                  return as_string(make_container(kModelMagic, kModelVersionWithoutFusion, p.substr(0, p.size() / 2)));
-               }), "DIR/model.lbm: stumps: corrupt count 46 exceeds the 682 bytes left"});
+               }),
+               "DIR/model.lbm: stumps: corrupt count 46 exceeds the 682 bytes left"});
   r.push_back({"model.lbm", "a count of 2^60 (detector name)", model_with([] {
                  std::string p = serialize_model_data(good_model_data());
                  const uint64_t huge = uint64_t{1} << 60;
                  std::memcpy(p.data() + 1, &huge, 8);
                  return as_string(make_container(kModelMagic, kModelVersionWithoutFusion, p));
-               }), "DIR/model.lbm: detector: corrupt count 1152921504606846976 exceeds the 2015 bytes left"});
+               }),
+               "DIR/model.lbm: detector: corrupt count 1152921504606846976 exceeds the 2015 bytes left"});
   r.push_back({"model.lbm", "NaN landmark position", model_with([nan] {
                  return patched_model_file([](ModelData& d) { d.class_position[1].y() = kMark; }, nan);
-               }), "DIR/model.lbm: class 1 has a non-finite position"});
+               }),
+               "DIR/model.lbm: class 1 has a non-finite position"});
   r.push_back({"model.lbm", "infinite stump value", model_with([] {
                  return patched_model_file([](ModelData& d) { d.stumps[2].a = kMark; },
                                            std::numeric_limits<double>::infinity());
-               }), "DIR/model.lbm: stump 2: non-finite a or b"});
+               }),
+               "DIR/model.lbm: stump 2: non-finite a or b"});
   r.push_back({"model.lbm", "stump on a dimension past the layout", model_with([] {
                  const int32_t num_dims = good_model_data().layout().num_dims();
                  return patched_model_file([](ModelData& d) { d.stumps[0].a = kMark; }, 2.0, num_dims);
-               }), "DIR/model.lbm: stump 0: dim 76 outside [0, 76)"});
+               }),
+               "DIR/model.lbm: stump 0: dim 76 outside [0, 76)"});
   r.push_back({"model.lbm", "class 3 (the background) in the last inverted list", model_with([] {
                  // The last list holds classes 0, 1, 2 as gaps 0, 1, 1: a last gap of 2 lists class 3.
                  return edited_model_file([](std::string& p) { p.back() = 2; });
-               }), "DIR/model.lbm: inverted file word 3: corrupt id list: id 3 exceeds 2"});
+               }),
+               "DIR/model.lbm: inverted file word 3: corrupt id list: id 3 exceeds 2"});
   r.push_back({"model.lbm", "descriptor length differs from the vocabulary's", model_with([] {
                  // The int32 descriptor_bytes follows the archive's endianness byte and the detector name.
                  return edited_model_file([](std::string& p) { p[1 + 8 + 4] = 16; });
-               }), "DIR/model.lbm: vocabulary has 8-byte words, descriptors have 16 bytes"});
+               }),
+               "DIR/model.lbm: vocabulary has 8-byte words, descriptors have 16 bytes"});
   r.push_back({"model.lbm", "an empty context region (a crafted file)", model_with([] {
                  // Region 0's four floats follow the endianness byte, the detector name (8 + 4 bytes),
                  // descriptor_bytes, the region options (4 + 8 + 4 x 8 bytes) and the region count.
                  return edited_model_file([](std::string& p) { std::memset(p.data() + 1 + 12 + 4 + 44 + 8, 0, 16); });
-               }), "DIR/model.lbm: regions: region 0 is empty ([0, 0) x [0, 0))"});
+               }),
+               "DIR/model.lbm: regions: region 0 is empty ([0, 0) x [0, 0))"});
   // model.bin (the trainer's output)
-  r.push_back({"model.bin", "format version 1 (an older lboost: no feature-space record)", [](const fs::path& dir) {
+  r.push_back({"model.bin", "format version 1 (an older lboost: no feature-space record)",
+               [](const fs::path& dir) {
                  BoostModel m;
                  m.num_dims = 2;
                  m.num_classes = 1;
@@ -273,16 +288,23 @@ std::vector<Row> rows() {
                  m.bias = {0.0, 0.0};
                  write_bytes(dir / "model.bin", as_string(make_container("LMBBOOST", 1, serialize_boost_model(m))));
                  load_trained_model(dir / "model.bin");
-               }, "DIR/model.bin: a model.bin of an older lboost (format version 1), which does not record the context regions, vocabulary and map it was trained with, so export cannot prove they match; retrain it (or export it with the lboost that trained it)"});
+               },
+               "DIR/model.bin: a model.bin of an older lboost (format version 1), which does not record the context "
+               "regions, vocabulary and map it was trained with, so export cannot prove they match; retrain it (or "
+               "export it with the lboost that trained it)"});
   // vocab.lbv
-  r.push_back({"vocab.lbv", "missing file", [](const fs::path& dir) { Vocabulary::load(dir / "vocab.lbv"); }, "DIR/vocab.lbv: cannot open file: No such file or directory"});
-  r.push_back({"vocab.lbv", "a model file instead", vocab_with(good_model_file), "DIR/vocab.lbv: not a LMBVOCAB file (wrong magic)"});
-  r.push_back({"vocab.lbv", "format version 2", vocab_with([] { return with_byte(good_vocab_file(), 8, 2); }), "DIR/vocab.lbv: format version 2 is not supported (this build reads version 1)"});
+  r.push_back({"vocab.lbv", "missing file", [](const fs::path& dir) { Vocabulary::load(dir / "vocab.lbv"); },
+               "DIR/vocab.lbv: cannot open file: No such file or directory"});
+  r.push_back({"vocab.lbv", "a model file instead", vocab_with(good_model_file),
+               "DIR/vocab.lbv: not a LMBVOCAB file (wrong magic)"});
+  r.push_back({"vocab.lbv", "format version 2", vocab_with([] { return with_byte(good_vocab_file(), 8, 2); }),
+               "DIR/vocab.lbv: format version 2 is not supported (this build reads version 1)"});
   r.push_back({"vocab.lbv", "one payload bit flipped", vocab_with([] {
                  std::string s = good_vocab_file();
                  s[s.size() - 1] ^= 0x01;
                  return s;
-               }), "DIR/vocab.lbv: CRC mismatch (file is corrupt)"});
+               }),
+               "DIR/vocab.lbv: CRC mismatch (file is corrupt)"});
   r.push_back({"vocab.lbv", "empty payload behind a valid header",
                vocab_with([] { return as_string(make_container(kVocabularyMagic, kVocabularyVersion, "")); }),
                "DIR/vocab.lbv: truncated vocabulary header (0 payload bytes, expected at least 9)"});
@@ -291,135 +313,207 @@ std::vector<Row> rows() {
                  const int32_t three = 3;
                  std::memcpy(p.data() + 1, &three, 4);
                  return as_string(make_container(kVocabularyMagic, kVocabularyVersion, p));
-               }), "DIR/vocab.lbv: num_words = 3 must be in 4..256"});
+               }),
+               "DIR/vocab.lbv: num_words = 3 must be in 4..256"});
   r.push_back({"vocab.lbv", "words cut short", vocab_with([] {
                  std::string p = test::test_vocabulary().to_payload();
                  p.resize(p.size() - 8);
                  return as_string(make_container(kVocabularyMagic, kVocabularyVersion, p));
-               }), "DIR/vocab.lbv: payload of 33 bytes, expected 41 for 4 words of 8 bytes"});
+               }),
+               "DIR/vocab.lbv: payload of 33 bytes, expected 41 for 4 words of 8 bytes"});
   // map.h5
-  r.push_back({"map.h5", "missing file", [](const fs::path& dir) { read_map_h5(dir / "map.h5"); }, "DIR/map.h5: no such file"});
-  r.push_back({"map.h5", "a text file", [](const fs::path& dir) {
+  r.push_back(
+      {"map.h5", "missing file", [](const fs::path& dir) { read_map_h5(dir / "map.h5"); }, "DIR/map.h5: no such file"});
+  r.push_back({"map.h5", "a text file",
+               [](const fs::path& dir) {
                  write_bytes(dir / "map.h5", "frames and keypoints, but as text rather than HDF5\n");
                  read_map_h5(dir / "map.h5");
-               }, "DIR/map.h5: not an HDF5 file (expected a landmarkboost-map)"});
-  r.push_back({"map.h5", "truncated to half", [](const fs::path& dir) {
+               },
+               "DIR/map.h5: not an HDF5 file (expected a landmarkboost-map)"});
+  r.push_back({"map.h5", "truncated to half",
+               [](const fs::path& dir) {
                  write_map_h5(test::random_map(3), dir / "full.h5");
                  const std::string b = read_bytes(dir / "full.h5");
                  write_bytes(dir / "map.h5", b.substr(0, b.size() / 2));
                  read_map_h5(dir / "map.h5");
-               }, "DIR/map.h5: cannot open as HDF5 (truncated or damaged file): H5Fopen failed"});
-  r.push_back({"map.h5", "damaged variable-length string (a fuzzer's input)", [](const fs::path& dir) {
+               },
+               "DIR/map.h5: cannot open as HDF5 (truncated or damaged file): H5Fopen failed"});
+  r.push_back({"map.h5", "damaged variable-length string (a fuzzer's input)",
+               [](const fs::path& dir) {
                  const char* source = std::getenv("LMB_SOURCE_DIR");
                  if (source == nullptr) throw std::logic_error("LMB_SOURCE_DIR is not set (ctest sets it)");
                  fs::copy_file(fs::path(source) / "test/common/io/data/fuzz_null_vlen_string.h5", dir / "map.h5");
                  read_map_h5(dir / "map.h5");
-               }, "DIR/map.h5: attribute 'format': unreadable (damaged file)"});
-  r.push_back({"map.h5", "format_version 3", map_edited([](H5::H5File& f) {
-                 const int v = 3;
-                 f.openAttribute("format_version").write(H5::PredType::NATIVE_INT, &v);
-               }), "DIR/map.h5: attribute 'format_version': version 3 is not supported (this build reads versions 1 and 2)"});
+               },
+               "DIR/map.h5: attribute 'format': unreadable (damaged file)"});
+  r.push_back(
+      {"map.h5", "format_version 3", map_edited([](H5::H5File& f) {
+         const int v = 3;
+         f.openAttribute("format_version").write(H5::PredType::NATIVE_INT, &v);
+       }),
+       "DIR/map.h5: attribute 'format_version': version 3 is not supported (this build reads versions 1 and 2)"});
   r.push_back({"map.h5", "a frame's session out of range", map_edited([](H5::H5File& f) {
                  H5::DataSet ds = f.openDataSet("/frames/session");
                  std::vector<int32_t> v(5);
                  ds.read(v.data(), H5::PredType::NATIVE_INT32);
                  v[1] = 3;
                  ds.write(v.data(), H5::PredType::NATIVE_INT32);
-               }), "DIR/map.h5: frames[1].session: 3 outside 0..2"});
+               }),
+               "DIR/map.h5: frames[1].session: 3 outside 0..2"});
   r.push_back({"map.h5", "a query frame in a map session", map_edited([](H5::H5File& f) {
                  H5::DataSet ds = f.openDataSet("/frames/session");
                  std::vector<int32_t> v(5);
                  ds.read(v.data(), H5::PredType::NATIVE_INT32);
                  v[4] = 0;
                  ds.write(v.data(), H5::PredType::NATIVE_INT32);
-               }), "DIR/map.h5: frames[4].is_query: 1, but its session 'map' is a map session (is_query must be 1 exactly for frames outside map sessions)"});
+               }),
+               "DIR/map.h5: frames[4].is_query: 1, but its session 'map' is a map session (is_query must be 1 exactly "
+               "for frames outside map sessions)"});
   r.push_back({"map.h5", "dataset /landmarks/quality missing",
-               map_edited([](H5::H5File& f) { f.unlink("/landmarks/quality"); }), "DIR/map.h5: dataset '/landmarks/quality': missing"});
-  r.push_back({"map.h5", "NaN camera translation of a frame", map_edited(set_double("/frames/cam_from_world_t", 4, nan)), "DIR/map.h5: frames[1].cam_from_world_t: not finite"});
-  r.push_back({"map.h5", "infinite camera parameter", map_edited(set_double("/cameras/params", 0,
-                                                                          std::numeric_limits<double>::infinity())), "DIR/map.h5: cameras[0]: camera parameter 0 is not finite"});
+               map_edited([](H5::H5File& f) { f.unlink("/landmarks/quality"); }),
+               "DIR/map.h5: dataset '/landmarks/quality': missing"});
+  r.push_back({"map.h5", "NaN camera translation of a frame",
+               map_edited(set_double("/frames/cam_from_world_t", 4, nan)),
+               "DIR/map.h5: frames[1].cam_from_world_t: not finite"});
+  r.push_back({"map.h5", "infinite camera parameter",
+               map_edited(set_double("/cameras/params", 0, std::numeric_limits<double>::infinity())),
+               "DIR/map.h5: cameras[0]: camera parameter 0 is not finite"});
   r.push_back({"map.h5", "quaternion of norm 1.5 (not a rotation)", map_edited([](H5::H5File& f) {
                  H5::DataSet ds = f.openDataSet("/frames/cam_from_world_q");
                  std::vector<double> v(20);
                  ds.read(v.data(), H5::PredType::NATIVE_DOUBLE);
                  for (int i = 4; i < 8; ++i) v[i] *= 1.5;
                  ds.write(v.data(), H5::PredType::NATIVE_DOUBLE);
-               }), "DIR/map.h5: frames[1].cam_from_world_q: not a rotation (norm 1.5)"});
-  r.push_back({"map.h5", "NaN landmark position", map_edited(set_double("/landmarks/position", 4, nan)), "DIR/map.h5: landmarks[1].position: not finite"});
+               }),
+               "DIR/map.h5: frames[1].cam_from_world_q: not a rotation (norm 1.5)"});
+  r.push_back({"map.h5", "NaN landmark position", map_edited(set_double("/landmarks/position", 4, nan)),
+               "DIR/map.h5: landmarks[1].position: not finite"});
   r.push_back({"map.h5", "gravity of length 2", map_edited([](H5::H5File& f) {
                  H5::DataSet ds = f.openDataSet("/frames/gravity_in_cam");
                  std::vector<double> v(15);
                  ds.read(v.data(), H5::PredType::NATIVE_DOUBLE);
                  for (int i = 0; i < 3; ++i) v[i] *= 2.0;
                  ds.write(v.data(), H5::PredType::NATIVE_DOUBLE);
-               }), "DIR/map.h5: frames[0].gravity_in_cam: not a unit vector"});
+               }),
+               "DIR/map.h5: frames[0].gravity_in_cam: not a unit vector"});
   r.push_back({"map.h5", "keypoint landmark id past the last landmark", map_edited([](H5::H5File& f) {
                  H5::DataSet ds = f.openDataSet("/keypoints/landmark");
                  std::vector<int64_t> v(40);
                  ds.read(v.data(), H5::PredType::NATIVE_INT64);
                  v[7] = 6;
                  ds.write(v.data(), H5::PredType::NATIVE_INT64);
-               }), "DIR/map.h5: keypoint_landmark[7]: 6 outside -1..5"});
+               }),
+               "DIR/map.h5: keypoint_landmark[7]: 6 outside -1..5"});
   // COLMAP text
-  r.push_back({"COLMAP text", "folder with neither format", [](const fs::path& dir) {
+  r.push_back({"COLMAP text", "folder with neither format",
+               [](const fs::path& dir) {
                  fs::create_directories(dir / "sparse");
                  read_colmap_model(dir / "sparse");
-               }, "DIR/sparse: no COLMAP sparse model (expected cameras.bin + images.bin or cameras.txt + images.txt)"});
+               },
+               "DIR/sparse: no COLMAP sparse model (expected cameras.bin + images.bin or cameras.txt + images.txt)"});
   r.push_back({"COLMAP text", "fisheye camera model",
-               colmap_text_with("cameras.txt", "1 OPENCV_FISHEYE 640 480 500 500 320 240 0 0 0 0\n"), "DIR/sparse/cameras.txt line 1: unsupported camera model 'OPENCV_FISHEYE' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)"});
-  r.push_back({"COLMAP text", "3 parameters for PINHOLE", colmap_text_with("cameras.txt", "1 PINHOLE 640 480 500 500 320\n"), "DIR/sparse/cameras.txt line 1: camera model PINHOLE takes 4 parameters, got 3"});
-  r.push_back({"COLMAP text", "NaN focal length", colmap_text_with("cameras.txt", "1 PINHOLE 640 480 nan 500 320 240\n"), "DIR/sparse/cameras.txt line 1: field 'PARAMS[]' is not finite"});
+               colmap_text_with("cameras.txt", "1 OPENCV_FISHEYE 640 480 500 500 320 240 0 0 0 0\n"),
+               "DIR/sparse/cameras.txt line 1: unsupported camera model 'OPENCV_FISHEYE' (supported: SIMPLE_PINHOLE, "
+               "PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)"});
+  r.push_back({"COLMAP text", "3 parameters for PINHOLE",
+               colmap_text_with("cameras.txt", "1 PINHOLE 640 480 500 500 320\n"),
+               "DIR/sparse/cameras.txt line 1: camera model PINHOLE takes 4 parameters, got 3"});
+  r.push_back({"COLMAP text", "NaN focal length",
+               colmap_text_with("cameras.txt", "1 PINHOLE 640 480 nan 500 320 240\n"),
+               "DIR/sparse/cameras.txt line 1: field 'PARAMS[]' is not finite"});
   r.push_back({"COLMAP text", "quaternion of norm 1.06",
-               colmap_text_with("images.txt", "1 0.5 0.5 0.5 0.6 0 0 0 1 a.png\n\n"), "DIR/sparse/images.txt line 1: quaternion is not a rotation (norm 1.05357, expected 1)"});
-  r.push_back({"COLMAP text", "NaN translation", colmap_text_with("images.txt", "1 1 0 0 0 0 nan 0 1 a.png\n\n"), "DIR/sparse/images.txt line 1: field 'TY' is not finite"});
-  r.push_back({"COLMAP text", "image of a missing camera", colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 9 a.png\n\n"), "DIR/sparse/images.txt line 1: image refers to camera 9, which cameras.txt lacks"});
+               colmap_text_with("images.txt", "1 0.5 0.5 0.5 0.6 0 0 0 1 a.png\n\n"),
+               "DIR/sparse/images.txt line 1: quaternion is not a rotation (norm 1.05357, expected 1)"});
+  r.push_back({"COLMAP text", "NaN translation", colmap_text_with("images.txt", "1 1 0 0 0 0 nan 0 1 a.png\n\n"),
+               "DIR/sparse/images.txt line 1: field 'TY' is not finite"});
+  r.push_back({"COLMAP text", "image of a missing camera",
+               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 9 a.png\n\n"),
+               "DIR/sparse/images.txt line 1: image refers to camera 9, which cameras.txt lacks"});
   r.push_back({"COLMAP text", "duplicate image name",
-               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 0 1 a.png\n\n"), "DIR/sparse/images.txt line 3: duplicate image name a.png"});
+               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 0 1 a.png\n\n"),
+               "DIR/sparse/images.txt line 3: duplicate image name a.png"});
   r.push_back({"COLMAP text", "image name with '..' (would leave the image folder)",
-               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 ../../a.png\n\n"), "DIR/sparse/images.txt line 1: image name '../../a.png' leaves the image folder ('..' component)"});
-  r.push_back({"COLMAP text", "absolute image name", colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 /etc/passwd\n\n"),
-               "DIR/sparse/images.txt line 1: image name '/etc/passwd' is an absolute path (names are relative to the image folder)"});
-  r.push_back({"COLMAP text", "image id -5", colmap_text_with("images.txt", "-5 1 0 0 0 0 0 0 1 a.png\n\n"), "DIR/sparse/images.txt line 1: IMAGE_ID -5 is negative"});
+               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 ../../a.png\n\n"),
+               "DIR/sparse/images.txt line 1: image name '../../a.png' leaves the image folder ('..' component)"});
+  r.push_back({"COLMAP text", "absolute image name",
+               colmap_text_with("images.txt", "1 1 0 0 0 0 0 0 1 /etc/passwd\n\n"),
+               "DIR/sparse/images.txt line 1: image name '/etc/passwd' is an absolute path (names are relative to the "
+               "image folder)"});
+  r.push_back({"COLMAP text", "image id -5", colmap_text_with("images.txt", "-5 1 0 0 0 0 0 0 1 a.png\n\n"),
+               "DIR/sparse/images.txt line 1: IMAGE_ID -5 is negative"});
   r.push_back({"COLMAP text", "NUL byte in an image name",
-               colmap_text_with("images.txt", std::string("1 1 0 0 0 0 0 0 1 a") + '\0' + "b.png\n\n"), "DIR/sparse/images.txt line 1: contains a NUL byte (not a text file?)"});
-  r.push_back({"COLMAP text", "track of a missing image", colmap_text_with("points3D.txt", "5 1 2 3 0 0 0 0.5 7 0\n"), "DIR/sparse/points3D.txt line 1: track refers to image 7, which the model lacks"});
+               colmap_text_with("images.txt", std::string("1 1 0 0 0 0 0 0 1 a") + '\0' + "b.png\n\n"),
+               "DIR/sparse/images.txt line 1: contains a NUL byte (not a text file?)"});
+  r.push_back({"COLMAP text", "track of a missing image", colmap_text_with("points3D.txt", "5 1 2 3 0 0 0 0.5 7 0\n"),
+               "DIR/sparse/points3D.txt line 1: track refers to image 7, which the model lacks"});
   // COLMAP binary
   r.push_back({"COLMAP binary", "cameras.bin cut by 3 bytes",
-               colmap_binary_with({}, "cameras.bin", [](std::string& b) { b.resize(b.size() - 3); }), "DIR/sparse/cameras.bin: camera record 0 (id 1): truncated file: cannot read camera parameter (8 bytes needed, 5 left) (at byte offset 56 of 61)"});
-  r.push_back({"COLMAP binary", "image count 2^60", colmap_binary_with({}, "images.bin", [](std::string& b) {
-                 const uint64_t huge = uint64_t{1} << 60;
-                 std::memcpy(b.data(), &huge, 8);
-               }), "DIR/sparse/images.bin: number of images is 1152921504606846976 but only 208 bytes are left (at least 73 per record) (at byte offset 8 of 216)"});
-  r.push_back({"COLMAP binary", "unknown camera model id 42", colmap_binary_with({}, "cameras.bin", [](std::string& b) {
-                 const int32_t id = 42;
-                 std::memcpy(b.data() + 12, &id, 4);
-               }), "DIR/sparse/cameras.bin: camera record 0 (id 1): unknown camera model id 42 (at byte offset 16 of 64)"});
+               colmap_binary_with({}, "cameras.bin", [](std::string& b) { b.resize(b.size() - 3); }),
+               "DIR/sparse/cameras.bin: camera record 0 (id 1): truncated file: cannot read camera parameter (8 bytes "
+               "needed, 5 left) (at byte offset 56 of 61)"});
+  r.push_back({"COLMAP binary", "image count 2^60",
+               colmap_binary_with({}, "images.bin",
+                                  [](std::string& b) {
+                                    const uint64_t huge = uint64_t{1} << 60;
+                                    std::memcpy(b.data(), &huge, 8);
+                                  }),
+               "DIR/sparse/images.bin: number of images is 1152921504606846976 but only 208 bytes are left (at least "
+               "73 per record) (at byte offset 8 of 216)"});
+  r.push_back({"COLMAP binary", "unknown camera model id 42",
+               colmap_binary_with({}, "cameras.bin",
+                                  [](std::string& b) {
+                                    const int32_t id = 42;
+                                    std::memcpy(b.data() + 12, &id, 4);
+                                  }),
+               "DIR/sparse/cameras.bin: camera record 0 (id 1): unknown camera model id 42 (at byte offset 16 of 64)"});
   r.push_back({"COLMAP binary", "quaternion of norm 1.2",
-               colmap_binary_with([](ColmapModel& m) { m.images[0].cam_from_world.rotation.coeffs() *= 1.2; }), "DIR/sparse/images.bin: image record 0 (id 1): quaternion is not a rotation (norm 1.2, expected 1)"});
+               colmap_binary_with([](ColmapModel& m) { m.images[0].cam_from_world.rotation.coeffs() *= 1.2; }),
+               "DIR/sparse/images.bin: image record 0 (id 1): quaternion is not a rotation (norm 1.2, expected 1)"});
   r.push_back({"COLMAP binary", "NaN translation",
-               colmap_binary_with([nan](ColmapModel& m) { m.images[1].cam_from_world.translation.z() = nan; }), "DIR/sparse/images.bin: image record 1 (id 2): translation component is not finite (at byte offset 172 of 216)"});
+               colmap_binary_with([nan](ColmapModel& m) { m.images[1].cam_from_world.translation.z() = nan; }),
+               "DIR/sparse/images.bin: image record 1 (id 2): translation component is not finite (at byte offset 172 "
+               "of 216)"});
   r.push_back({"COLMAP binary", "track of a 2D point the image lacks",
-               colmap_binary_with([](ColmapModel& m) { m.points[0].track[1].point2d_idx = 4; }), "DIR/sparse/points3D.bin: point3D record 0 (id 5): track refers to 2D point 4 of image 2, which has 1 (at byte offset 75 of 75)"});
+               colmap_binary_with([](ColmapModel& m) { m.points[0].track[1].point2d_idx = 4; }),
+               "DIR/sparse/points3D.bin: point3D record 0 (id 5): track refers to 2D point 4 of image 2, which has 1 "
+               "(at byte offset 75 of 75)"});
   r.push_back({"COLMAP binary", "image name with '..' (would leave the image folder)",
-               colmap_binary_with([](ColmapModel& m) { m.images[1].name = "../b.png"; }), "DIR/sparse/images.bin: image record 1 (id 2): image name '../b.png' leaves the image folder ('..' component) (at byte offset 185 of 217)"});
-  r.push_back({"COLMAP binary", "trailing bytes", colmap_binary_with({}, "points3D.bin", [](std::string& b) { b += "xyz"; }), "DIR/sparse/points3D.bin: 3 trailing bytes after the last record (wrong count?) (at byte offset 75 of 78)"});
+               colmap_binary_with([](ColmapModel& m) { m.images[1].name = "../b.png"; }),
+               "DIR/sparse/images.bin: image record 1 (id 2): image name '../b.png' leaves the image folder ('..' "
+               "component) (at byte offset 185 of 217)"});
+  r.push_back(
+      {"COLMAP binary", "trailing bytes", colmap_binary_with({}, "points3D.bin", [](std::string& b) { b += "xyz"; }),
+       "DIR/sparse/points3D.bin: 3 trailing bytes after the last record (wrong count?) (at byte offset 75 of 78)"});
   // gravity.txt
-  r.push_back({"gravity.txt", "3 fields", gravity_with("im1.png 0 1\n"), "DIR/gravity.txt line 1: expected 4 fields (IMAGE_NAME GX GY GZ), got 3"});
-  r.push_back({"gravity.txt", "NaN component", gravity_with("im1.png 0 nan 1\nim2.png 0 1 0\n"), "DIR/gravity.txt line 1: GY is not finite"});
-  r.push_back({"gravity.txt", "zero vector", gravity_with("im1.png 0 0 0\nim2.png 0 1 0\n"), "DIR/gravity.txt line 1: gravity of image im1.png is the zero vector"});
-  r.push_back({"gravity.txt", "image not in the model", gravity_with("im1.png 0 1 0\nim2.png 0 1 0\nim3.png 0 1 0\n"), "DIR/gravity.txt: image name im3.png is not in the sparse model"});
-  r.push_back({"gravity.txt", "image of the model missing", gravity_with("im1.png 0 1 0\n"), "DIR/gravity.txt: no gravity for image im2.png (image id 2)"});
+  r.push_back({"gravity.txt", "3 fields", gravity_with("im1.png 0 1\n"),
+               "DIR/gravity.txt line 1: expected 4 fields (IMAGE_NAME GX GY GZ), got 3"});
+  r.push_back({"gravity.txt", "NaN component", gravity_with("im1.png 0 nan 1\nim2.png 0 1 0\n"),
+               "DIR/gravity.txt line 1: GY is not finite"});
+  r.push_back({"gravity.txt", "zero vector", gravity_with("im1.png 0 0 0\nim2.png 0 1 0\n"),
+               "DIR/gravity.txt line 1: gravity of image im1.png is the zero vector"});
+  r.push_back({"gravity.txt", "image not in the model", gravity_with("im1.png 0 1 0\nim2.png 0 1 0\nim3.png 0 1 0\n"),
+               "DIR/gravity.txt: image name im3.png is not in the sparse model"});
+  r.push_back({"gravity.txt", "image of the model missing", gravity_with("im1.png 0 1 0\n"),
+               "DIR/gravity.txt: no gravity for image im2.png (image id 2)"});
   // training configs
-  r.push_back({"train config (TOML)", "syntax error", config_with("[boost\nnum_rounds = 3\n"), "DIR/train.toml: Error while parsing table header: expected ']', saw '\\n' at line 1"});
-  r.push_back({"train config (TOML)", "unknown key", config_with("[boost]\nnum_round = 3\n"), "DIR/train.toml: unknown key boost.num_round"});
-  r.push_back({"train config (TOML)", "string for an integer", config_with("[boost]\nnum_rounds = \"many\"\n"), "DIR/train.toml: boost.num_rounds: expected an integer"});
+  r.push_back({"train config (TOML)", "syntax error", config_with("[boost\nnum_rounds = 3\n"),
+               "DIR/train.toml: Error while parsing table header: expected ']', saw '\\n' at line 1"});
+  r.push_back({"train config (TOML)", "unknown key", config_with("[boost]\nnum_round = 3\n"),
+               "DIR/train.toml: unknown key boost.num_round"});
+  r.push_back({"train config (TOML)", "string for an integer", config_with("[boost]\nnum_rounds = \"many\"\n"),
+               "DIR/train.toml: boost.num_rounds: expected an integer"});
   r.push_back({"train config (TOML)", "1e37 for an integer", config_with("[boost]\nnum_rounds = 1e37\n"),
                "DIR/train.toml: boost.num_rounds: expected an integer"});
-  r.push_back({"train config (TOML)", "integer out of range", config_with("[boost]\nnum_rounds = 99999999999\n"), "DIR/train.toml: boost.num_rounds: 99999999999 is out of range"});
-  r.push_back({"train config (TOML)", "num_rounds = 0", config_with("[boost]\nnum_rounds = 0\n"), "DIR/train.toml: boost options: num_rounds must be >= 1, got 0"});
-  r.push_back({"train config (TOML)", "nan for a real", config_with("[boost]\nexclusion_radius = nan\n"), "DIR/train.toml: boost options: exclusion_radius must be finite and >= 0, got nan"});
-  r.push_back({"train config (TOML)", "inf region area", config_with("[regions]\nmax_area = inf\n"), "DIR/train.toml: context regions: max_area = inf must be finite and >= min_area (1)"});
-  r.push_back({"train config (TOML)", "negative seed", config_with("[regions]\nseed = -1\n"), "DIR/train.toml: regions.seed: -1 is out of range"});
+  r.push_back({"train config (TOML)", "integer out of range", config_with("[boost]\nnum_rounds = 99999999999\n"),
+               "DIR/train.toml: boost.num_rounds: 99999999999 is out of range"});
+  r.push_back({"train config (TOML)", "num_rounds = 0", config_with("[boost]\nnum_rounds = 0\n"),
+               "DIR/train.toml: boost options: num_rounds must be >= 1, got 0"});
+  r.push_back({"train config (TOML)", "nan for a real", config_with("[boost]\nexclusion_radius = nan\n"),
+               "DIR/train.toml: boost options: exclusion_radius must be finite and >= 0, got nan"});
+  r.push_back({"train config (TOML)", "inf region area", config_with("[regions]\nmax_area = inf\n"),
+               "DIR/train.toml: context regions: max_area = inf must be finite and >= min_area (1)"});
+  r.push_back({"train config (TOML)", "negative seed", config_with("[regions]\nseed = -1\n"),
+               "DIR/train.toml: regions.seed: -1 is out of range"});
   return r;
 }
 

@@ -72,8 +72,8 @@ class BinaryReader {
   template <typename T>
   T read(const char* field) {
     if (bytes_left() < sizeof(T)) {
-      fail(std::string("truncated file: cannot read ") + field + " (" + std::to_string(sizeof(T)) +
-           " bytes needed, " + std::to_string(bytes_left()) + " left)");
+      fail(std::string("truncated file: cannot read ") + field + " (" + std::to_string(sizeof(T)) + " bytes needed, " +
+           std::to_string(bytes_left()) + " left)");
     }
     T value;
     std::memcpy(&value, bytes_.data() + pos_, sizeof(T));
@@ -153,7 +153,8 @@ void read_cameras(const fs::path& path, ColmapModel* model) {
     camera.model = camera_model_from_id(model_id);
     const uint64_t width = in.read<uint64_t>("width");
     const uint64_t height = in.read<uint64_t>("height");
-    if (width == 0 || height == 0 || width > static_cast<uint64_t>(INT_MAX) || height > static_cast<uint64_t>(INT_MAX)) {
+    if (width == 0 || height == 0 || width > static_cast<uint64_t>(INT_MAX) ||
+        height > static_cast<uint64_t>(INT_MAX)) {
       in.fail("image size " + std::to_string(width) + "x" + std::to_string(height) + " is invalid");
     }
     camera.width = static_cast<int>(width);

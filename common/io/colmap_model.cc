@@ -1,5 +1,5 @@
-#include "common/text_parse.h"
 #include "common/io/colmap_model.h"
+#include "common/text_parse.h"
 
 #include <algorithm>
 #include <array>
@@ -63,8 +63,7 @@ void check_image_name(const std::string& name, const std::string& where) {
 Eigen::Quaterniond checked_rotation(double qw, double qx, double qy, double qz, const std::string& at) {
   const double norm = std::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
   LMB_CHECK(std::isfinite(norm), at << ": quaternion is not finite");
-  LMB_CHECK(std::abs(norm - 1.0) < 1e-3,
-            at << ": quaternion is not a rotation (norm " << norm << ", expected 1)");
+  LMB_CHECK(std::abs(norm - 1.0) < 1e-3, at << ": quaternion is not a rotation (norm " << norm << ", expected 1)");
   return Eigen::Quaterniond(qw / norm, qx / norm, qy / norm, qz / norm);
 }
 
@@ -74,7 +73,8 @@ std::string colmap_track_error(const ColmapModel& model, const ColmapTrackElemen
   if (it == model.images.end() || it->image_id != element.image_id) {
     return "track refers to image " + std::to_string(element.image_id) + ", which the model lacks";
   }
-  if (!it->points2d.empty() && (element.point2d_idx < 0 || static_cast<size_t>(element.point2d_idx) >= it->points2d.size())) {
+  if (!it->points2d.empty() &&
+      (element.point2d_idx < 0 || static_cast<size_t>(element.point2d_idx) >= it->points2d.size())) {
     return "track refers to 2D point " + std::to_string(element.point2d_idx) + " of image " +
            std::to_string(element.image_id) + ", which has " + std::to_string(it->points2d.size());
   }
@@ -113,8 +113,7 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
     const std::vector<std::string> tokens = lines.tokens();
     if (tokens.size() != 10) {
       LMB_CHECK(tokens.size() % 3 == 0 && points_allowed,
-                at << ": expected an image line with 10 fields or a POINTS2D line, got "
-                   << tokens.size() << " fields");
+                at << ": expected an image line with 10 fields or a POINTS2D line, got " << tokens.size() << " fields");
       points_allowed = false;
       std::vector<ColmapPoint2D>& points = model.images.back().points2d;
       points.reserve(tokens.size() / 3);
@@ -175,8 +174,7 @@ ColmapModel read_colmap_text(const fs::path& sparse_dir) {
       std::vector<std::string> track_tokens;
       while (in >> track_token) track_tokens.push_back(track_token);
       LMB_CHECK(track_tokens.size() % 2 == 0,
-                at << ": TRACK[] must hold (IMAGE_ID, POINT2D_IDX) pairs, got " << track_tokens.size()
-                   << " values");
+                at << ": TRACK[] must hold (IMAGE_ID, POINT2D_IDX) pairs, got " << track_tokens.size() << " values");
       for (size_t k = 0; k < track_tokens.size(); k += 2) {
         std::istringstream pair(track_tokens[k] + " " + track_tokens[k + 1]);
         ColmapTrackElement e;
@@ -220,8 +218,8 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
     for (const ColmapImage& im : model.images) {
       const Eigen::Quaterniond& q = im.cam_from_world.rotation;
       const Eigen::Vector3d& t = im.cam_from_world.translation;
-      out << im.image_id << ' ' << q.w() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' '
-          << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << im.camera_id << ' ' << im.name << '\n';
+      out << im.image_id << ' ' << q.w() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << t.x() << ' ' << t.y()
+          << ' ' << t.z() << ' ' << im.camera_id << ' ' << im.name << '\n';
       for (size_t k = 0; k < im.points2d.size(); ++k) {
         const ColmapPoint2D& p = im.points2d[k];
         out << (k ? " " : "") << p.xy.x() << ' ' << p.xy.y() << ' ' << p.point3d_id;
@@ -237,8 +235,8 @@ void write_colmap_text(const ColmapModel& model, const fs::path& sparse_dir) {
         << "# Number of points: " << model.points.size() << "\n";
     out << std::setprecision(17);
     for (const ColmapPoint3D& p : model.points) {
-      out << p.point3d_id << ' ' << p.xyz.x() << ' ' << p.xyz.y() << ' ' << p.xyz.z() << ' '
-          << int(p.rgb[0]) << ' ' << int(p.rgb[1]) << ' ' << int(p.rgb[2]) << ' ' << p.error;
+      out << p.point3d_id << ' ' << p.xyz.x() << ' ' << p.xyz.y() << ' ' << p.xyz.z() << ' ' << int(p.rgb[0]) << ' '
+          << int(p.rgb[1]) << ' ' << int(p.rgb[2]) << ' ' << p.error;
       for (const ColmapTrackElement& e : p.track) out << ' ' << e.image_id << ' ' << e.point2d_idx;
       out << '\n';
     }
@@ -272,16 +270,16 @@ bool has_image_signature(const std::string& head) {
   auto starts = [&](const char* sig, size_t n, size_t offset = 0) {
     return head.size() >= offset + n && std::equal(sig, sig + n, head.begin() + static_cast<long>(offset));
   };
-  if (starts("\xFF\xD8\xFF", 3)) return true;                        // JPEG
-  if (starts("\x89PNG\r\n\x1A\n", 8)) return true;                 // PNG
-  if (starts("II*\0", 4) || starts("MM\0*", 4)) return true;          // TIFF
-  if (starts("BM", 2)) return true;                                  // BMP
+  if (starts("\xFF\xD8\xFF", 3)) return true;                                               // JPEG
+  if (starts("\x89PNG\r\n\x1A\n", 8)) return true;                                          // PNG
+  if (starts("II*\0", 4) || starts("MM\0*", 4)) return true;                                // TIFF
+  if (starts("BM", 2)) return true;                                                         // BMP
   if (head.size() >= 2 && head[0] == 'P' && head[1] >= '1' && head[1] <= '7') return true;  // PNM, PAM
-  if (starts("RIFF", 4) && starts("WEBP", 4, 8)) return true;        // WebP
-  if (starts("\0\0\0\x0CjP  ", 8) || starts("\xFF\x4F\xFF\x51", 4)) return true;  // JPEG 2000
-  if (starts("\x76\x2F\x31\x01", 4)) return true;                    // OpenEXR
-  if (starts("#?RADIANCE", 10) || starts("#?RGBE", 6)) return true;  // Radiance HDR
-  if (starts("\x59\xA6\x6A\x95", 4)) return true;                    // Sun raster
+  if (starts("RIFF", 4) && starts("WEBP", 4, 8)) return true;                               // WebP
+  if (starts("\0\0\0\x0CjP  ", 8) || starts("\xFF\x4F\xFF\x51", 4)) return true;            // JPEG 2000
+  if (starts("\x76\x2F\x31\x01", 4)) return true;                                           // OpenEXR
+  if (starts("#?RADIANCE", 10) || starts("#?RGBE", 6)) return true;                         // Radiance HDR
+  if (starts("\x59\xA6\x6A\x95", 4)) return true;                                           // Sun raster
   return false;
 }
 

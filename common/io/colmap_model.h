@@ -50,9 +50,9 @@ struct ColmapPoint3D {
 };
 
 struct ColmapModel {
-  std::map<int, Camera> cameras;     // by COLMAP camera id
-  std::vector<ColmapImage> images;   // sorted by image id
-  std::vector<ColmapPoint3D> points; // optional; the mapper does not need them
+  std::map<int, Camera> cameras;      // by COLMAP camera id
+  std::vector<ColmapImage> images;    // sorted by image id
+  std::vector<ColmapPoint3D> points;  // optional; the mapper does not need them
 };
 
 // Reads cameras.txt, images.txt and points3D.txt (the last may be absent) from `sparse_dir`.

@@ -1,5 +1,5 @@
-#include "common/text_parse.h"
 #include "common/io/gravity_file.h"
+#include "common/text_parse.h"
 
 #include <cmath>
 #include <iomanip>
@@ -27,7 +27,8 @@ std::map<std::string, Eigen::Vector3d> read_gravity_file(const fs::path& path) {
     const double scale = g.cwiseAbs().maxCoeff();
     LMB_CHECK(scale > 0.0 && scale * (g / scale).norm() >= 1e-9,
               at << ": gravity of image " << tokens[0] << " is the zero vector");
-    LMB_CHECK(gravity.emplace(tokens[0], (g / scale).normalized()).second, at << ": duplicate image name " << tokens[0]);
+    LMB_CHECK(gravity.emplace(tokens[0], (g / scale).normalized()).second,
+              at << ": duplicate image name " << tokens[0]);
   }
   return gravity;
 }

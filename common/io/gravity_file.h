@@ -25,8 +25,7 @@ std::map<std::string, Eigen::Vector3d> read_gravity_file(const std::filesystem::
 // As above, and checks the names against `model`: every name must be an image of the model
 // (else "image name X is not in the sparse model") and every image of the model must have a line
 // (else "no gravity for image X", naming the first such image in id order).
-std::map<std::string, Eigen::Vector3d> read_gravity_file(const std::filesystem::path& path,
-                                                         const ColmapModel& model);
+std::map<std::string, Eigen::Vector3d> read_gravity_file(const std::filesystem::path& path, const ColmapModel& model);
 
 // Writes a gravity file (directions as given, 17 significant digits), replacing `path`.
 void write_gravity_file(const std::map<std::string, Eigen::Vector3d>& gravity_in_cam,

@@ -23,20 +23,50 @@ namespace lmb::h5 {
 // Column types: the HDF5 memory type and the type class a stored dataset must have.
 template <typename T>
 const H5::PredType& mem_type();
-template <> inline const H5::PredType& mem_type<double>() { return H5::PredType::NATIVE_DOUBLE; }
-template <> inline const H5::PredType& mem_type<float>() { return H5::PredType::NATIVE_FLOAT; }
-template <> inline const H5::PredType& mem_type<int32_t>() { return H5::PredType::NATIVE_INT32; }
-template <> inline const H5::PredType& mem_type<int64_t>() { return H5::PredType::NATIVE_INT64; }
-template <> inline const H5::PredType& mem_type<uint8_t>() { return H5::PredType::NATIVE_UINT8; }
+template <>
+inline const H5::PredType& mem_type<double>() {
+  return H5::PredType::NATIVE_DOUBLE;
+}
+template <>
+inline const H5::PredType& mem_type<float>() {
+  return H5::PredType::NATIVE_FLOAT;
+}
+template <>
+inline const H5::PredType& mem_type<int32_t>() {
+  return H5::PredType::NATIVE_INT32;
+}
+template <>
+inline const H5::PredType& mem_type<int64_t>() {
+  return H5::PredType::NATIVE_INT64;
+}
+template <>
+inline const H5::PredType& mem_type<uint8_t>() {
+  return H5::PredType::NATIVE_UINT8;
+}
 
 // The file's on-disk types (little endian, fixed size), so files are the same on every machine.
 template <typename T>
 const H5::PredType& file_type();
-template <> inline const H5::PredType& file_type<double>() { return H5::PredType::IEEE_F64LE; }
-template <> inline const H5::PredType& file_type<float>() { return H5::PredType::IEEE_F32LE; }
-template <> inline const H5::PredType& file_type<int32_t>() { return H5::PredType::STD_I32LE; }
-template <> inline const H5::PredType& file_type<int64_t>() { return H5::PredType::STD_I64LE; }
-template <> inline const H5::PredType& file_type<uint8_t>() { return H5::PredType::STD_U8LE; }
+template <>
+inline const H5::PredType& file_type<double>() {
+  return H5::PredType::IEEE_F64LE;
+}
+template <>
+inline const H5::PredType& file_type<float>() {
+  return H5::PredType::IEEE_F32LE;
+}
+template <>
+inline const H5::PredType& file_type<int32_t>() {
+  return H5::PredType::STD_I32LE;
+}
+template <>
+inline const H5::PredType& file_type<int64_t>() {
+  return H5::PredType::STD_I64LE;
+}
+template <>
+inline const H5::PredType& file_type<uint8_t>() {
+  return H5::PredType::STD_U8LE;
+}
 
 // Dataset creation without modification times, so that the same map gives the same bytes.
 inline H5::DSetCreatPropList untimed_dataset() {
@@ -57,8 +87,7 @@ inline H5::Group create_untimed_group(H5::H5File& file, const char* name) {
 }
 
 template <typename T>
-void write_column(H5::Group& group, const char* name, const std::vector<T>& data, hsize_t rows,
-                  hsize_t cols = 0) {
+void write_column(H5::Group& group, const char* name, const std::vector<T>& data, hsize_t rows, hsize_t cols = 0) {
   const int rank = cols == 0 ? 1 : 2;
   const hsize_t dims[2] = {rows, cols};
   H5::DataSpace space(rank, dims);
@@ -216,6 +245,5 @@ class Reader {
   std::string path_;
   H5::H5File& file_;
 };
-
 
 }  // namespace lmb::h5

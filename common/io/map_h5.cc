@@ -1,6 +1,5 @@
 #include "common/io/map_h5.h"
 
-
 #include <cmath>
 #include <cstring>
 #include <system_error>
@@ -39,8 +38,8 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
   for (size_t c = 0; c < map.cameras.size(); ++c) {
     map.cameras[c].check(where + ": cameras[" + std::to_string(c) + "]");
   }
-  LMB_CHECK(map.frames.empty() || !map.sessions.empty(), where << ": sessions: none, but " << map.frames.size()
-                                                                 << " frames (every frame belongs to a session)");
+  LMB_CHECK(map.frames.empty() || !map.sessions.empty(),
+            where << ": sessions: none, but " << map.frames.size() << " frames (every frame belongs to a session)");
   for (size_t s = 0; s < map.sessions.size(); ++s) {
     const MapSession& session = map.sessions[s];
     const std::string at = where + ": sessions[" + std::to_string(s) + "]";
@@ -76,23 +75,21 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
     LMB_CHECK(finite3(frame.gravity_in_cam) && std::abs(frame.gravity_in_cam.norm() - 1.0) < 1e-6,
               at << ".gravity_in_cam: not a unit vector");
     LMB_CHECK(frame.num_keypoints >= 0, at << ".num_keypoints: negative");
-    LMB_CHECK(frame.first_keypoint == next_keypoint,
-              at << ".first_keypoint: " << frame.first_keypoint << ", expected " << next_keypoint
-                 << " (frames' keypoint ranges must follow each other)");
+    LMB_CHECK(frame.first_keypoint == next_keypoint, at << ".first_keypoint: " << frame.first_keypoint << ", expected "
+                                                        << next_keypoint
+                                                        << " (frames' keypoint ranges must follow each other)");
     next_keypoint += frame.num_keypoints;
   }
   LMB_CHECK(next_keypoint == num_keypoints, where << ": frames.num_keypoints: sum " << next_keypoint
                                                   << " differs from the keypoint count " << num_keypoints);
   LMB_CHECK(static_cast<int64_t>(map.descriptors.size()) == num_keypoints * map.descriptor_bytes,
-            where << ": descriptors: " << map.descriptors.size() << " bytes, expected "
-                  << num_keypoints << " x " << map.descriptor_bytes);
+            where << ": descriptors: " << map.descriptors.size() << " bytes, expected " << num_keypoints << " x "
+                  << map.descriptor_bytes);
   LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_keypoints,
-            where << ": keypoint_landmark: " << map.keypoint_landmark.size() << " entries, expected "
-                  << num_keypoints);
+            where << ": keypoint_landmark: " << map.keypoint_landmark.size() << " entries, expected " << num_keypoints);
   for (int64_t k = 0; k < num_keypoints; ++k) {
     const Keypoint& kp = map.keypoints[k];
-    LMB_CHECK(std::isfinite(kp.x) && std::isfinite(kp.y) && std::isfinite(kp.scale) &&
-                  std::isfinite(kp.angle),
+    LMB_CHECK(std::isfinite(kp.x) && std::isfinite(kp.y) && std::isfinite(kp.scale) && std::isfinite(kp.angle),
               where << ": keypoints[" << k << "]: not finite");
   }
   const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
@@ -102,9 +99,10 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
       const landmark_t l = map.keypoint_landmark[k];
       LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
                 where << ": keypoint_landmark[" << k << "]: " << l << " outside -1.." << num_landmarks - 1);
-      LMB_CHECK(l == kInvalidLandmarkId || map.sessions[static_cast<size_t>(frame.session)].kind != SessionKind::kOutside,
-                where << ": keypoint_landmark[" << k << "]: " << l << ", but its frame '" << frame.name
-                      << "' is in an outside session (recorded where the map has no landmarks)");
+      LMB_CHECK(
+          l == kInvalidLandmarkId || map.sessions[static_cast<size_t>(frame.session)].kind != SessionKind::kOutside,
+          where << ": keypoint_landmark[" << k << "]: " << l << ", but its frame '" << frame.name
+                << "' is in an outside session (recorded where the map has no landmarks)");
       if (l >= 0) ++(frame.is_query ? query_obs : map_obs)[l];
     }
   }
@@ -115,12 +113,11 @@ void validate_landmark_map(const LandmarkMap& map, const std::string& where) {
     LMB_CHECK(std::isfinite(lm.quality), at << ".quality: not finite");
     LMB_CHECK(std::isfinite(lm.mean_reprojection_error) && lm.mean_reprojection_error >= 0,
               at << ".mean_reprojection_error: not a finite non-negative number");
-    LMB_CHECK(lm.num_map_observations == map_obs[l],
-              at << ".num_map_observations: " << lm.num_map_observations << ", but "
-                 << map_obs[l] << " map keypoints refer to it");
-    LMB_CHECK(lm.num_query_observations == query_obs[l],
-              at << ".num_query_observations: " << lm.num_query_observations << ", but "
-                 << query_obs[l] << " query keypoints refer to it");
+    LMB_CHECK(lm.num_map_observations == map_obs[l], at << ".num_map_observations: " << lm.num_map_observations
+                                                        << ", but " << map_obs[l] << " map keypoints refer to it");
+    LMB_CHECK(lm.num_query_observations == query_obs[l], at << ".num_query_observations: " << lm.num_query_observations
+                                                            << ", but " << query_obs[l]
+                                                            << " query keypoints refer to it");
   }
 }
 
@@ -249,9 +246,9 @@ LandmarkMap read_map_h5(const fs::path& path) {
     LMB_CHECK(format == kMapH5Format, name << ": attribute 'format': '" << format
                                            << "' is not a landmark map (expected '" << kMapH5Format << "')");
     const int64_t version = r.int_attribute("format_version");
-    LMB_CHECK(version == 1 || version == kMapH5Version,
-              name << ": attribute 'format_version': version " << version
-                   << " is not supported (this build reads versions 1 and " << kMapH5Version << ")");
+    LMB_CHECK(version == 1 || version == kMapH5Version, name << ": attribute 'format_version': version " << version
+                                                             << " is not supported (this build reads versions 1 and "
+                                                             << kMapH5Version << ")");
     map.detector = r.string_attribute("detector");
     const int64_t descriptor_bytes = r.int_attribute("descriptor_bytes");
     LMB_CHECK(descriptor_bytes >= 0 && descriptor_bytes <= 4096,

@@ -72,13 +72,12 @@ std::vector<int32_t> image_sessions(const std::vector<MapSession>& sessions, con
   out.reserve(model.images.size());
   for (const ColmapImage& im : model.images) {
     const size_t slash = im.name.find('/');
-    LMB_CHECK(slash != std::string::npos,
-              path.string() << ": image " << im.name << " (image id " << im.image_id
-                            << ") is in no session folder (names must be SESSION/...)");
+    LMB_CHECK(slash != std::string::npos, path.string() << ": image " << im.name << " (image id " << im.image_id
+                                                        << ") is in no session folder (names must be SESSION/...)");
     const auto it = index.find(im.name.substr(0, slash));
-    LMB_CHECK(it != index.end(), path.string() << ": image " << im.name << " (image id " << im.image_id
-                                               << "): its folder '" << im.name.substr(0, slash)
-                                               << "' is not a session of this file");
+    LMB_CHECK(it != index.end(), path.string()
+                                     << ": image " << im.name << " (image id " << im.image_id << "): its folder '"
+                                     << im.name.substr(0, slash) << "' is not a session of this file");
     out.push_back(it->second);
   }
   return out;

@@ -52,8 +52,7 @@ ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& optio
             "detect_features: " << options.detector << " returned descriptors of unexpected shape");
   std::vector<int> order(keypoints.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int a, int b) { return stronger(keypoints[a], keypoints[b]); });
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return stronger(keypoints[a], keypoints[b]); });
   if (order.size() > static_cast<size_t>(options.max_keypoints)) order.resize(options.max_keypoints);
   out.keypoints.reserve(order.size());
   out.descriptors.reserve(order.size() * bytes);

@@ -36,7 +36,6 @@ struct ImageFeatures {
 
 // Detects keypoints in an 8-bit image (1, 3 or 4 channels) and computes their descriptors.
 // Throws lmb::Error for an empty image, another pixel type or invalid options.
-LMB_INFER_EXPORT ImageFeatures detect_features(const cv::Mat& image,
-                                               const DetectorOptions& options = {});
+LMB_INFER_EXPORT ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& options = {});
 
 }  // namespace lmb

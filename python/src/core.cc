@@ -58,10 +58,10 @@ struct OptionField {
   const char* doc;
 };
 
-#define LMB_OPTION(NAME, MEMBER, TYPE, DOC)                                                   \
-  OptionField {                                                                               \
-    NAME, [](const LocalizerOptions& o) -> py::object { return py::cast(o.MEMBER); },         \
-        [](LocalizerOptions& o, const py::object& v) { o.MEMBER = v.cast<TYPE>(); }, DOC      \
+#define LMB_OPTION(NAME, MEMBER, TYPE, DOC)                                              \
+  OptionField {                                                                          \
+    NAME, [](const LocalizerOptions& o) -> py::object { return py::cast(o.MEMBER); },    \
+        [](LocalizerOptions& o, const py::object& v) { o.MEMBER = v.cast<TYPE>(); }, DOC \
   }
 
 const std::vector<OptionField>& option_fields() {
@@ -117,14 +117,14 @@ LocalizerOptions options_from_kwargs(const py::kwargs& kwargs) {
 
 std::vector<Keypoint> keypoints_from(const py::array& a) {
   if (a.ndim() != 2 || a.shape(1) != 4) {
-    throw py::value_error("localize: keypoints: expected an (n, 4) array of x, y, size, angle; got a " +
-                          describe(a));
+    throw py::value_error("localize: keypoints: expected an (n, 4) array of x, y, size, angle; got a " + describe(a));
   }
   // float32 C-contiguous arrays are read as they are; other dtypes and layouts are converted.
   const auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
   if (!f) throw py::value_error("localize: keypoints: cannot convert a " + describe(a) + " to float32");
   std::vector<Keypoint> keypoints(static_cast<size_t>(a.shape(0)));
-  if (!keypoints.empty()) std::memcpy(static_cast<void*>(keypoints.data()), f.data(), keypoints.size() * sizeof(Keypoint));
+  if (!keypoints.empty())
+    std::memcpy(static_cast<void*>(keypoints.data()), f.data(), keypoints.size() * sizeof(Keypoint));
   return keypoints;
 }
 
@@ -148,8 +148,8 @@ struct Result {
 
 template <class F>
 auto field_view(const std::vector<ClassMatch>& m, const F* first_field, py::handle owner) {
-  return view<F>(first_field, {static_cast<py::ssize_t>(m.size())},
-                 {static_cast<py::ssize_t>(sizeof(ClassMatch))}, owner);
+  return view<F>(first_field, {static_cast<py::ssize_t>(m.size())}, {static_cast<py::ssize_t>(sizeof(ClassMatch))},
+                 owner);
 }
 
 const ClassMatch& first_match(const Result& r) {
@@ -173,8 +173,9 @@ PYBIND11_MODULE(_core, m) {
       error(e.what());
     }
   });
-  m.def("_calls_without_gil", [] { return calls_without_gil.load(); },
-        "Localize calls that ran with the GIL released (tests).");
+  m.def(
+      "_calls_without_gil", [] { return calls_without_gil.load(); },
+      "Localize calls that ran with the GIL released (tests).");
 
   // ---- Rigid3d ----
   py::class_<Rigid3d>(m, "Rigid3d", R"(A rigid transform a_from_b: x_a = rotation * x_b + translation.
@@ -187,23 +188,30 @@ frame x right, y down, z forward).)")
              return Rigid3d(q.normalized(), t);
            }),
            py::arg("rotation") = Eigen::Vector4d(1, 0, 0, 0), py::arg("translation") = Eigen::Vector3d::Zero())
-      .def_static("from_matrix",
-                  [](const Eigen::Matrix<double, 3, 4>& m34) {
-                    const Eigen::Matrix3d r = m34.leftCols<3>();
-                    LMB_CHECK((r * r.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0,
-                              "Rigid3d.from_matrix: the left 3x3 block is not a rotation");
-                    return Rigid3d(Eigen::Quaterniond(r).normalized(), m34.col(3));
-                  },
-                  py::arg("matrix"), "From a 3x4 matrix [R | t].")
-      .def_property_readonly("rotation", [](const Rigid3d& p) {
-        return Eigen::Vector4d(p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z());
-      }, "Unit quaternion (w, x, y, z).")
+      .def_static(
+          "from_matrix",
+          [](const Eigen::Matrix<double, 3, 4>& m34) {
+            const Eigen::Matrix3d r = m34.leftCols<3>();
+            LMB_CHECK((r * r.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0,
+                      "Rigid3d.from_matrix: the left 3x3 block is not a rotation");
+            return Rigid3d(Eigen::Quaterniond(r).normalized(), m34.col(3));
+          },
+          py::arg("matrix"), "From a 3x4 matrix [R | t].")
+      .def_property_readonly(
+          "rotation",
+          [](const Rigid3d& p) {
+            return Eigen::Vector4d(p.rotation.w(), p.rotation.x(), p.rotation.y(), p.rotation.z());
+          },
+          "Unit quaternion (w, x, y, z).")
       .def_property_readonly("translation", [](const Rigid3d& p) { return Eigen::Vector3d(p.translation); })
-      .def("matrix", [](const Rigid3d& p) {
-        Eigen::Matrix<double, 3, 4> m34;
-        m34 << p.rotation.toRotationMatrix(), p.translation;
-        return m34;
-      }, "The 3x4 matrix [R | t].")
+      .def(
+          "matrix",
+          [](const Rigid3d& p) {
+            Eigen::Matrix<double, 3, 4> m34;
+            m34 << p.rotation.toRotationMatrix(), p.translation;
+            return m34;
+          },
+          "The 3x4 matrix [R | t].")
       .def("center", &Rigid3d::center, "For a cam_from_world pose: the camera centre in the world.")
       .def("inverse", &Rigid3d::inverse)
       .def("__mul__", [](const Rigid3d& a, const Rigid3d& b) { return a * b; })
@@ -225,30 +233,35 @@ Pixels follow COLMAP's convention: the centre of the top-left pixel is (0.5, 0.5
       .def_property_readonly("width", [](const Camera& c) { return c.width; })
       .def_property_readonly("height", [](const Camera& c) { return c.height; })
       .def_property_readonly("params", [](const Camera& c) { return c.params; })
-      .def("project", [](const Camera& c, const py::array_t<double, py::array::c_style | py::array::forcecast>& points) {
-        if (points.ndim() != 2 || points.shape(1) != 3) {
-          throw py::value_error("Camera.project: points: expected an (n, 3) array; got a " + describe(points));
-        }
-        const py::ssize_t n = points.shape(0);
-        std::vector<double> out(static_cast<size_t>(2 * n));
-        for (py::ssize_t i = 0; i < n; ++i) {
-          Eigen::Vector2d pixel(std::nan(""), std::nan(""));
-          if (!c.project(Eigen::Vector3d(points.at(i, 0), points.at(i, 1), points.at(i, 2)), &pixel)) {
-            pixel.setConstant(std::nan(""));
-          }
-          out[2 * i] = pixel.x();
-          out[2 * i + 1] = pixel.y();
-        }
-        return take(std::move(out), {n, 2});
-      }, py::arg("points_in_cam"),
-      "(n, 2) pixels (COLMAP's convention, distortion applied) of (n, 3) points in the camera frame; nan behind.")
-      .def("__eq__", [](const Camera& a, const Camera& b) {
-        return a.model == b.model && a.width == b.width && a.height == b.height && a.params == b.params;
-      })
+      .def(
+          "project",
+          [](const Camera& c, const py::array_t<double, py::array::c_style | py::array::forcecast>& points) {
+            if (points.ndim() != 2 || points.shape(1) != 3) {
+              throw py::value_error("Camera.project: points: expected an (n, 3) array; got a " + describe(points));
+            }
+            const py::ssize_t n = points.shape(0);
+            std::vector<double> out(static_cast<size_t>(2 * n));
+            for (py::ssize_t i = 0; i < n; ++i) {
+              Eigen::Vector2d pixel(std::nan(""), std::nan(""));
+              if (!c.project(Eigen::Vector3d(points.at(i, 0), points.at(i, 1), points.at(i, 2)), &pixel)) {
+                pixel.setConstant(std::nan(""));
+              }
+              out[2 * i] = pixel.x();
+              out[2 * i + 1] = pixel.y();
+            }
+            return take(std::move(out), {n, 2});
+          },
+          py::arg("points_in_cam"),
+          "(n, 2) pixels (COLMAP's convention, distortion applied) of (n, 3) points in the camera frame; nan behind.")
+      .def("__eq__",
+           [](const Camera& a, const Camera& b) {
+             return a.model == b.model && a.width == b.width && a.height == b.height && a.params == b.params;
+           })
       .def("__repr__", [](const Camera& c) {
         std::string s = "Camera('" + camera_model_name(c.model) + "', " + std::to_string(c.width) + ", " +
                         std::to_string(c.height) + ", [";
-        for (size_t i = 0; i < c.params.size(); ++i) s += (i ? ", " : "") + py::repr(py::float_(c.params[i])).cast<std::string>();
+        for (size_t i = 0; i < c.params.size(); ++i)
+          s += (i ? ", " : "") + py::repr(py::float_(c.params[i])).cast<std::string>();
         return s + "])";
       });
 
@@ -275,31 +288,40 @@ LocalizerOptions(top_k=5, pose_top_k=2, seed=1). The defaults are those of `lboo
 
   // ---- Model ----
   py::class_<Model, std::shared_ptr<Model>>(m, "Model", "An inference model (model.lbm), immutable.")
-      .def_static("load", [](const std::filesystem::path& path) {
-        return std::const_pointer_cast<Model>(Model::load(path));
-      }, py::arg("path"), "Reads model.lbm; raises landmarkboost.Error naming the file and reason.")
-      .def_static("from_bytes", [](const py::bytes& b) {
-        const std::string s = b;
-        return std::const_pointer_cast<Model>(
-            Model::from_bytes(reinterpret_cast<const uint8_t*>(s.data()), s.size(), "bytes"));
-      }, py::arg("data"), "The same from the file's bytes.")
+      .def_static(
+          "load", [](const std::filesystem::path& path) { return std::const_pointer_cast<Model>(Model::load(path)); },
+          py::arg("path"), "Reads model.lbm; raises landmarkboost.Error naming the file and reason.")
+      .def_static(
+          "from_bytes",
+          [](const py::bytes& b) {
+            const std::string s = b;
+            return std::const_pointer_cast<Model>(
+                Model::from_bytes(reinterpret_cast<const uint8_t*>(s.data()), s.size(), "bytes"));
+          },
+          py::arg("data"), "The same from the file's bytes.")
       .def_property_readonly("num_classes", &Model::num_classes, "Landmark classes C (class C is the background).")
       .def_property_readonly("descriptor_bytes", &Model::descriptor_bytes)
       .def_property_readonly("num_words", &Model::num_words)
       .def_property_readonly("detector", [](const Model& mo) { return mo.data().detector; })
       .def_property_readonly("num_stumps", [](const Model& mo) { return mo.data().stumps.size(); })
-      .def_property_readonly("class_landmarks", [](py::object self) {
-        const Model& mo = self.cast<const Model&>();
-        return view<landmark_t>(mo.data().class_landmark.data(), mo.data().class_landmark.size(), self);
-      }, "(C,) int64: the map landmark id of each class.")
-      .def_property_readonly("class_positions", [](py::object self) {
-        const Model& mo = self.cast<const Model&>();
-        const auto& p = mo.data().class_position;
-        static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double));
-        return view<double>(p.empty() ? nullptr : p.front().data(), {static_cast<py::ssize_t>(p.size()), 3},
-                            {static_cast<py::ssize_t>(sizeof(Eigen::Vector3d)), static_cast<py::ssize_t>(sizeof(double))},
-                            self);
-      }, "(C, 3) float64: each class's landmark position, world frame.")
+      .def_property_readonly(
+          "class_landmarks",
+          [](py::object self) {
+            const Model& mo = self.cast<const Model&>();
+            return view<landmark_t>(mo.data().class_landmark.data(), mo.data().class_landmark.size(), self);
+          },
+          "(C,) int64: the map landmark id of each class.")
+      .def_property_readonly(
+          "class_positions",
+          [](py::object self) {
+            const Model& mo = self.cast<const Model&>();
+            const auto& p = mo.data().class_position;
+            static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double));
+            return view<double>(
+                p.empty() ? nullptr : p.front().data(), {static_cast<py::ssize_t>(p.size()), 3},
+                {static_cast<py::ssize_t>(sizeof(Eigen::Vector3d)), static_cast<py::ssize_t>(sizeof(double))}, self);
+          },
+          "(C, 3) float64: each class's landmark position, world frame.")
       .def("__repr__", [](const Model& mo) {
         return "<landmarkboost.Model: " + std::to_string(mo.num_classes()) + " classes, " +
                std::to_string(mo.data().stumps.size()) + " stumps, " + std::to_string(mo.num_words()) + " words, " +
@@ -316,84 +338,117 @@ their inlier mask; timings in milliseconds. Arrays are read-only views into this
       .def_property_readonly("cam_from_world", [](const Result& r) { return r.r.pose.cam_from_world; })
       .def_property_readonly("num_inliers", [](const Result& r) { return r.r.pose.num_inliers; })
       .def_property_readonly("iterations", [](const Result& r) { return r.r.pose.iterations; })
-      .def_property_readonly("ransac", [](const Result& r) {
-        const RansacStats& st = r.r.pose.stats;
-        py::dict d;
-        d["iterations"] = st.iterations;
-        d["models"] = st.models;
-        d["refinements"] = st.refinements;
-        d["num_data"] = st.num_data;
-        d["inlier_ratio"] = st.inlier_ratio;
-        d["score"] = st.score;
-        d["subset_size"] = st.subset_size;
-        d["stop_subset"] = st.stop_subset;
-        d["runner_up_inliers"] = st.runner_up_inliers;
-        d["runner_up_shared"] = st.runner_up_shared;
-        return d;
-      }, "dict: the LO-RANSAC statistics (infer/ransac.h RansacStats): samples, models, refinements, "
-         "correspondences, inlier ratio, MSAC score, PROSAC subsets, the runner-up's support.")
+      .def_property_readonly(
+          "ransac",
+          [](const Result& r) {
+            const RansacStats& st = r.r.pose.stats;
+            py::dict d;
+            d["iterations"] = st.iterations;
+            d["models"] = st.models;
+            d["refinements"] = st.refinements;
+            d["num_data"] = st.num_data;
+            d["inlier_ratio"] = st.inlier_ratio;
+            d["score"] = st.score;
+            d["subset_size"] = st.subset_size;
+            d["stop_subset"] = st.stop_subset;
+            d["runner_up_inliers"] = st.runner_up_inliers;
+            d["runner_up_shared"] = st.runner_up_shared;
+            return d;
+          },
+          "dict: the LO-RANSAC statistics (infer/ransac.h RansacStats): samples, models, refinements, "
+          "correspondences, inlier ratio, MSAC score, PROSAC subsets, the runner-up's support.")
       .def_property_readonly("num_keypoints", [](const Result& r) { return r.r.matches.num_keypoints(); })
       .def_property_readonly("num_matches", [](const Result& r) { return r.r.matches.matches.size(); })
-      .def_property_readonly("match_begin", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return view<int32_t>(r.r.matches.begin.data(), r.r.matches.begin.size(), self);
-      }, "(n + 1,) int32: keypoint k's matches are rows match_begin[k]:match_begin[k + 1].")
-      .def_property_readonly("match_keypoint", [](const Result& r) {
-        std::vector<int32_t> k(r.r.matches.matches.size());
-        for (int32_t i = 0; i < r.r.matches.num_keypoints(); ++i) {
-          for (int32_t j = r.r.matches.begin[i]; j < r.r.matches.begin[i + 1]; ++j) k[j] = i;
-        }
-        return take(std::move(k), {static_cast<py::ssize_t>(r.r.matches.matches.size())});
-      }, "(m,) int32: the keypoint of each match.")
-      .def_property_readonly("match_rank", [](const Result& r) {
-        std::vector<int32_t> k(r.r.matches.matches.size());
-        for (int32_t i = 0; i < r.r.matches.num_keypoints(); ++i) {
-          for (int32_t j = r.r.matches.begin[i]; j < r.r.matches.begin[i + 1]; ++j) k[j] = j - r.r.matches.begin[i];
-        }
-        return take(std::move(k), {static_cast<py::ssize_t>(r.r.matches.matches.size())});
-      }, "(m,) int32: 0 for a keypoint's best match, 1 for the next...")
-      .def_property_readonly("match_class", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return field_view(r.r.matches.matches, &first_match(r).cls, self);
-      }, "(m,) int32: the landmark class.")
-      .def_property_readonly("match_landmark", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return field_view(r.r.matches.matches, &first_match(r).landmark, self);
-      }, "(m,) int64: the map landmark id.")
-      .def_property_readonly("match_score", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return field_view(r.r.matches.matches, &first_match(r).score, self);
-      }, "(m,) float64: the class score.")
-      .def_property_readonly("match_background_score", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return field_view(r.r.matches.matches, &first_match(r).background_score, self);
-      }, "(m,) float64: the keypoint's background score.")
-      .def_property_readonly("correspondence_keypoint", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return view<int32_t>(r.r.correspondence_keypoint.data(), r.r.correspondence_keypoint.size(), self);
-      }, "(c,) int32: the keypoint of each correspondence given to RANSAC.")
-      .def_property_readonly("correspondence_match", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return view<int32_t>(r.r.correspondence_match.data(), r.r.correspondence_match.size(), self);
-      }, "(c,) int32: the match (row of the match_* arrays) of each correspondence.")
-      .def_property_readonly("inlier_mask", [](py::object self) {
-        const Result& r = self.cast<const Result&>();
-        return bool_view(r.r.pose.inlier_mask, self);
-      }, "(c,) bool: the correspondences that are inliers of cam_from_world.")
-      .def_property_readonly("timings_ms", [](const Result& r) {
-        py::dict d;
-        d["words"] = r.r.timings.words_ms;
-        d["embedding"] = r.r.timings.embedding_ms;
-        d["classification"] = r.r.timings.classification_ms;
-        d["pose"] = r.r.timings.pose_ms;
-        d["total"] = r.r.timings.total_ms;
-        return d;
-      })
+      .def_property_readonly(
+          "match_begin",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return view<int32_t>(r.r.matches.begin.data(), r.r.matches.begin.size(), self);
+          },
+          "(n + 1,) int32: keypoint k's matches are rows match_begin[k]:match_begin[k + 1].")
+      .def_property_readonly(
+          "match_keypoint",
+          [](const Result& r) {
+            std::vector<int32_t> k(r.r.matches.matches.size());
+            for (int32_t i = 0; i < r.r.matches.num_keypoints(); ++i) {
+              for (int32_t j = r.r.matches.begin[i]; j < r.r.matches.begin[i + 1]; ++j) k[j] = i;
+            }
+            return take(std::move(k), {static_cast<py::ssize_t>(r.r.matches.matches.size())});
+          },
+          "(m,) int32: the keypoint of each match.")
+      .def_property_readonly(
+          "match_rank",
+          [](const Result& r) {
+            std::vector<int32_t> k(r.r.matches.matches.size());
+            for (int32_t i = 0; i < r.r.matches.num_keypoints(); ++i) {
+              for (int32_t j = r.r.matches.begin[i]; j < r.r.matches.begin[i + 1]; ++j) k[j] = j - r.r.matches.begin[i];
+            }
+            return take(std::move(k), {static_cast<py::ssize_t>(r.r.matches.matches.size())});
+          },
+          "(m,) int32: 0 for a keypoint's best match, 1 for the next...")
+      .def_property_readonly(
+          "match_class",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return field_view(r.r.matches.matches, &first_match(r).cls, self);
+          },
+          "(m,) int32: the landmark class.")
+      .def_property_readonly(
+          "match_landmark",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return field_view(r.r.matches.matches, &first_match(r).landmark, self);
+          },
+          "(m,) int64: the map landmark id.")
+      .def_property_readonly(
+          "match_score",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return field_view(r.r.matches.matches, &first_match(r).score, self);
+          },
+          "(m,) float64: the class score.")
+      .def_property_readonly(
+          "match_background_score",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return field_view(r.r.matches.matches, &first_match(r).background_score, self);
+          },
+          "(m,) float64: the keypoint's background score.")
+      .def_property_readonly(
+          "correspondence_keypoint",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return view<int32_t>(r.r.correspondence_keypoint.data(), r.r.correspondence_keypoint.size(), self);
+          },
+          "(c,) int32: the keypoint of each correspondence given to RANSAC.")
+      .def_property_readonly(
+          "correspondence_match",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return view<int32_t>(r.r.correspondence_match.data(), r.r.correspondence_match.size(), self);
+          },
+          "(c,) int32: the match (row of the match_* arrays) of each correspondence.")
+      .def_property_readonly(
+          "inlier_mask",
+          [](py::object self) {
+            const Result& r = self.cast<const Result&>();
+            return bool_view(r.r.pose.inlier_mask, self);
+          },
+          "(c,) bool: the correspondences that are inliers of cam_from_world.")
+      .def_property_readonly("timings_ms",
+                             [](const Result& r) {
+                               py::dict d;
+                               d["words"] = r.r.timings.words_ms;
+                               d["embedding"] = r.r.timings.embedding_ms;
+                               d["classification"] = r.r.timings.classification_ms;
+                               d["pose"] = r.r.timings.pose_ms;
+                               d["total"] = r.r.timings.total_ms;
+                               return d;
+                             })
       .def("__repr__", [](const Result& r) {
         return std::string("<landmarkboost.LocalizeResult: ") + (r.r.pose.success ? "localized, " : "not localized, ") +
-               std::to_string(r.r.pose.num_inliers) + " inliers of " +
-               std::to_string(r.r.correspondence_match.size()) + " correspondences, " +
-               std::to_string(r.r.matches.matches.size()) + " matches of " +
+               std::to_string(r.r.pose.num_inliers) + " inliers of " + std::to_string(r.r.correspondence_match.size()) +
+               " correspondences, " + std::to_string(r.r.matches.matches.size()) + " matches of " +
                std::to_string(r.r.matches.num_keypoints()) + " keypoints>";
       });
 
@@ -404,25 +459,27 @@ One Localizer may serve any number of threads at once; localize() releases the G
              return Localizer(std::move(model), options ? *options : LocalizerOptions());
            }),
            py::arg("model"), py::arg("options") = nullptr)
-      .def_property_readonly("model", [](const Localizer& l) { return std::const_pointer_cast<Model>(l.shared_model()); })
+      .def_property_readonly("model",
+                             [](const Localizer& l) { return std::const_pointer_cast<Model>(l.shared_model()); })
       .def_property_readonly("options", [](const Localizer& l) { return l.options(); })
-      .def("localize",
-           [](const Localizer& l, const Camera& camera, const py::array& keypoints, const py::array& descriptors,
-              const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions* options) {
-             const std::vector<Keypoint> kps = keypoints_from(keypoints);
-             const py::array_t<uint8_t> desc = descriptors_from(descriptors, kps.size(), l.model().descriptor_bytes());
-             const uint8_t* d = kps.empty() ? nullptr : desc.data();
-             auto result = std::make_shared<Result>();
-             {
-               py::gil_scoped_release release;
-               if (!PyGILState_Check()) ++calls_without_gil;
-               result->r = l.localize(camera, kps, d, gravity_in_cam, options ? *options : l.options());
-             }
-             return result;
-           },
-           py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
-           py::arg("options") = nullptr,
-           R"(Localizes one frame.
+      .def(
+          "localize",
+          [](const Localizer& l, const Camera& camera, const py::array& keypoints, const py::array& descriptors,
+             const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions* options) {
+            const std::vector<Keypoint> kps = keypoints_from(keypoints);
+            const py::array_t<uint8_t> desc = descriptors_from(descriptors, kps.size(), l.model().descriptor_bytes());
+            const uint8_t* d = kps.empty() ? nullptr : desc.data();
+            auto result = std::make_shared<Result>();
+            {
+              py::gil_scoped_release release;
+              if (!PyGILState_Check()) ++calls_without_gil;
+              result->r = l.localize(camera, kps, d, gravity_in_cam, options ? *options : l.options());
+            }
+            return result;
+          },
+          py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
+          py::arg("options") = nullptr,
+          R"(Localizes one frame.
 camera: Camera; keypoints: (n, 4) array of x, y, size, angle (pixels in COLMAP's convention: OpenCV's
 KeyPoint.pt + 0.5; size = the detector's diameter, pixels; angle in degrees or -1); descriptors:
 (n, model.descriptor_bytes) uint8, read in place when C-contiguous; gravity_in_cam: the direction

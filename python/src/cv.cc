@@ -7,12 +7,12 @@
 #include <utility>
 #include <vector>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "common/detector_options.h"
 #include "common/error.h"
@@ -39,8 +39,10 @@ PYBIND11_MODULE(_cv, m) {
          int brisk_threshold, int brisk_octaves) {
         if (image.dtype().kind() != 'u' || image.dtype().itemsize() != 1 || image.ndim() < 2 || image.ndim() > 3 ||
             (image.ndim() == 3 && image.shape(2) != 1 && image.shape(2) != 3 && image.shape(2) != 4)) {
-          throw py::value_error("detect_features: image: expected a uint8 array of shape (h, w), (h, w, 3) or "
-                                "(h, w, 4); got a " + describe(image));
+          throw py::value_error(
+              "detect_features: image: expected a uint8 array of shape (h, w), (h, w, 3) or "
+              "(h, w, 4); got a " +
+              describe(image));
         }
         if (channels != "RGB" && channels != "BGR") {
           throw py::value_error("detect_features: channels: '" + channels + "' (expected RGB or BGR)");

@@ -17,8 +17,7 @@ namespace py = pybind11;
 
 // A read-only array over `data` (shape and byte strides given) that keeps `owner` alive.
 template <class T>
-py::array_t<T> view(const T* data, std::vector<py::ssize_t> shape, std::vector<py::ssize_t> strides,
-                    py::handle owner) {
+py::array_t<T> view(const T* data, std::vector<py::ssize_t> shape, std::vector<py::ssize_t> strides, py::handle owner) {
   py::array_t<T> a(std::move(shape), std::move(strides), data, owner);
   py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
   return a;
@@ -40,8 +39,7 @@ py::array_t<T> take(std::vector<T>&& v, std::vector<py::ssize_t> shape) {
 
 // A vector<char> of 0/1 as a read-only numpy bool view.
 inline py::array bool_view(const std::vector<char>& v, py::handle owner) {
-  py::array a(py::dtype("bool"), {static_cast<py::ssize_t>(v.size())}, {static_cast<py::ssize_t>(1)},
-              v.data(), owner);
+  py::array a(py::dtype("bool"), {static_cast<py::ssize_t>(v.size())}, {static_cast<py::ssize_t>(1)}, v.data(), owner);
   py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
   return a;
 }

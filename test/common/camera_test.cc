@@ -26,8 +26,7 @@ std::vector<Camera> all_models() {
       make(CameraModel::kRadial, {500, 320, 240, -0.1, 0.02}),
       make(CameraModel::kOpenCV, {510, 490, 318, 241, -0.2, 0.05, 0.001, -0.002}),
       // The TUM freiburg1 calibration: strong distortion with k3 > 1.
-      make(CameraModel::kFullOpenCV,
-           {517.3, 516.5, 318.6, 255.3, 0.2624, -0.9531, -0.0054, 0.0026, 1.1633, 0, 0, 0}),
+      make(CameraModel::kFullOpenCV, {517.3, 516.5, 318.6, 255.3, 0.2624, -0.9531, -0.0054, 0.0026, 1.1633, 0, 0, 0}),
   };
 }
 
@@ -38,8 +37,7 @@ TEST(Camera, KnownProjectionValues) {
 
   // SIMPLE_RADIAL: u=(0.2, 0.1), r2=0.05, k=-0.1: factor 1 - 0.005 = 0.995.
   const Camera sr = make(CameraModel::kSimpleRadial, {500, 320, 240, -0.1});
-  EXPECT_TRUE(sr.img_from_cam({0.2, 0.1}).isApprox(Eigen::Vector2d(320 + 500 * 0.2 * 0.995,
-                                                                   240 + 500 * 0.1 * 0.995)));
+  EXPECT_TRUE(sr.img_from_cam({0.2, 0.1}).isApprox(Eigen::Vector2d(320 + 500 * 0.2 * 0.995, 240 + 500 * 0.1 * 0.995)));
 
   // OPENCV tangential terms only: p1=0.01, p2=0.02, u=(0.3, 0.4): uv=0.12, r2=0.25.
   const Camera cv = make(CameraModel::kOpenCV, {100, 100, 0, 0, 0, 0, 0.01, 0.02});
@@ -60,8 +58,7 @@ TEST(Camera, UndistortionInvertsDistortionOverTheImage) {
         const Eigen::Vector2d pixel(x, y);
         const Eigen::Vector2d n = camera.cam_from_img(pixel);
         const Eigen::Vector2d back = camera.img_from_cam(n);
-        EXPECT_LT((back - pixel).norm(), 1e-6)
-            << camera_model_name(camera.model) << " at " << x << "," << y;
+        EXPECT_LT((back - pixel).norm(), 1e-6) << camera_model_name(camera.model) << " at " << x << "," << y;
       }
     }
   }
@@ -119,8 +116,7 @@ TEST(Camera, KnownValuesForEveryModelBothWays) {
       {make(CameraModel::kOpenCV, {400, 300, 320, 240, 0.1, -0.05, 0.001, 0.002}), {0.3, 0.4}, {443.065, 362.94}},
       // FULL_OPENCV, the TUM freiburg1 camera at (0.2, -0.1): r2=0.05, radial 1.0108826625,
       // x_d = 0.2021765325 + 0.000216 + 0.000338, y_d = -0.10108826625 - 0.000104 - 0.000378.
-      {make(CameraModel::kFullOpenCV,
-            {517.3, 516.5, 318.6, 255.3, 0.2624, -0.9531, -0.0054, 0.0026, 1.1633, 0, 0, 0}),
+      {make(CameraModel::kFullOpenCV, {517.3, 516.5, 318.6, 255.3, 0.2624, -0.9531, -0.0054, 0.0026, 1.1633, 0, 0, 0}),
        {0.2, -0.1},
        {318.6 + 517.3 * 0.2027305325, 255.3 - 516.5 * 0.10157026625}},
       // FULL_OPENCV rational terms k1..k6 at (0.3, 0.4): r2=0.25, r4=0.0625, r6=0.015625:

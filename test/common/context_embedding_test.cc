@@ -83,17 +83,15 @@ TEST(ContextBin, FastDivisionEqualsContextBin) {
   for (int32_t total = 0; total <= 4096; ++total) {
     const uint64_t magic = context_bin_magic(total);
     for (int32_t count = 0; count <= total; ++count) {
-      ASSERT_EQ(context_bin_fast(count, total, magic), context_bin(count, total))
-          << count << " / " << total;
+      ASSERT_EQ(context_bin_fast(count, total, magic), context_bin(count, total)) << count << " / " << total;
     }
   }
   Rng rng(9);
   for (int32_t total = 4097; total <= 65535; ++total) {
     const uint64_t magic = context_bin_magic(total);
-    for (int32_t count : {0, 1, total / 255, total / 2 - 1, total / 2, total / 2 + 1, total - 1,
-                          total, static_cast<int32_t>(rng.below(static_cast<uint64_t>(total) + 1))}) {
-      ASSERT_EQ(context_bin_fast(count, total, magic), context_bin(count, total))
-          << count << " / " << total;
+    for (int32_t count : {0, 1, total / 255, total / 2 - 1, total / 2, total / 2 + 1, total - 1, total,
+                          static_cast<int32_t>(rng.below(static_cast<uint64_t>(total) + 1))}) {
+      ASSERT_EQ(context_bin_fast(count, total, magic), context_bin(count, total)) << count << " / " << total;
     }
   }
 }
@@ -126,8 +124,7 @@ TEST(FrameContext, FastEqualsBruteForceOnEveryDimension) {
       for (int k = 0; k < n; ++k) {
         embed_context_brute_force(regions, kWords, frame, k, reference.data());
         for (size_t d = 0; d < reference.size(); ++d) {
-          ASSERT_EQ(fast[k * reference.size() + d], reference[d])
-              << "n " << n << " keypoint " << k << " dim " << d;
+          ASSERT_EQ(fast[k * reference.size() + d], reference[d]) << "n " << n << " keypoint " << k << " dim " << d;
           nonzero += reference[d] != 0;
           ++checked;
         }
@@ -174,8 +171,7 @@ uint8_t reference_dim(const ContextRegions& regions, const FrameKeypoints& frame
   const int32_t context_dims = regions.size() * kWords;
   if (d >= context_dims) return static_cast<uint8_t>(descriptor_bit(descriptor, d - context_dims));
   std::vector<int32_t> counts(kWords);
-  const int32_t total =
-      region_counts_brute_force(regions, kWords, frame, k, d / kWords, counts.data());
+  const int32_t total = region_counts_brute_force(regions, kWords, frame, k, d / kWords, counts.data());
   return context_bin(counts[d % kWords], total);
 }
 
@@ -223,8 +219,7 @@ TEST(FrameContext, ComputeDimsEqualsBruteForceWithAndWithoutAPlan) {
         FrameContext ctx(regions, kWords);
         ctx.reset(frame);
         std::vector<uint8_t> all(static_cast<size_t>(n) * dims.size());
-        ctx.compute_dims_all(dims.data(), static_cast<int32_t>(dims.size()), descriptors.data(),
-                             bytes, all.data());
+        ctx.compute_dims_all(dims.data(), static_cast<int32_t>(dims.size()), descriptors.data(), bytes, all.data());
         // The prepared plan gives the same bytes.
         const DimPlan plan(regions, EmbeddingLayout{regions.size(), kWords, bytes}, dims);
         std::vector<uint8_t> planned(all.size(), 0xEE);
@@ -283,7 +278,7 @@ TEST(FrameContext, PlanPathOnDegenerateAndCrowdedFramesEqualsBruteForce) {
     ctx.compute_dims_all(plan, descriptors.data(), planned.data());
     expect_columns_equal_rows(ctx, plan, descriptors.data(), planned, n, rng);
     int nonzero = 0;
-    for (int k = 0; k < n; k += n > 50 ? 7 : 1) {
+    for (int k = 0; k<n; k += n> 50 ? 7 : 1) {
       for (size_t i = 0; i < dims.size(); ++i) {
         const uint8_t v = planned[k * dims.size() + i];
         ASSERT_EQ(v, reference_dim(regions, frame, k, dims[i], descriptors.data() + k * bytes))
@@ -339,10 +334,9 @@ TEST(FrameContext, EmbeddingIsExactlyInvariantUnderTranslationScalingAndRotation
     Eigen::Vector2d translation;
   };
   const Transform transforms[] = {
-      {"translate", 1.0, 0, {0.25, -0.375}},   {"scale x2", 2.0, 0, {0, 0}},
-      {"scale x0.5", 0.5, 0, {0, 0}},          {"rotate 90", 1.0, 1, {0, 0}},
-      {"rotate 180", 1.0, 2, {0, 0}},          {"rotate 270", 1.0, 3, {0, 0}},
-      {"all together", 2.0, 1, {-0.5, 0.75}},  {"all, 180", 0.5, 2, {0.125, 0.5}},
+      {"translate", 1.0, 0, {0.25, -0.375}},  {"scale x2", 2.0, 0, {0, 0}},       {"scale x0.5", 0.5, 0, {0, 0}},
+      {"rotate 90", 1.0, 1, {0, 0}},          {"rotate 180", 1.0, 2, {0, 0}},     {"rotate 270", 1.0, 3, {0, 0}},
+      {"all together", 2.0, 1, {-0.5, 0.75}}, {"all, 180", 0.5, 2, {0.125, 0.5}},
   };
   for (const Transform& t : transforms) {
     Eigen::Matrix2d rot = Eigen::Matrix2d::Identity();
@@ -377,8 +371,7 @@ TEST(FrameContext, GeneralRotationChangesCountsOnlyByKeypointsOnRegionBorders) {
   }
   const FrameKeypoints a = align(base);
   for (double angle : {0.3, 1.9, -2.5}) {
-    const Eigen::Matrix2d rot{{std::cos(angle), -std::sin(angle)},
-                              {std::sin(angle), std::cos(angle)}};
+    const Eigen::Matrix2d rot{{std::cos(angle), -std::sin(angle)}, {std::sin(angle), std::cos(angle)}};
     RawFrame moved = base;
     for (auto& p : moved.positions) p = rot * p + Eigen::Vector2d(0.3, -0.1);
     const FrameKeypoints b = align(moved, rot * Eigen::Vector2d(0, 1));
@@ -402,7 +395,7 @@ TEST(FrameContext, GeneralRotationChangesCountsOnlyByKeypointsOnRegionBorders) {
         for (int j = 0; j < a.size(); ++j) {
           if (j == k) continue;
           const double x = a.x[j], y = a.y[j];
-          const bool in_x = x > lx - eps && x < hx + eps, in_y = y > ly - eps && y < hy + eps;
+          const bool in_x = x > lx - eps && x<hx + eps, in_y = y> ly - eps && y < hy + eps;
           const bool on_x = std::abs(x - lx) < eps || std::abs(x - hx) < eps;
           const bool on_y = std::abs(y - ly) < eps || std::abs(y - hy) < eps;
           if ((on_x && in_y) || (on_y && in_x)) ++near[a.word[j]], ++near_all;
@@ -445,8 +438,7 @@ TEST(Geometry, NormalizeKeypointWithDistortionUndistorts) {
   const Eigen::Vector2d pixel = cam.img_from_cam(truth);
   Eigen::Vector2d p;
   double s = 0;
-  normalize_keypoint(cam, Keypoint{static_cast<float>(pixel.x()), static_cast<float>(pixel.y()), 10.f, -1},
-                     &p, &s);
+  normalize_keypoint(cam, Keypoint{static_cast<float>(pixel.x()), static_cast<float>(pixel.y()), 10.f, -1}, &p, &s);
   EXPECT_NEAR(p.x(), truth.x(), 1e-5);
   EXPECT_NEAR(p.y(), truth.y(), 1e-5);
   EXPECT_GT(s, 0.0);
@@ -463,8 +455,8 @@ TEST(Geometry, GravityDirectionAndDegenerateFallback) {
   EXPECT_NEAR(g.x(), 0.6, 1e-15);
   EXPECT_NEAR(g.y(), 0.8, 1e-15);
   // Parallel to the optical axis (camera looking straight down or up): image +y, flagged.
-  for (const Eigen::Vector3d& v : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1),
-                                   Eigen::Vector3d(1e-5, -1e-5, 1)}) {
+  for (const Eigen::Vector3d& v :
+       {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(1e-5, -1e-5, 1)}) {
     g = gravity_direction_in_image(v, &degenerate);
     EXPECT_TRUE(degenerate);
     EXPECT_EQ(g, Eigen::Vector2d(0, 1));
@@ -483,8 +475,7 @@ TEST(Geometry, FrameFromDetectionsRotatesByGravity) {
   // Gravity pointing to image +x (camera rolled by 90 degrees): p' = (-p_y, p_x).
   const Keypoint kps[2] = {{320.f + 64.f, 240.f, 8.f, -1}, {320.f, 240.f + 128.f, 16.f, -1}};
   const uint8_t words[2] = {0, 1};
-  const FrameKeypoints f =
-      frame_keypoints_from_detections(cam, kps, words, 2, Eigen::Vector3d(1, 0, 0), "frame 3");
+  const FrameKeypoints f = frame_keypoints_from_detections(cam, kps, words, 2, Eigen::Vector3d(1, 0, 0), "frame 3");
   EXPECT_FLOAT_EQ(f.x[0], 0.f);
   EXPECT_FLOAT_EQ(f.y[0], 0.125f);
   EXPECT_FLOAT_EQ(f.x[1], -0.25f);
@@ -498,8 +489,7 @@ TEST(Geometry, FrameFromDetectionsRotatesByGravity) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("frame 3"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(frame_keypoints_from_detections(cam, kps, words, 2, Eigen::Vector3d(0, 0, 0), "f"),
-               Error);
+  EXPECT_THROW(frame_keypoints_from_detections(cam, kps, words, 2, Eigen::Vector3d(0, 0, 0), "f"), Error);
 }
 
 TEST(DimPlan, RejectsUnsortedOrOutOfRangeDimsAndForeignLayouts) {

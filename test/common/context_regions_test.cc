@@ -5,8 +5,8 @@
 #include <functional>
 #include <sstream>
 
-#include <cereal/archives/portable_binary.hpp>
 #include <gtest/gtest.h>
+#include <cereal/archives/portable_binary.hpp>
 
 #include "common/bounded_reader.h"
 #include "common/error.h"
@@ -59,8 +59,7 @@ TEST(ContextRegions, AreaChiSquareOverLogBinsAtSignificance0001) {
   std::vector<int> counts(bins, 0);
   const double lo = std::log(o.min_area), hi = std::log(o.max_area);
   for (const RegionRect& r : regions.rects()) {
-    const int b = std::clamp(static_cast<int>((std::log(r.area()) - lo) / (hi - lo) * bins), 0,
-                             bins - 1);
+    const int b = std::clamp(static_cast<int>((std::log(r.area()) - lo) / (hi - lo) * bins), 0, bins - 1);
     ++counts[b];
   }
   const double expected = static_cast<double>(o.num_regions) / bins;

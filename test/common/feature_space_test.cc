@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include <cereal/archives/portable_binary.hpp>
 #include <gtest/gtest.h>
+#include <cereal/archives/portable_binary.hpp>
 
 #include "common/bounded_reader.h"
 #include "common/error.h"

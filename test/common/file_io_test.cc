@@ -172,8 +172,8 @@ TEST_F(FileIoTest, BadPathsFailWithOneClearLine) {
   EXPECT_EQ(error_of([&] { write_file_atomically(dir_ / "folder", "x"); }),
             (dir_ / "folder").string() + ": is a folder, not a file");
   EXPECT_EQ(error_of([&] { write_file_atomically(dir_ / "missing" / "a.json", "x"); }),
-            (dir_ / "missing" / "a.json").string() + ": cannot create the file: folder " +
-                (dir_ / "missing").string() + " does not exist");
+            (dir_ / "missing" / "a.json").string() + ": cannot create the file: folder " + (dir_ / "missing").string() +
+                " does not exist");
   EXPECT_EQ(error_of([&] { read_file(dir_ / "folder"); }), (dir_ / "folder").string() + ": is a folder, not a file");
   EXPECT_EQ(error_of([&] { read_file(dir_ / "nope"); }),
             (dir_ / "nope").string() + ": cannot open file: No such file or directory");
@@ -199,21 +199,25 @@ TEST_F(FileIoTest, StaleTemporariesOfDeadWritersAreRemoved) {
   ASSERT_GT(child, 0);
   ::waitpid(child, nullptr, 0);
   const std::string dead = std::to_string(child), alive = std::to_string(::getpid());
-  const std::vector<std::string> names = {".ckpt-0000010.h5.tmp-" + dead, ".ckpt-0000010.h5.tmp-" + dead + "-2",
-                                          ".ckpt-0000020.h5.tmp-" + alive, ".map.h5.tmp-1",  // pid 1 runs
-                                          "ckpt-0000030.h5", ".notes.tmp-x" + dead};
+  const std::vector<std::string> names = {".ckpt-0000010.h5.tmp-" + dead,
+                                          ".ckpt-0000010.h5.tmp-" + dead + "-2",
+                                          ".ckpt-0000020.h5.tmp-" + alive,
+                                          ".map.h5.tmp-1",  // pid 1 runs
+                                          "ckpt-0000030.h5",
+                                          ".notes.tmp-x" + dead};
   for (const std::string& name : names) {
     write_file_atomically(dir_ / name, "t");
   }
   remove_stale_temporaries(dir_);
   auto left = others({});
   std::sort(left.begin(), left.end());
-  EXPECT_EQ(left, (std::vector<std::string>{".ckpt-0000020.h5.tmp-" + alive, ".map.h5.tmp-1",
-                                            ".notes.tmp-x" + dead, "ckpt-0000030.h5"}));
+  EXPECT_EQ(left, (std::vector<std::string>{".ckpt-0000020.h5.tmp-" + alive, ".map.h5.tmp-1", ".notes.tmp-x" + dead,
+                                            "ckpt-0000030.h5"}));
 }
 
 TEST_F(FileIoTest, TextLineReaderNumbersDataLines) {
-  write_file_atomically(dir_ / "a.txt", "# comment\n\n  \t\nfirst line\r\n  # indented comment\nsecond\tfield  x\nlast");
+  write_file_atomically(dir_ / "a.txt",
+                        "# comment\n\n  \t\nfirst line\r\n  # indented comment\nsecond\tfield  x\nlast");
   TextLineReader r(dir_ / "a.txt");
   ASSERT_TRUE(r.next());
   EXPECT_EQ(r.line(), "first line");

@@ -33,8 +33,7 @@ std::vector<uint8_t> clustered(int k, int64_t n, int bytes, double flip, uint64_
 }
 
 std::filesystem::path temp_path(const std::string& name) {
-  return std::filesystem::temp_directory_path() /
-         ("lmb_vocab_test_" + std::to_string(::getpid()) + "_" + name);
+  return std::filesystem::temp_directory_path() / ("lmb_vocab_test_" + std::to_string(::getpid()) + "_" + name);
 }
 
 TEST(Vocabulary, TrainingCostNeverIncreasesDecreasesOverallAndIsDeterministic) {
@@ -45,8 +44,7 @@ TEST(Vocabulary, TrainingCostNeverIncreasesDecreasesOverallAndIsDeterministic) {
   o.seed = 7;
   VocabularyTrainStats s1, s2;
   std::vector<int64_t> logged;
-  const Vocabulary v1 = train_vocabulary(x.data(), 6000, bytes, o, &s1,
-                                         [&](int, int64_t c) { logged.push_back(c); });
+  const Vocabulary v1 = train_vocabulary(x.data(), 6000, bytes, o, &s1, [&](int, int64_t c) { logged.push_back(c); });
   const Vocabulary v2 = train_vocabulary(x.data(), 6000, bytes, o, &s2);
   ASSERT_GE(s1.cost.size(), 2u);
   EXPECT_EQ(logged, s1.cost);
@@ -165,7 +163,8 @@ TEST(Vocabulary, EmptyOrShortPayloadIsAnErrorNotACrash) {
     Vocabulary::load(path);
     ADD_FAILURE() << "an empty payload was accepted";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), path.string() + ": truncated vocabulary header (0 payload bytes, expected at least 9)");
+    EXPECT_EQ(std::string(e.what()),
+              path.string() + ": truncated vocabulary header (0 payload bytes, expected at least 9)");
   }
   const std::string payload = Vocabulary(8, std::vector<uint8_t>(4 * 8, 7)).to_payload();
   for (size_t n = 0; n < 9; ++n) {

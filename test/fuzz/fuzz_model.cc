@@ -37,9 +37,8 @@ void classify_small_frame(const std::shared_ptr<const lmb::Model>& model) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  lmb::fuzz::call_loader("Model::from_bytes", [&] {
-    classify_small_frame(lmb::Model::from_bytes(data, size, "fuzz.lbm"));
-  });
+  lmb::fuzz::call_loader("Model::from_bytes",
+                         [&] { classify_small_frame(lmb::Model::from_bytes(data, size, "fuzz.lbm")); });
   const std::vector<uint8_t> repaired = lmb::fuzz::with_repaired_header(data, size);
   lmb::fuzz::call_loader("Model::from_bytes (repaired header)", [&] {
     classify_small_frame(lmb::Model::from_bytes(repaired.data(), repaired.size(), "fuzz.lbm"));

@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "common/file_io.h"
-#include "train/boost/boost_model.h"
 #include "test/fuzz/fuzz_util.h"
+#include "train/boost/boost_model.h"
 
 namespace {
 

@@ -58,8 +58,7 @@ inline std::string join_files(const std::vector<std::string>& parts) {
 inline const std::filesystem::path& scratch_dir() {
   static const std::filesystem::path dir = [] {
     const char* tmp = std::getenv("TMPDIR");
-    std::filesystem::path d = std::filesystem::path(tmp ? tmp : "/tmp") /
-                              ("lmb_fuzz_" + std::to_string(::getpid()));
+    std::filesystem::path d = std::filesystem::path(tmp ? tmp : "/tmp") / ("lmb_fuzz_" + std::to_string(::getpid()));
     std::filesystem::create_directories(d);
     return d;
   }();

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "common/file_container.h"
 #include "common/feature_space.h"
+#include "common/file_container.h"
 #include "common/file_io.h"
 #include "common/io/colmap_binary.h"
 #include "common/io/colmap_model.h"
@@ -20,9 +20,9 @@
 #include "test/common/io/test_maps.h"
 #include "test/fuzz/fuzz_util.h"
 #include "test/infer/test_models.h"
+#include "train/boost/boost_model.h"
 #include "train/boost/stump_learner.h"
 #include "train/boost/synthetic_problem.h"
-#include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
 #include "train/checkpoint/checkpoint_h5.h"
 
@@ -57,10 +57,12 @@ ColmapModel small_colmap_model() {
     im.image_id = i;
     im.camera_id = i == 2 ? 4 : 1;
     im.name = (i == 3 ? "query/" : "map/") + std::to_string(i) + ".png";
-    im.cam_from_world.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * i, Eigen::Vector3d(0.1, 1, 0.2).normalized()));
+    im.cam_from_world.rotation =
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * i, Eigen::Vector3d(0.1, 1, 0.2).normalized()));
     im.cam_from_world.translation = Eigen::Vector3d(0.5 * i, -0.25, 1.0);
     if (i < 3) {
-      im.points2d = {{Eigen::Vector2d(10.5, 20.25), 7}, {Eigen::Vector2d(100, 50), ColmapPoint2D::kNoPoint3D},
+      im.points2d = {{Eigen::Vector2d(10.5, 20.25), 7},
+                     {Eigen::Vector2d(100, 50), ColmapPoint2D::kNoPoint3D},
                      {Eigen::Vector2d(30, 40.5), 9}};
     }
     m.images.push_back(im);
@@ -148,7 +150,8 @@ void make_seeds(const fs::path& out, const fs::path& scratch) {
     put(out / "trained_model", "synthetic.bin", read_file(scratch / "synthetic.bin"));
   }
   // Gravity.
-  write_gravity_file({{"map/1.png", Eigen::Vector3d(0, 1, 0)}, {"map/2.png", Eigen::Vector3d(0.1, 0.9, -0.2)},
+  write_gravity_file({{"map/1.png", Eigen::Vector3d(0, 1, 0)},
+                      {"map/2.png", Eigen::Vector3d(0.1, 0.9, -0.2)},
                       {"query/3.png", Eigen::Vector3d(1e-3, 2.5, 1e3)}},
                      scratch / "gravity.txt");
   put(out / "gravity", "gravity.txt", read_file(scratch / "gravity.txt"));

@@ -93,7 +93,8 @@ TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
     } catch (const Error& e) {
       const std::string what = e.what();
       EXPECT_NE(what.find(": area " + std::to_string(id) + " (area-" + std::to_string(id) + ".lbm): "),
-                std::string::npos) << what;
+                std::string::npos)
+          << what;
       EXPECT_EQ(what.find('\n'), std::string::npos) << what;
       if (id == 1) {
         EXPECT_NE(what.find("CRC-32 mismatch"), std::string::npos) << what;
@@ -182,7 +183,8 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   const auto one = AreaBundle::open(dir_ / "one.txt");
   const BundleLocalizeResult b =
       localize_in_bundle(*one, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
-  const LocalizeResult single = Localizer(model).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  const LocalizeResult single =
+      Localizer(model).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
   ASSERT_EQ(b.area, 0);
   ASSERT_TRUE(single.pose.success);
   EXPECT_EQ(b.result.pose.num_inliers, single.pose.num_inliers);

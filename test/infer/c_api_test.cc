@@ -50,8 +50,8 @@ TEST(CApiTest, LocalizesLikeTheCppApi) {
   std::vector<lmb_match> matches(1000);
   int num_matches = -1;
   ASSERT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
-                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, &options,
-                         &pose, matches.data(), static_cast<int>(matches.size()), &num_matches),
+                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, &options, &pose,
+                         matches.data(), static_cast<int>(matches.size()), &num_matches),
             LMB_OK)
       << lmb_last_error();
 
@@ -59,8 +59,8 @@ TEST(CApiTest, LocalizesLikeTheCppApi) {
   o.classifier.top_k = 2;
   o.pose.seed = 5;
   const Localizer localizer(std::make_shared<const Model>(fx.model.data()), o);
-  const LocalizeResult r = localizer.localize(fx.world.frame.camera, fx.world.frame.keypoints,
-                                              fx.world.frame.descriptors.data(), g);
+  const LocalizeResult r =
+      localizer.localize(fx.world.frame.camera, fx.world.frame.keypoints, fx.world.frame.descriptors.data(), g);
   ASSERT_TRUE(r.pose.success);
   EXPECT_EQ(pose.success, 1);
   EXPECT_EQ(pose.num_inliers, r.pose.num_inliers);
@@ -86,8 +86,8 @@ TEST(CApiTest, LocalizesLikeTheCppApi) {
   lmb_pose pose2;
   int n2 = 0;
   EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
-                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, &options,
-                         &pose2, matches.data(), 3, &n2),
+                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, &options, &pose2,
+                         matches.data(), 3, &n2),
             LMB_ERROR_BUFFER_TOO_SMALL);
   EXPECT_EQ(n2, num_matches);
   EXPECT_EQ(pose2.success, 1);
@@ -121,32 +121,32 @@ TEST(CApiTest, ErrorsAreStatusesWithMessages) {
   lmb_pose pose;
   const int n = static_cast<int>(fx.keypoints.size());
   const uint8_t* desc = fx.world.frame.descriptors.data();
-  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, 32, gravity, nullptr, &pose,
-                         nullptr, 0, nullptr),
-            LMB_ERROR_INVALID_ARGUMENT);  // wrong descriptor length
+  EXPECT_EQ(
+      lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, 32, gravity, nullptr, &pose, nullptr, 0, nullptr),
+      LMB_ERROR_INVALID_ARGUMENT);  // wrong descriptor length
   EXPECT_NE(std::string(lmb_last_error()).find("bytes"), std::string::npos);
-  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, zero,
-                         nullptr, &pose, nullptr, 0, nullptr),
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, zero, nullptr,
+                         &pose, nullptr, 0, nullptr),
             LMB_ERROR_INVALID_ARGUMENT);  // zero gravity: an lmb::Error inside, a status outside
   EXPECT_NE(std::string(lmb_last_error()).find("gravity"), std::string::npos) << lmb_last_error();
   lmb_camera bad = fx.camera;
   bad.model = 99;
-  EXPECT_EQ(lmb_localize(model, &bad, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity,
-                         nullptr, &pose, nullptr, 0, nullptr),
+  EXPECT_EQ(lmb_localize(model, &bad, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity, nullptr, &pose,
+                         nullptr, 0, nullptr),
             LMB_ERROR_INVALID_ARGUMENT);
   lmb_localize_options options;
   lmb_localize_options_init(&options);
   options.top_k = 0;
-  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity,
-                         &options, &pose, nullptr, 0, nullptr),
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity, &options,
+                         &pose, nullptr, 0, nullptr),
             LMB_ERROR_INVALID_ARGUMENT);
-  EXPECT_EQ(lmb_localize(nullptr, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes,
-                         gravity, nullptr, &pose, nullptr, 0, nullptr),
+  EXPECT_EQ(lmb_localize(nullptr, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity,
+                         nullptr, &pose, nullptr, 0, nullptr),
             LMB_ERROR_INVALID_ARGUMENT);
   // Without a matches buffer: the pose and the match count alone.
   int count = 0;
-  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes,
-                         gravity, nullptr, &pose, nullptr, 0, &count),
+  EXPECT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), n, desc, test::kCodeDescriptorBytes, gravity, nullptr,
+                         &pose, nullptr, 0, &count),
             LMB_OK);
   EXPECT_GT(count, 0);
   EXPECT_EQ(pose.success, 1);

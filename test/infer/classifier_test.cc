@@ -56,12 +56,12 @@ ModelData random_model_data(int32_t C, int32_t M, uint64_t seed) {
 }
 
 // Reference: the dense feature vector of keypoint k (brute-force context + descriptor bits).
-std::vector<uint8_t> reference_vector(const Model& m, const FrameKeypoints& frame, int32_t k,
-                                      const uint8_t* desc) {
+std::vector<uint8_t> reference_vector(const Model& m, const FrameKeypoints& frame, int32_t k, const uint8_t* desc) {
   const EmbeddingLayout l = m.layout();
   std::vector<uint8_t> v(static_cast<size_t>(l.num_dims()));
   embed_context_brute_force(m.regions(), l.num_words, frame, k, v.data());
-  for (int32_t b = 0; b < 8 * l.descriptor_bytes; ++b) v[l.num_context_dims() + b] = static_cast<uint8_t>(descriptor_bit(desc, b));
+  for (int32_t b = 0; b < 8 * l.descriptor_bytes; ++b)
+    v[l.num_context_dims() + b] = static_cast<uint8_t>(descriptor_bit(desc, b));
   return v;
 }
 
@@ -82,7 +82,8 @@ double reference_fusion(const ModelData& d, const uint8_t* desc, int32_t c) {
   if (!d.fusion.enabled() || c >= d.num_classes) return 0.0;
   int best = 1 << 30;
   for (int64_t r = d.fusion.exemplar_begin[c]; r < d.fusion.exemplar_begin[c + 1]; ++r) {
-    best = std::min(best, hamming_distance(desc, d.fusion.exemplars.data() + r * d.descriptor_bytes, d.descriptor_bytes));
+    best =
+        std::min(best, hamming_distance(desc, d.fusion.exemplars.data() + r * d.descriptor_bytes, d.descriptor_bytes));
   }
   return d.fusion.distance_score[best];
 }
@@ -100,7 +101,8 @@ void add_random_fusion(ModelData* d, const test::TestFrame& frame, uint64_t seed
     for (int r = 0; r < rows; ++r) {
       std::vector<uint8_t> e(static_cast<size_t>(bytes));
       if (rng.uniform() < 0.6) {
-        const uint8_t* src = frame.descriptors.data() + static_cast<int64_t>(rng.below(static_cast<uint64_t>(n))) * bytes;
+        const uint8_t* src =
+            frame.descriptors.data() + static_cast<int64_t>(rng.below(static_cast<uint64_t>(n))) * bytes;
         std::copy(src, src + bytes, e.begin());
         const int flips = static_cast<int>(rng.below(12));
         for (int i = 0; i < flips; ++i) {
@@ -320,8 +322,8 @@ TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
     std::vector<double> a(B), g(B), p0(B), p1(B);
     detail::accumulate_lanes(bias0, list0.data(), n0, stumps.data(), fire.data(), a.data());
     detail::accumulate_lanes_generic(bias0, list0.data(), n0, stumps.data(), fire.data(), g.data());
-    detail::accumulate_two(bias0, list0.data(), n0, bias1, list1.data(), n1, stumps.data(),
-                           fire.data(), p0.data(), p1.data());
+    detail::accumulate_two(bias0, list0.data(), n0, bias1, list1.data(), n1, stumps.data(), fire.data(), p0.data(),
+                           p1.data());
     // accumulate_groups: five items (a group of list0, all four of list1), each 8 lanes.
     std::vector<double> grouped(5 * 8);
     const int32_t group0 = trial % 4;
@@ -402,8 +404,8 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
         const int64_t n = model.class_stump_begin()[c + 1] - model.class_stump_begin()[c];
         std::vector<double> below(2 * B), above(2 * B), exact(2 * B);
         for (int32_t b = 0; b < 2; ++b) {
-          detail::accumulate_lanes_generic(model.data().bias[c], list, n, model.dense_stumps().data(),
-                                           fire[b], exact.data() + b * B);
+          detail::accumulate_lanes_generic(model.data().bias[c], list, n, model.dense_stumps().data(), fire[b],
+                                           exact.data() + b * B);
         }
         for (int32_t j = 0; j < 2 * B; ++j) {
           below[j] = std::nextafter(exact[j], -inf);

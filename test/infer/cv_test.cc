@@ -30,8 +30,7 @@ TEST(InferCvTest, ColourImageGivesTheMappersKeypointsAndDescriptors) {
   size_t total = 0;
   for (int f = 0; f < 3; ++f) {
     const RenderedFrame frame = render_frame(world, rays, session.cam_from_world[f], session.lighting, f, 2);
-    const fs::path path =
-        fs::temp_directory_path() / ("lmb_infer_cv_" + std::to_string(::getpid()) + ".png");
+    const fs::path path = fs::temp_directory_path() / ("lmb_infer_cv_" + std::to_string(::getpid()) + ".png");
     ASSERT_TRUE(cv::imwrite(path.string(), frame.image));
     const cv::Mat gray = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);  // as the mapper reads
     const cv::Mat colour = cv::imread(path.string(), cv::IMREAD_COLOR);    // as an app might

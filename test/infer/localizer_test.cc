@@ -16,8 +16,7 @@ namespace {
 
 struct Fixture {
   test::TestWorld world = test::make_test_world(101, 60, 140, 21);
-  std::shared_ptr<const Model> model =
-      std::make_shared<const Model>(test::make_code_model_data(world.positions));
+  std::shared_ptr<const Model> model = std::make_shared<const Model>(test::make_code_model_data(world.positions));
 };
 
 LocalizeResult run(const Localizer& localizer, const test::TestFrame& f) {

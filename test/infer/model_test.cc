@@ -56,9 +56,7 @@ std::vector<Eigen::Vector3d> some_positions(int n) {
   return p;
 }
 
-std::vector<uint8_t> small_model_file() {
-  return Model(make_code_model_data(some_positions(5))).to_bytes();
-}
+std::vector<uint8_t> small_model_file() { return Model(make_code_model_data(some_positions(5))).to_bytes(); }
 
 std::string expect_rejected(const std::vector<uint8_t>& bytes) {
   try {
@@ -217,9 +215,9 @@ TEST(ModelTest, IdCodingRoundTripAndRejectsCorruptLists) {
   EXPECT_THROW(detail::decode_ascending_ids(bytes, static_cast<uint32_t>(ids.size()), 1999999, "t"), Error);
   EXPECT_THROW(detail::decode_ascending_ids(bytes, static_cast<uint32_t>(ids.size()) - 1, 2000000, "t"), Error);
   EXPECT_THROW(detail::decode_ascending_ids(bytes, 1000000, 2000000, "t"), Error);
-  EXPECT_THROW(detail::decode_ascending_ids(bytes.substr(0, bytes.size() - 1),
-                                            static_cast<uint32_t>(ids.size()), 2000000, "t"),
-               Error);
+  EXPECT_THROW(
+      detail::decode_ascending_ids(bytes.substr(0, bytes.size() - 1), static_cast<uint32_t>(ids.size()), 2000000, "t"),
+      Error);
   // A zero gap (repeated id) is not ascending.
   EXPECT_THROW(detail::decode_ascending_ids(std::string("\x05\x00", 2), 2, 100, "t"), Error);
 }
@@ -252,7 +250,8 @@ TEST(ModelTest, RejectsTruncationAtEveryOffset) {
   const std::string payload = serialize_model_data(make_code_model_data(some_positions(5)));
   largest_allocation = 0;
   for (size_t size = 0; size < payload.size(); ++size) {
-    const std::vector<uint8_t> rewrapped = make_container(kModelMagic, kModelVersionWithoutFusion, payload.substr(0, size));
+    const std::vector<uint8_t> rewrapped =
+        make_container(kModelMagic, kModelVersionWithoutFusion, payload.substr(0, size));
     const std::string message = expect_rejected(rewrapped);
     EXPECT_FALSE(message.empty()) << "payload cut at " << size;
   }

@@ -28,7 +28,7 @@ TEST(PoseEvidence, CountsRanksAndSpreadOfAKnownPose) {
   const Camera camera = camera_640x480();
   // 8 correspondences; the inliers are 0, 1, 2 and 5. Quality ranks them 5 > 0 > 1 > ... (ties
   // in input order).
-  std::vector<Eigen::Vector2d> pixels = {{10, 10},  {630, 10}, {10, 470}, {320, 240},
+  std::vector<Eigen::Vector2d> pixels = {{10, 10},   {630, 10},  {10, 470}, {320, 240},
                                          {320, 250}, {630, 470}, {20, 20},  {30, 30}};
   std::vector<double> quality = {0.9, 0.8, 0.1, 0.1, 0.1, 1.0, 0.1, 0.1};
   PoseResult pose;

@@ -67,8 +67,7 @@ Scene make_scene(uint64_t seed, int n, double sigma_px, double outlier_ratio,
 }
 
 // The true reprojection error of correspondence i in pixels (infinite behind the camera).
-double reprojection_error_px(const Camera& camera, const Rigid3d& cam_from_world, const Scene& s,
-                             int i) {
+double reprojection_error_px(const Camera& camera, const Rigid3d& cam_from_world, const Scene& s, int i) {
   Eigen::Vector2d projected;
   if (!camera.project(cam_from_world * s.points_world[i], &projected)) {
     return std::numeric_limits<double>::infinity();
@@ -82,8 +81,7 @@ struct Accuracy {
 };
 
 Accuracy accuracy(const PoseResult& r, const Scene& s) {
-  return {position_error(r.cam_from_world, s.cam_from_world),
-          rotation_error_deg(r.cam_from_world, s.cam_from_world)};
+  return {position_error(r.cam_from_world, s.cam_from_world), rotation_error_deg(r.cam_from_world, s.cam_from_world)};
 }
 
 PoseEstimatorOptions options_with_seed(uint64_t seed) {
@@ -163,8 +161,8 @@ TEST(PoseEstimator, HalfPixelNoiseGivesCentimetreAccuracy) {
     // 0.41 degrees; see refine_cam_from_world.)
     EXPECT_LT(worst_position, 0.015) << "outliers " << outlier_ratio;
     EXPECT_LT(worst_rotation, 0.15) << "outliers " << outlier_ratio;
-    std::printf("outliers %.0f%%, 0.5 px noise: worst position error %.4f m, rotation %.4f deg\n",
-                100 * outlier_ratio, worst_position, worst_rotation);
+    std::printf("outliers %.0f%%, 0.5 px noise: worst position error %.4f m, rotation %.4f deg\n", 100 * outlier_ratio,
+                worst_position, worst_rotation);
   }
 }
 
@@ -193,10 +191,10 @@ TEST(PoseEstimator, SameSeedGivesBitIdenticalResults) {
   ASSERT_TRUE(a.success);
   EXPECT_EQ(a.stats.iterations, b.stats.iterations);
   EXPECT_EQ(a.inlier_mask, b.inlier_mask);
-  EXPECT_EQ(0, std::memcmp(a.cam_from_world.rotation.coeffs().data(),
-                           b.cam_from_world.rotation.coeffs().data(), 4 * sizeof(double)));
-  EXPECT_EQ(0, std::memcmp(a.cam_from_world.translation.data(), b.cam_from_world.translation.data(),
-                           3 * sizeof(double)));
+  EXPECT_EQ(0, std::memcmp(a.cam_from_world.rotation.coeffs().data(), b.cam_from_world.rotation.coeffs().data(),
+                           4 * sizeof(double)));
+  EXPECT_EQ(0,
+            std::memcmp(a.cam_from_world.translation.data(), b.cam_from_world.translation.data(), 3 * sizeof(double)));
 
   // The seed drives the sampling: different seeds take different numbers of hypotheses or end
   // in different (equally good) poses. Without seeding, OpenGV would use its fixed default seed or
@@ -206,9 +204,9 @@ TEST(PoseEstimator, SameSeedGivesBitIdenticalResults) {
     const PoseResult c = estimate_absolute_pose(camera, s.pixels, s.points_world, options_with_seed(seed));
     ASSERT_TRUE(c.success);
     EXPECT_LT(accuracy(c, s).position_m, 0.05);
-    differing += c.stats.iterations != a.stats.iterations ||
-                 std::memcmp(c.cam_from_world.translation.data(), a.cam_from_world.translation.data(),
-                             3 * sizeof(double)) != 0;
+    differing +=
+        c.stats.iterations != a.stats.iterations ||
+        std::memcmp(c.cam_from_world.translation.data(), a.cam_from_world.translation.data(), 3 * sizeof(double)) != 0;
   }
   EXPECT_GE(differing, 6);
 }
@@ -220,8 +218,7 @@ TEST(PoseEstimator, ConcurrentCallsMatchSerialOnes) {
   std::vector<PoseResult> serial;
   for (int k = 0; k < kScenes; ++k) {
     scenes.push_back(make_scene(400 + k, 150, 0.5, 0.5));
-    serial.push_back(estimate_absolute_pose(camera, scenes[k].pixels, scenes[k].points_world,
-                                            options_with_seed(k)));
+    serial.push_back(estimate_absolute_pose(camera, scenes[k].pixels, scenes[k].points_world, options_with_seed(k)));
   }
   std::vector<std::vector<PoseResult>> parallel(kThreads, std::vector<PoseResult>(kScenes));
   std::vector<std::thread> threads;
@@ -229,8 +226,7 @@ TEST(PoseEstimator, ConcurrentCallsMatchSerialOnes) {
     threads.emplace_back([&, t] {
       for (int j = 0; j < kScenes; ++j) {
         const int k = (j + t) % kScenes;
-        parallel[t][k] = estimate_absolute_pose(camera, scenes[k].pixels, scenes[k].points_world,
-                                                options_with_seed(k));
+        parallel[t][k] = estimate_absolute_pose(camera, scenes[k].pixels, scenes[k].points_world, options_with_seed(k));
       }
     });
   }
@@ -240,8 +236,7 @@ TEST(PoseEstimator, ConcurrentCallsMatchSerialOnes) {
       EXPECT_EQ(parallel[t][k].inlier_mask, serial[k].inlier_mask);
       EXPECT_EQ(parallel[t][k].stats.iterations, serial[k].stats.iterations);
       EXPECT_TRUE(parallel[t][k].cam_from_world.translation == serial[k].cam_from_world.translation);
-      EXPECT_TRUE(parallel[t][k].cam_from_world.rotation.coeffs() ==
-                  serial[k].cam_from_world.rotation.coeffs());
+      EXPECT_TRUE(parallel[t][k].cam_from_world.rotation.coeffs() == serial[k].cam_from_world.rotation.coeffs());
     }
   }
 }

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
 #include <gtest/gtest.h>
+#include <Eigen/Core>
 
 #include "common/error.h"
 #include "common/random.h"
@@ -28,7 +28,8 @@ class LineEstimator {
   using Model = Line;
   static constexpr int kSampleSize = 2;
 
-  LineEstimator(std::vector<Eigen::Vector2d> points, double threshold) : points_(std::move(points)), threshold_(threshold) {}
+  LineEstimator(std::vector<Eigen::Vector2d> points, double threshold)
+      : points_(std::move(points)), threshold_(threshold) {}
 
   int num_data() const { return static_cast<int>(points_.size()); }
 

@@ -120,8 +120,7 @@ struct TestWorld {
   TestFrame frame;
 };
 
-inline TestWorld make_test_world(int32_t num_classes, int32_t num_inliers, int32_t num_outliers,
-                                 uint64_t seed = 3) {
+inline TestWorld make_test_world(int32_t num_classes, int32_t num_inliers, int32_t num_outliers, uint64_t seed = 3) {
   TestWorld w;
   Rng rng(seed);
   TestFrame& f = w.frame;

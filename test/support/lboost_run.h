@@ -28,8 +28,7 @@ inline std::string slurp(const std::filesystem::path& path) {
 
 // Runs `prefix lboost args` (prefix: e.g. "mpiexec -n 2 ") with `dir` holding the captured
 // streams, which are removed afterwards.
-inline RunResult run_lboost(const std::string& args, const std::filesystem::path& dir,
-                            const std::string& prefix = "") {
+inline RunResult run_lboost(const std::string& args, const std::filesystem::path& dir, const std::string& prefix = "") {
   static int counter = 0;
   const std::string tag = std::to_string(++counter);
   const std::filesystem::path out = dir / ("stdout_" + tag + ".txt"), err = dir / ("stderr_" + tag + ".txt");

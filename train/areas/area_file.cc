@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
-#include <vector>
 #include <sstream>
+#include <vector>
 
 #include "common/error.h"
 #include "common/feature_space.h"
@@ -172,9 +172,9 @@ std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, i
   char want[24], got[24];
   std::snprintf(want, sizeof(want), "%016" PRIx64, fingerprint);
   std::snprintf(got, sizeof(got), "%016" PRIx64, file.map_fingerprint);
-  LMB_CHECK(file.map_fingerprint == fingerprint,
-            path.string() << ": made from another map (map_fingerprint " << got << ", this map's is " << want
-                          << "); run lboost areas on this map");
+  LMB_CHECK(file.map_fingerprint == fingerprint, path.string() << ": made from another map (map_fingerprint " << got
+                                                               << ", this map's is " << want
+                                                               << "); run lboost areas on this map");
   return std::move(file.split.areas[static_cast<size_t>(id)].landmarks);
 }
 

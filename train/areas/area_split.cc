@@ -111,7 +111,8 @@ class Splitter {
       });
       // The split nearest the quantile between two distinct coordinates.
       const size_t n = order.size();
-      const size_t target = std::clamp<size_t>(static_cast<size_t>(std::llround(fraction * static_cast<double>(n))), 1, n - 1);
+      const size_t target =
+          std::clamp<size_t>(static_cast<size_t>(std::llround(fraction * static_cast<double>(n))), 1, n - 1);
       size_t best = 0;
       for (size_t d = 0; d < n && best == 0; ++d) {
         for (const size_t m : {target - d, target + d}) {
@@ -287,8 +288,7 @@ AreaCoverage query_coverage(const LandmarkMap& map, const AreaSplit& split, doub
     for (int64_t n : per_area) best = std::max(best, n);
     cov.num_covered_best += best;
   }
-  cov.mean_selected_areas =
-      cov.num_query_frames ? static_cast<double>(selected_total) / cov.num_query_frames : 0.0;
+  cov.mean_selected_areas = cov.num_query_frames ? static_cast<double>(selected_total) / cov.num_query_frames : 0.0;
   return cov;
 }
 

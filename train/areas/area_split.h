@@ -33,11 +33,11 @@
 namespace lmb {
 
 struct AreaSplitOptions {
-  int32_t max_classes = 7500;     // K: landmarks per area at most (>= 1)
-  int32_t min_observations = 5;   // N: a landmark needs this many map observations (>= 1)
-  double overlap = 1.0;           // metres (world units): landmarks this close to a cell join its area
-  double reach = 0.0;             // metres: how far cameras see; 0 = the map's 90th percentile
-  void check() const;             // throws lmb::Error naming the option
+  int32_t max_classes = 7500;    // K: landmarks per area at most (>= 1)
+  int32_t min_observations = 5;  // N: a landmark needs this many map observations (>= 1)
+  double overlap = 1.0;          // metres (world units): landmarks this close to a cell join its area
+  double reach = 0.0;            // metres: how far cameras see; 0 = the map's 90th percentile
+  void check() const;            // throws lmb::Error naming the option
 };
 
 // An axis-aligned box in world coordinates; an end may be -inf / +inf.
@@ -49,17 +49,17 @@ struct AreaBox {
 };
 
 struct Area {
-  int32_t id = 0;                    // 0..num_areas-1, in k-d order (lower half first)
-  AreaBox cell;                      // the k-d cell (the areas' cells partition space)
-  AreaBox bounds;                    // bounding box of its landmarks (finite)
-  int64_t num_core = 0;              // its landmarks inside the cell (the rest are overlap)
-  int64_t num_truncated = 0;         // overlap landmarks left out to respect max_classes
-  std::vector<landmark_t> landmarks; // sorted ascending, at most max_classes
+  int32_t id = 0;                     // 0..num_areas-1, in k-d order (lower half first)
+  AreaBox cell;                       // the k-d cell (the areas' cells partition space)
+  AreaBox bounds;                     // bounding box of its landmarks (finite)
+  int64_t num_core = 0;               // its landmarks inside the cell (the rest are overlap)
+  int64_t num_truncated = 0;          // overlap landmarks left out to respect max_classes
+  std::vector<landmark_t> landmarks;  // sorted ascending, at most max_classes
 };
 
 struct AreaSplit {
-  AreaSplitOptions options;          // reach: the value used (never 0 after a split)
-  int64_t num_eligible = 0;          // landmarks with >= min_observations map observations
+  AreaSplitOptions options;  // reach: the value used (never 0 after a split)
+  int64_t num_eligible = 0;  // landmarks with >= min_observations map observations
   std::vector<Area> areas;
 };
 
@@ -86,11 +86,11 @@ std::vector<landmark_t> uncovered_landmarks(const LandmarkMap& map, const AreaSp
 // (seed, frame id); the selected areas are areas_near(prior, prior_noise + reach).
 struct AreaCoverage {
   int32_t num_query_frames = 0;
-  int64_t num_keypoints = 0;          // query keypoints with a true landmark
-  int64_t num_eligible = 0;           // ... that is eligible (the most any split can cover)
-  int64_t num_covered_any = 0;        // ... whose landmark one of the frame's selected areas holds
-  int64_t num_covered_best = 0;       // ... held by the frame's best single selected area
-  double mean_selected_areas = 0.0;   // areas selected per query frame
+  int64_t num_keypoints = 0;         // query keypoints with a true landmark
+  int64_t num_eligible = 0;          // ... that is eligible (the most any split can cover)
+  int64_t num_covered_any = 0;       // ... whose landmark one of the frame's selected areas holds
+  int64_t num_covered_best = 0;      // ... held by the frame's best single selected area
+  double mean_selected_areas = 0.0;  // areas selected per query frame
   int32_t max_selected_areas = 0;
 };
 AreaCoverage query_coverage(const LandmarkMap& map, const AreaSplit& split, double prior_noise, uint64_t seed = 1);

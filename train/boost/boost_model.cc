@@ -48,8 +48,8 @@ int32_t BoostModel::classify(const uint8_t* v) const {
 }
 
 void BoostModel::check() const {
-  LMB_CHECK(num_classes >= 1 && num_dims >= 1, "boost model: empty (" << num_classes << " classes, "
-                                                                       << num_dims << " dims)");
+  LMB_CHECK(num_classes >= 1 && num_dims >= 1,
+            "boost model: empty (" << num_classes << " classes, " << num_dims << " dims)");
   LMB_CHECK(static_cast<int32_t>(class_landmark.size()) == num_classes,
             "boost model: class_landmark has " << class_landmark.size() << " entries, expected " << num_classes);
   LMB_CHECK(static_cast<int32_t>(bias.size()) == num_classes + 1,
@@ -60,13 +60,13 @@ void BoostModel::check() const {
     LMB_CHECK(std::isfinite(s.a) && std::isfinite(s.b), "boost model: stump " << m << " has non-finite a/b");
     LMB_CHECK(s.theta < 255, "boost model: stump " << m << " has threshold 255");
     if (s.classes.empty()) continue;
-    LMB_CHECK(s.dim >= 0 && s.dim < num_dims, "boost model: stump " << m << " dim " << s.dim
-                                                                    << " outside [0, " << num_dims << ")");
+    LMB_CHECK(s.dim >= 0 && s.dim < num_dims,
+              "boost model: stump " << m << " dim " << s.dim << " outside [0, " << num_dims << ")");
     for (size_t i = 0; i < s.classes.size(); ++i) {
       LMB_CHECK(s.classes[i] >= 0 && s.classes[i] <= num_classes,
                 "boost model: stump " << m << " shares class " << s.classes[i] << " out of range");
-      LMB_CHECK(i == 0 || s.classes[i - 1] < s.classes[i], "boost model: stump " << m
-                                                                << " sharing set not sorted/unique");
+      LMB_CHECK(i == 0 || s.classes[i - 1] < s.classes[i],
+                "boost model: stump " << m << " sharing set not sorted/unique");
     }
   }
 }
@@ -107,7 +107,7 @@ BoostModel deserialize_boost_model(const std::string& bytes, const std::string& 
 void save_trained_model(const std::filesystem::path& path, const BoostModel& model, const FeatureSpace& space) {
   model.check();
   LMB_CHECK(model.num_dims == space.num_dims, path.string() << ": the model has " << model.num_dims
-                                                          << " feature dims, its feature space " << space.num_dims);
+                                                            << " feature dims, its feature space " << space.num_dims);
   std::ostringstream os(std::ios::binary);
   {
     cereal::PortableBinaryOutputArchive ar(os);
@@ -120,14 +120,14 @@ void save_trained_model(const std::filesystem::path& path, const BoostModel& mod
 TrainedModel load_trained_model(const std::filesystem::path& path) {
   const std::string name = path.string();
   const std::string bytes = read_file(path);
-  if (bytes.size() >= kContainerHeaderBytes && bytes.compare(0, 8, kMagic) == 0 && bytes[8] == 1 &&
-      bytes[9] == 0 && bytes[10] == 0 && bytes[11] == 0) {
+  if (bytes.size() >= kContainerHeaderBytes && bytes.compare(0, 8, kMagic) == 0 && bytes[8] == 1 && bytes[9] == 0 &&
+      bytes[10] == 0 && bytes[11] == 0) {
     LMB_FAIL(name << ": a model.bin of an older lboost (format version 1), which does not record the context "
                      "regions, vocabulary and map it was trained with, so export cannot prove they match; "
                      "retrain it (or export it with the lboost that trained it)");
   }
-  const std::string payload = open_container(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(),
-                                             kMagic, kVersion, name);
+  const std::string payload =
+      open_container(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), kMagic, kVersion, name);
   TrainedModel t;
   try {
     BoundedReader r(payload, name);
@@ -137,9 +137,9 @@ TrainedModel load_trained_model(const std::filesystem::path& path) {
   } catch (const cereal::Exception& e) {
     LMB_FAIL(name << ": truncated or corrupt model file (" << e.what() << ")");
   }
-  LMB_CHECK(t.model.num_dims == t.feature_space.num_dims,
-            name << ": the model has " << t.model.num_dims << " feature dims, its feature space "
-                 << t.feature_space.num_dims);
+  LMB_CHECK(t.model.num_dims == t.feature_space.num_dims, name << ": the model has " << t.model.num_dims
+                                                               << " feature dims, its feature space "
+                                                               << t.feature_space.num_dims);
   return t;
 }
 

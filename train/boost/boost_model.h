@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "common/shared_stump.h"
 #include "common/feature_space.h"
+#include "common/shared_stump.h"
 #include "common/types.h"
 
 namespace lmb {

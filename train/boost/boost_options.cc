@@ -42,8 +42,8 @@ const std::vector<Setting<BoostOptions>>& boost_settings() {
        "screening adds one alternation step from each class group"},
       {"blocked_screening", [](T& o) -> SettingRef { return &o.screening.blocked; }, SettingRange::any(),
        "screen eight dims per class-major pass (false: one column pass per dim)"},
-      {"sharing_single_starts", [](T& o) -> SettingRef { return &o.sharing.single_starts; },
-       SettingRange::at_least(0), "sharing-set search starts at the best single classes"},
+      {"sharing_single_starts", [](T& o) -> SettingRef { return &o.sharing.single_starts; }, SettingRange::at_least(0),
+       "sharing-set search starts at the best single classes"},
       {"sharing_max_iterations", [](T& o) -> SettingRef { return &o.sharing.max_iterations; },
        SettingRange::at_least(1), "sharing-set search alternation steps per start"},
       {"negatives_per_class", [](T& o) -> SettingRef { return &o.negatives.per_class; }, SettingRange::at_least(0),
@@ -54,8 +54,8 @@ const std::vector<Setting<BoostOptions>>& boost_settings() {
        SettingRange::finite_at_least(0.0), "meters: never a negative of a class whose landmark is closer"},
       {"negative_weight_ratio", [](T& o) -> SettingRef { return &o.negatives.weight_ratio; },
        SettingRange::finite_at_least(0.0), "a class's negatives weigh this times its positives; 0 = 1 each"},
-      {"background_negatives", [](T& o) -> SettingRef { return &o.negatives.background; },
-       SettingRange::at_least(0), "negatives of the background class; 0 = every landmark training sample"},
+      {"background_negatives", [](T& o) -> SettingRef { return &o.negatives.background; }, SettingRange::at_least(0),
+       "negatives of the background class; 0 = every landmark training sample"},
       {"mining_interval", [](T& o) -> SettingRef { return &o.mining.interval; }, SettingRange::at_least(0),
        "mine hard negatives every K rounds; 0 = never"},
       {"mining_pool_size", [](T& o) -> SettingRef { return &o.mining.pool_size; }, SettingRange::at_least(0),
@@ -75,21 +75,22 @@ void TrainingSetOptions::check() const { check_settings("training set", training
 void BoostOptions::check() const {
   check_settings("boost options", boost_settings(), *this);
   LMB_CHECK(negatives.max_per_class >= negatives.per_class,
-            "boost options: max_negatives_per_class (" << negatives.max_per_class
-                << ") must be >= negatives_per_class (" << negatives.per_class << ")");
+            "boost options: max_negatives_per_class ("
+                << negatives.max_per_class << ") must be >= negatives_per_class (" << negatives.per_class << ")");
 }
 
 void BoostOptions::check(int32_t num_dims) const {
   check();
   LMB_CHECK(num_dims > 0, "boost options: the features have no dimensions");
-  LMB_CHECK(candidate_dims <= num_dims, "boost options: candidate_dims (" << candidate_dims
-                                            << ") exceeds the feature dimension (" << num_dims << ")");
+  LMB_CHECK(candidate_dims <= num_dims, "boost options: candidate_dims ("
+                                            << candidate_dims << ") exceeds the feature dimension (" << num_dims
+                                            << ")");
   LMB_CHECK(candidate_dims == 0 || dims_per_round <= candidate_dims,
             "boost options: dims_per_round (|F_m| = " << dims_per_round << ") exceeds candidate_dims ("
                                                       << candidate_dims << ")");
-  LMB_CHECK(dims_per_round <= num_dims, "boost options: dims_per_round (|F_m| = "
-                                            << dims_per_round << ") exceeds the feature dimension ("
-                                            << num_dims << ")");
+  LMB_CHECK(dims_per_round <= num_dims, "boost options: dims_per_round (|F_m| = " << dims_per_round
+                                                                                  << ") exceeds the feature dimension ("
+                                                                                  << num_dims << ")");
 }
 
 }  // namespace lmb

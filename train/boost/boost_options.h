@@ -16,18 +16,18 @@ namespace lmb {
 
 // How the training set is cut out of a LandmarkMap (train/boost/training_set.h).
 struct TrainingSetOptions {
-  int32_t top_k_landmarks = 7500;     // classes: the K best landmarks by Landmark::quality
-  int32_t min_train_observations = 2; // a selected landmark keeps at least this many train samples
+  int32_t top_k_landmarks = 7500;      // classes: the K best landmarks by Landmark::quality
+  int32_t min_train_observations = 2;  // a selected landmark keeps at least this many train samples
   // Held-out map observations for validation precision@1: per landmark with more than
   // min_train_observations map observations, this fraction (rounded down, at least 1) is held out.
   double validation_fraction = 0.1;
-  int64_t background_cap = 40000;     // at most this many background samples (untracked keypoints
-                                      // and observations of landmarks not selected); 0 = none
-  uint64_t seed = 1;                  // deterministic hold-out and background sampling
+  int64_t background_cap = 40000;  // at most this many background samples (untracked keypoints
+                                   // and observations of landmarks not selected); 0 = none
+  uint64_t seed = 1;               // deterministic hold-out and background sampling
   // Non-empty: the classes are exactly these landmarks (an area's, docs/areas.md; ascending,
   // distinct), top_k_landmarks is not used. Not a config key: set from TrainConfig::area.
   std::vector<landmark_t> class_landmarks;
-  void check() const;                 // throws lmb::Error naming the field
+  void check() const;  // throws lmb::Error naming the field
 };
 
 // Candidate thresholds and the screening that ranks (dim, threshold) candidates before the full
@@ -54,8 +54,8 @@ struct ScreeningOptions {
 // The negative sets L-_c: bootstrapped at the start, grown by hard-negative mining
 // (train/boost/negative_miner.h).
 struct NegativeOptions {
-  int32_t per_class = 40;       // initial |L-_c|, bootstrapped through the visual words
-  int32_t max_per_class = 120;  // cap of |L-_c| after hard-negative mining
+  int32_t per_class = 40;          // initial |L-_c|, bootstrapped through the visual words
+  int32_t max_per_class = 120;     // cap of |L-_c| after hard-negative mining
   double exclusion_radius = 0.05;  // meters: never a negative of c if its landmark is closer
   // Initial weights: a positive entry weighs 1 (or TrainingSet::sample_weight); the negatives of a
   // class share weight_ratio times its positives' total weight, so that each class's score
@@ -77,8 +77,8 @@ struct MiningOptions {
 
 // Validation precision@1 on held-out samples (train/boost/tracked_rows.h).
 struct ValidationOptions {
-  int32_t interval = 1;       // every N rounds; 0 = never
-  int32_t max_samples = 4096; // cap on held-out samples scored (deterministic subset)
+  int32_t interval = 1;        // every N rounds; 0 = never
+  int32_t max_samples = 4096;  // cap on held-out samples scored (deterministic subset)
 };
 
 struct BoostOptions {

@@ -25,7 +25,9 @@ class OneProcess final : public Collectives {
   void send_bytes(const uint8_t* /*data*/, int64_t /*size*/, int dest, int /*tag*/) override {
     LMB_FAIL("send to rank " << dest << " of 1");
   }
-  std::vector<uint8_t> recv_bytes(int source, int /*tag*/) override { LMB_FAIL("receive from rank " << source << " of 1"); }
+  std::vector<uint8_t> recv_bytes(int source, int /*tag*/) override {
+    LMB_FAIL("receive from rank " << source << " of 1");
+  }
   int64_t allreduce_sum(int64_t local) override { return local; }
   int64_t allreduce_max(int64_t local) override { return local; }
 };

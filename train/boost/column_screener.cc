@@ -113,8 +113,8 @@ void pack_buckets(const uint8_t* const* cols, const uint8_t* const* thresholds, 
 // The per-(dim, bucket) positive (side 0) and negative (side 1) weight of one class's entries
 // [begin, mid) and [mid, end) of the class-major copy, for the K dims packed in `packed`.
 template <int K>
-inline void bucket_class(const uint32_t* packed, const int32_t* sample, const int64_t* wq, int64_t begin,
-                         int64_t mid, int64_t end, int64_t (&acc)[2][K][16]) {
+inline void bucket_class(const uint32_t* packed, const int32_t* sample, const int64_t* wq, int64_t begin, int64_t mid,
+                         int64_t end, int64_t (&acc)[2][K][16]) {
   // Two copies of the per-class buckets, for even and odd entries: consecutive entries often hit
   // the same bucket, and one copy would chain each add to the previous one's store.
   alignas(64) int64_t acc2[2][K][16];
@@ -214,7 +214,8 @@ int32_t ColumnScreener::histogram(const FeatureColumns::Ref& ref) {
 }
 
 void ColumnScreener::clear_histogram(int32_t T) {
-  std::memset(hist_.data(), 0, static_cast<size_t>(entries_.num_classes()) * 2 * static_cast<size_t>(T) * sizeof(int64_t));
+  std::memset(hist_.data(), 0,
+              static_cast<size_t>(entries_.num_classes()) * 2 * static_cast<size_t>(T) * sizeof(int64_t));
 }
 
 void ColumnScreener::collect_sums(const FeatureColumns::Ref& ref) {
@@ -299,8 +300,8 @@ void ColumnScreener::screen_block(const FeatureColumns::Ref* refs, int32_t count
   for (int32_t c = 0; c < entries_.num_classes(); ++c) {
     const int64_t begin = entries_.class_begin(c), end = entries_.class_begin(c + 1);
     if (begin == end) continue;
-    bucket_class<K>(packed, entries_.class_sample(), entries_.class_wq(), begin, entries_.class_negatives_begin(c),
-                    end, acc);
+    bucket_class<K>(packed, entries_.class_sample(), entries_.class_wq(), begin, entries_.class_negatives_begin(c), end,
+                    acc);
     for (int32_t k = 0; k < count; ++k) {
       add_class_to_block(acc[0][k], acc[1][k], (T[k] + 3) / 4, cw[c], cy[c], cq[c], &groups[k]);
     }

@@ -54,9 +54,9 @@ class ColumnScreener {
   void clear_histogram(int32_t num_thresholds);  // back to all zero
 
   const EntryStore& entries_;
-  std::vector<int64_t> hist_;  // ((bucket - 1) * C1 + class) * 2 + neg; all zero between passes
+  std::vector<int64_t> hist_;                         // ((bucket - 1) * C1 + class) * 2 + neg; all zero between passes
   std::vector<std::pair<int32_t, int32_t>> nonzero_;  // (sample, bucket) of a column pass
-  std::vector<uint32_t> packed_buckets_;  // per sample: bucket of the block's k-th dim in bits 4k..4k+3
+  std::vector<uint32_t> packed_buckets_;              // per sample: bucket of the block's k-th dim in bits 4k..4k+3
   std::vector<double> gains_;
   std::vector<int32_t> touched_;
   std::vector<int64_t> cum_p_, cum_n_;

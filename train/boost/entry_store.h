@@ -56,8 +56,8 @@ class EntryStore {
     double squared_error = 0.0;
     double cost = 0.0;
   };
-  UpdateSums update(const std::vector<uint8_t>& above, const std::vector<uint8_t>& in_set, double alpha,
-                    double beta, const std::vector<double>& k);
+  UpdateSums update(const std::vector<uint8_t>& above, const std::vector<uint8_t>& in_set, double alpha, double beta,
+                    const std::vector<double>& k);
 
   int64_t num_samples() const { return num_samples_; }
   int32_t num_classes() const { return C1_; }  // background included
@@ -98,7 +98,7 @@ class EntryStore {
   std::vector<double> weight_;          // stored weights
   std::vector<HotEntry> hot_;
   std::vector<int64_t> class_begin_, class_neg_begin_;
-  std::vector<int64_t> class_index_;    // where sample-major entry e sits in the class-major copy
+  std::vector<int64_t> class_index_;  // where sample-major entry e sits in the class-major copy
   std::vector<int32_t> class_sample_;
   std::vector<int64_t> class_wq_;
   int weight_exponent_ = 0;

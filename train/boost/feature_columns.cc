@@ -22,8 +22,7 @@ FeatureColumns::FeatureColumns(const FeatureMatrix& features, const ScreeningOpt
     layouts_[i] = make_layout(features.column(i));
     num_usable += !layouts_[i].thresholds.empty();
   }
-  LMB_CHECK(n == 0 || num_usable > 0, "features: all " << n
-                                          << " stored columns are constant; no stump can split them");
+  LMB_CHECK(n == 0 || num_usable > 0, "features: all " << n << " stored columns are constant; no stump can split them");
 }
 
 void FeatureColumns::fill_buckets(Layout* layout) {
@@ -65,9 +64,10 @@ FeatureColumns::Layout FeatureColumns::make_layout(const uint8_t* col) const {
   fill_buckets(&layout);
   int64_t above = 0;
   for (int v = 0; v < 256; ++v) above += layout.bucket[v] > 0 ? counts[v] : 0;
-  layout.above_fraction = features_.num_samples > 0
-                              ? static_cast<float>(static_cast<double>(above) / static_cast<double>(features_.num_samples))
-                              : 0.f;
+  layout.above_fraction =
+      features_.num_samples > 0
+          ? static_cast<float>(static_cast<double>(above) / static_cast<double>(features_.num_samples))
+          : 0.f;
   return layout;
 }
 

@@ -20,9 +20,9 @@ struct LearnerState {
   int32_t weight_exponent = 0;
   std::vector<int64_t> tracked_samples;  // validation rows first, then the mining pool
   int64_t num_validation_rows = 0;
-  std::vector<float> tracked_scores;     // tracked_samples.size() x (C + 1), row-major (all parts')
-  std::vector<double> class_offset;      // C + 1: sum of k_c over the rounds
-  std::vector<double> negative_unit;     // C + 1: initial weight of a negative of each class
+  std::vector<float> tracked_scores;  // tracked_samples.size() x (C + 1), row-major (all parts')
+  std::vector<double> class_offset;   // C + 1: sum of k_c over the rounds
+  std::vector<double> negative_unit;  // C + 1: initial weight of a negative of each class
   double last_validation = -1.0;
 };
 

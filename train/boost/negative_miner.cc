@@ -52,7 +52,8 @@ std::vector<int64_t> NegativeMiner::draw(int32_t c, const std::vector<const std:
     std::vector<std::pair<uint64_t, int64_t>> keyed;
     for (const auto* l : lists) {
       for (int64_t s : *l) {
-        if (accept(s)) keyed.emplace_back(counter_hash(seed, kNegativeTag, static_cast<uint64_t>(c), static_cast<uint64_t>(s)), s);
+        if (accept(s))
+          keyed.emplace_back(counter_hash(seed, kNegativeTag, static_cast<uint64_t>(c), static_cast<uint64_t>(s)), s);
       }
     }
     const size_t take = std::min(keyed.size(), static_cast<size_t>(n_neg));
@@ -62,7 +63,8 @@ std::vector<int64_t> NegativeMiner::draw(int32_t c, const std::vector<const std:
     // Many: seeded draws over the concatenated lists, duplicates and refused samples skipped.
     const int64_t attempts = 16 * static_cast<int64_t>(n_neg) + 64;
     for (int64_t a = 0; a < attempts && static_cast<int32_t>(chosen.size()) < n_neg; ++a) {
-      const uint64_t r = counter_hash(seed, kNegativeTag, static_cast<uint64_t>(c), static_cast<uint64_t>(a) | (1ull << 63));
+      const uint64_t r =
+          counter_hash(seed, kNegativeTag, static_cast<uint64_t>(c), static_cast<uint64_t>(a) | (1ull << 63));
       const int64_t idx = static_cast<int64_t>(scale_to(r, static_cast<uint64_t>(M)));
       const size_t li = static_cast<size_t>(std::upper_bound(prefix.begin(), prefix.end(), idx) - prefix.begin() - 1);
       const int64_t s = (*lists[li])[idx - prefix[li]];
@@ -202,7 +204,8 @@ int64_t NegativeMiner::mine(TrackedRows& rows, Collectives& comm, EntryStore* en
     new_codes.push_back(c * 2 + 1);
     // A negative's weight is its initial weight times exp(-z H) = exp(H(s, c)), stored relative
     // to 2^weight_exponent: the weight it would have had in L-_c from the start.
-    new_weights.push_back(negative_unit_[c] * sample_weight(s) * std::exp(static_cast<double>(offer.score) - log_scale));
+    new_weights.push_back(negative_unit_[c] * sample_weight(s) *
+                          std::exp(static_cast<double>(offer.score) - log_scale));
   }
   entries->append(new_samples, new_codes, new_weights);
   return static_cast<int64_t>(new_samples.size());

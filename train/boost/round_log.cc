@@ -1,7 +1,7 @@
 #include "train/boost/round_log.h"
 
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "common/error.h"
 
@@ -40,9 +40,8 @@ void RoundLogger::log(const RoundStats& s) {
   ++logged_;
   const double eta = total_seconds_ / static_cast<double>(logged_) * std::max(0, num_rounds_ - (s.round + 1));
   std::string val = s.validation_p1 >= 0.0 ? fmt::format("{:.4f}", s.validation_p1) : std::string("-");
-  spdlog::info("round {}/{} cost {:.6g} J {:.6g} val_p1 {} share {} dim {}>{} {:.3f} s/round ETA {:.0f} s",
-               s.round + 1, num_rounds_, s.cost, s.squared_error, val, s.sharing_size, s.dim, s.theta,
-               s.seconds, eta);
+  spdlog::info("round {}/{} cost {:.6g} J {:.6g} val_p1 {} share {} dim {}>{} {:.3f} s/round ETA {:.0f} s", s.round + 1,
+               num_rounds_, s.cost, s.squared_error, val, s.sharing_size, s.dim, s.theta, s.seconds, eta);
   if (out_.is_open()) out_.write(json_line(s, eta) + '\n');
 }
 

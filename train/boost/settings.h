@@ -27,11 +27,9 @@ struct SettingRange {
 
   static SettingRange any() { return {}; }
   static SettingRange at_least(double lo) { return {lo, std::numeric_limits<double>::infinity(), false, false}; }
-  static SettingRange finite_at_least(double lo) {
-    return {lo, std::numeric_limits<double>::infinity(), false, true};
-  }
+  static SettingRange finite_at_least(double lo) { return {lo, std::numeric_limits<double>::infinity(), false, true}; }
   static SettingRange closed(double lo, double hi) { return {lo, hi, false, false}; }
-  static SettingRange half_open(double lo, double hi) { return {lo, hi, false, true}; }  // [lo, hi)
+  static SettingRange half_open(double lo, double hi) { return {lo, hi, false, true}; }    // [lo, hi)
   static SettingRange open_closed(double lo, double hi) { return {lo, hi, true, false}; }  // (lo, hi]
 
   bool contains(double v) const {

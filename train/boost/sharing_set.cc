@@ -141,9 +141,9 @@ SharingResult find_sharing_set(const SharingInput& in, const SharingSearchOption
       double flip_gain = best.gain;
       for (int32_t i = 0; i < m; ++i) {
         const int64_t sg = best_set[i] ? -1 : 1;
-        const double g = sharing_gain(best_sums.wp + sg * in.wp[i], best_sums.yp + sg * in.yp[i],
-                                      best_sums.wm + sg * in.wm[i], best_sums.ym + sg * in.ym[i],
-                                      best_sums.q + static_cast<double>(sg) * in.q[i]);
+        const double g =
+            sharing_gain(best_sums.wp + sg * in.wp[i], best_sums.yp + sg * in.yp[i], best_sums.wm + sg * in.wm[i],
+                         best_sums.ym + sg * in.ym[i], best_sums.q + static_cast<double>(sg) * in.q[i]);
         if (g > flip_gain * (1.0 + 1e-12)) {
           flip_gain = g;
           flip = i;

@@ -40,8 +40,8 @@ struct SharingSearchOptions {
 };
 
 struct SharingResult {
-  double gain = 0.0;             // G(S) in weight units (0 for the empty set)
-  std::vector<int32_t> members;  // indices into the input arrays, ascending
+  double gain = 0.0;                       // G(S) in weight units (0 for the empty set)
+  std::vector<int32_t> members;            // indices into the input arrays, ascending
   int64_t wp = 0, yp = 0, wm = 0, ym = 0;  // sums over the members
 };
 

@@ -26,8 +26,8 @@ const FeatureMatrix& checked(const FeatureMatrix& features, const TrainingSet& s
             "features: " << features.num_samples << " rows for " << set.num_samples() << " training samples");
   LMB_CHECK(static_cast<int64_t>(features.data.size()) ==
                 static_cast<int64_t>(features.num_stored_columns()) * features.num_samples,
-            "features: data holds " << features.data.size() << " bytes, expected "
-                                    << features.num_stored_columns() << " columns x " << features.num_samples);
+            "features: data holds " << features.data.size() << " bytes, expected " << features.num_stored_columns()
+                                    << " columns x " << features.num_samples);
   LMB_CHECK(features.num_samples < std::numeric_limits<int32_t>::max(),
             "features: " << features.num_samples << " samples; at most 2^31 - 2 are supported");
   return features;
@@ -104,8 +104,8 @@ StumpRecord SerialStumpLearner::search(const std::vector<int32_t>& dims) {
   initialize();
   entries_.quantize(rounds_done());
   double seconds = 0.0;
-  return search_.run(dims, [this](std::vector<ScreenedCandidate> c) { return select_for_refinement(std::move(c)); },
-                     &seconds);
+  return search_.run(
+      dims, [this](std::vector<ScreenedCandidate> c) { return select_for_refinement(std::move(c)); }, &seconds);
 }
 
 RoundStats SerialStumpLearner::run_round() {
@@ -123,10 +123,9 @@ RoundStats SerialStumpLearner::run_round() {
   stats.cost_before = entries_.exp_loss();
   columns_.drop_lent();
 
-  const std::vector<int32_t> round_dims =
-      draw_round_dims(options_.seed, stats.round,
-                      options_.candidate_dims > 0 ? options_.candidate_dims : features_.num_dims,
-                      options_.dims_per_round);
+  const std::vector<int32_t> round_dims = draw_round_dims(
+      options_.seed, stats.round, options_.candidate_dims > 0 ? options_.candidate_dims : features_.num_dims,
+      options_.dims_per_round);
   const std::vector<int32_t> dims = choose_dims(stats.round, round_dims);
   const auto ts = Clock::now();
   double pass_seconds = 0.0;
@@ -231,8 +230,8 @@ void SerialStumpLearner::restore_state(const LearnerState& st) {
   LMB_CHECK(static_cast<int64_t>(st.model.bias.size()) == C1_,
             "learner state: " << st.model.bias.size() << " biases for " << C1_ << " classes");
   LMB_CHECK(st.model.num_dims == features_.num_dims && st.model.num_classes == set_.num_classes,
-            "learner state: a model of " << st.model.num_classes << " classes x " << st.model.num_dims
-                                         << " dims for " << set_.num_classes << " x " << features_.num_dims);
+            "learner state: a model of " << st.model.num_classes << " classes x " << st.model.num_dims << " dims for "
+                                         << set_.num_classes << " x " << features_.num_dims);
   LMB_CHECK(static_cast<int32_t>(st.model.stumps.size()) <= options_.num_rounds,
             "learner state: " << st.model.stumps.size() << " rounds done, more than boost.num_rounds "
                               << options_.num_rounds);

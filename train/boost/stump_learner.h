@@ -34,15 +34,15 @@
 namespace lmb {
 
 struct RoundStats {
-  int32_t round = 0;               // 0-based
-  double cost_before = 0.0;        // exponential loss sum w before the update (after mining)
-  double cost = 0.0;               // exponential loss sum w after the update
-  double squared_error = 0.0;      // the paper's J of the fitted stump (weighted squared error)
-  double gain = 0.0;               // squared-error reduction of sharing vs. constants only
+  int32_t round = 0;           // 0-based
+  double cost_before = 0.0;    // exponential loss sum w before the update (after mining)
+  double cost = 0.0;           // exponential loss sum w after the update
+  double squared_error = 0.0;  // the paper's J of the fitted stump (weighted squared error)
+  double gain = 0.0;           // squared-error reduction of sharing vs. constants only
   int32_t dim = -1;
   int32_t theta = 0;
   int32_t sharing_size = 0;
-  double validation_p1 = -1.0;     // precision@1 on held-out samples; -1 = not evaluated
+  double validation_p1 = -1.0;            // precision@1 on held-out samples; -1 = not evaluated
   double validation_p1_landmarks = -1.0;  // the same with the background class left out (no rejection)
   int64_t num_entries = 0;
   int64_t mined = 0;               // negatives added by mining at the start of this round

@@ -11,10 +11,10 @@ namespace lmb {
 // The best stump of a search (of a rank, before the ranks agree on one).
 struct StumpRecord {
   double gain = -std::numeric_limits<double>::infinity();  // G(S) in weight units; higher is better
-  int32_t dim = -1;                // global dim, -1 = none
-  int32_t theta = 0;               // threshold bin
-  std::vector<int32_t> classes;    // sharing set, ascending class ids
-  int64_t wp = 0, yp = 0, wm = 0, ym = 0;  // fixed-point sums over S
+  int32_t dim = -1;                                        // global dim, -1 = none
+  int32_t theta = 0;                                       // threshold bin
+  std::vector<int32_t> classes;                            // sharing set, ascending class ids
+  int64_t wp = 0, yp = 0, wm = 0, ym = 0;                  // fixed-point sums over S
   bool valid() const { return dim >= 0; }
 };
 // Strict order: larger gain, then smaller dim, then smaller theta.

@@ -13,8 +13,8 @@ void SyntheticBoostOptions::check() const {
   LMB_CHECK(num_classes >= 1 && observations_per_class >= 2 && validation_per_class >= 0 &&
                 validation_per_class < observations_per_class && num_background >= 1,
             "synthetic problem: bad class/sample counts");
-  LMB_CHECK(context_dims >= 1 && descriptor_bits >= 1 && alias_group_size >= 1 &&
-                signature_dims >= 0 && signature_dims <= context_dims && num_words >= 1,
+  LMB_CHECK(context_dims >= 1 && descriptor_bits >= 1 && alias_group_size >= 1 && signature_dims >= 0 &&
+                signature_dims <= context_dims && num_words >= 1,
             "synthetic problem: bad dimensions");
   LMB_CHECK(noise_density >= 0.0 && noise_density < 1.0 && signature_keep >= 0.0 && signature_keep <= 1.0 &&
                 descriptor_flip >= 0.0 && descriptor_flip <= 0.5,
@@ -52,7 +52,8 @@ SyntheticBoostProblem make_synthetic_boost_problem(const SyntheticBoostOptions& 
     set.class_landmark.push_back(c);
     set.class_position.emplace_back(rng.uniform(0, 100), rng.uniform(0, 100), rng.uniform(0, 100));
   }
-  std::vector<std::vector<uint8_t>> prototype(static_cast<size_t>(groups), std::vector<uint8_t>(static_cast<size_t>(o.descriptor_bits)));
+  std::vector<std::vector<uint8_t>> prototype(static_cast<size_t>(groups),
+                                              std::vector<uint8_t>(static_cast<size_t>(o.descriptor_bits)));
   std::vector<int32_t> group_word(static_cast<size_t>(groups));
   for (int32_t g = 0; g < groups; ++g) {
     for (auto& b : prototype[g]) b = static_cast<uint8_t>(rng.next() & 1);
@@ -83,12 +84,14 @@ SyntheticBoostProblem make_synthetic_boost_problem(const SyntheticBoostOptions& 
     set.sample_class.push_back(C);
     set.sample_is_validation.push_back(0);
     set.sample_position.emplace_back(nan, nan, nan);
-    sample_group[set.sample_class.size() - 1] = (rng.next() & 1) ? static_cast<int32_t>(rng.below(static_cast<uint64_t>(groups))) : -1;
+    sample_group[set.sample_class.size() - 1] =
+        (rng.next() & 1) ? static_cast<int32_t>(rng.below(static_cast<uint64_t>(groups))) : -1;
   }
   for (int64_t s = 0; s < S; ++s) {
     const int32_t g = sample_group[s];
     const bool random_word = g < 0 || rng.uniform() < 0.1;
-    set.sample_word.push_back(random_word ? static_cast<int32_t>(rng.below(static_cast<uint64_t>(o.num_words))) : group_word[g]);
+    set.sample_word.push_back(random_word ? static_cast<int32_t>(rng.below(static_cast<uint64_t>(o.num_words)))
+                                          : group_word[g]);
     set.sample_frame.push_back(static_cast<frame_t>(s / 100));
     set.sample_keypoint.push_back(-1);
   }

@@ -101,8 +101,8 @@ int64_t TrackedRows::local_validation_rows() const {
   return n > part_ ? (n - part_ + parts_ - 1) / parts_ : 0;
 }
 
-void TrackedRows::add_stump(const std::vector<int32_t>& classes, std::vector<float> d_above,
-                            std::vector<float> d_below, const std::vector<uint8_t>& above) {
+void TrackedRows::add_stump(const std::vector<int32_t>& classes, std::vector<float> d_above, std::vector<float> d_below,
+                            const std::vector<uint8_t>& above) {
   const size_t n = classes.size();
   const int64_t v = local_validation_rows(), rows = local_rows();
   auto row_above = [&](int64_t i) { return above[samples_[part_ + i * parts_]]; };
@@ -199,16 +199,17 @@ void TrackedRows::save(LearnerState* st) {
   st->tracked_scores.clear();
   if (part_ == 0) st->tracked_scores.resize(N * static_cast<size_t>(C1_));
   const auto* mine = reinterpret_cast<const uint8_t*>(scores_.data());
-  comm_.gather_bytes(mine, static_cast<int64_t>(scores_.size() * sizeof(float)), 0,
-                     [&](int p, const uint8_t* bytes, int64_t size) {
-    const size_t row_bytes = static_cast<size_t>(C1_) * sizeof(float);
-    const size_t rows = N > static_cast<size_t>(p) ? (N - p + parts_ - 1) / parts_ : 0;
-    LMB_CHECK(static_cast<size_t>(size) == rows * row_bytes,
-              "boost: part " << p << " sent " << size << " bytes of tracked scores for " << rows << " rows x " << C1_ << " classes");
-    for (size_t i = 0; i < rows; ++i) {
-      std::memcpy(st->tracked_scores.data() + (p + i * parts_) * C1_, bytes + i * row_bytes, row_bytes);
-    }
-  });
+  comm_.gather_bytes(
+      mine, static_cast<int64_t>(scores_.size() * sizeof(float)), 0, [&](int p, const uint8_t* bytes, int64_t size) {
+        const size_t row_bytes = static_cast<size_t>(C1_) * sizeof(float);
+        const size_t rows = N > static_cast<size_t>(p) ? (N - p + parts_ - 1) / parts_ : 0;
+        LMB_CHECK(static_cast<size_t>(size) == rows * row_bytes,
+                  "boost: part " << p << " sent " << size << " bytes of tracked scores for " << rows << " rows x "
+                                 << C1_ << " classes");
+        for (size_t i = 0; i < rows; ++i) {
+          std::memcpy(st->tracked_scores.data() + (p + i * parts_) * C1_, bytes + i * row_bytes, row_bytes);
+        }
+      });
 }
 
 void TrackedRows::check(const LearnerState& st) const {

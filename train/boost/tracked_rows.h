@@ -73,8 +73,8 @@ class TrackedRows {
   int32_t C1_ = 0;
   std::vector<int64_t> samples_;  // every rank's rows: validation rows first, then the pool
   int64_t num_validation_rows_ = 0;
-  int part_ = 0, parts_ = 1;      // local row i is global row part_ + i * parts_
-  std::vector<float> scores_;     // local rows x C1
+  int part_ = 0, parts_ = 1;   // local row i is global row part_ + i * parts_
+  std::vector<float> scores_;  // local rows x C1
   std::vector<double> class_offset_;
   struct PendingStump {
     std::vector<int32_t> classes;         // sharing set

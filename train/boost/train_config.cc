@@ -22,8 +22,7 @@ const std::vector<Setting<ContextRegionOptions>>& region_settings() {
   using T = ContextRegionOptions;
   // Ranges: ContextRegionOptions::check (common/context_regions.h), shared with the inference model.
   static const std::vector<Setting<T>> settings = {
-      {"num_regions", [](T& o) -> SettingRef { return &o.num_regions; }, SettingRange::any(),
-       "R, context regions"},
+      {"num_regions", [](T& o) -> SettingRef { return &o.num_regions; }, SettingRange::any(), "R, context regions"},
       {"seed", [](T& o) -> SettingRef { return &o.seed; }, SettingRange::any(), "seed of the random regions"},
       {"min_area", [](T& o) -> SettingRef { return &o.min_area; }, SettingRange::any(),
        "smallest region area, squared keypoint scales"},
@@ -62,8 +61,8 @@ template <class Part>
 void add_table(std::vector<ConfigKey>* schema, const char* table, Part& (*part)(TrainConfig&),
                const std::vector<Setting<Part>>& settings) {
   for (const Setting<Part>& s : settings) {
-    schema->push_back({table, s.key, [part, ref = s.ref](TrainConfig& c) { return ref(part(c)); }, s.range,
-                       describe_setting(s)});
+    schema->push_back(
+        {table, s.key, [part, ref = s.ref](TrainConfig& c) { return ref(part(c)); }, s.range, describe_setting(s)});
   }
 }
 
@@ -154,13 +153,17 @@ void apply_area_table(const toml::node& node, const std::string& what, AreaRefer
 const std::vector<ConfigKey>& train_config_schema() {
   static const std::vector<ConfigKey> schema = [] {
     std::vector<ConfigKey> s;
-    add_table<TrainingSetOptions>(&s, "training_set", [](TrainConfig& c) -> TrainingSetOptions& { return c.training_set; },
-                                  training_set_settings());
-    add_table<BoostOptions>(&s, "boost", [](TrainConfig& c) -> BoostOptions& { return c.boost; }, boost_settings());
-    add_table<ContextRegionOptions>(&s, "regions", [](TrainConfig& c) -> ContextRegionOptions& { return c.regions; },
-                                    region_settings());
-    add_table<TrainConfig>(&s, "features", [](TrainConfig& c) -> TrainConfig& { return c; }, feature_settings());
-    add_table<TrainConfig>(&s, "checkpoint", [](TrainConfig& c) -> TrainConfig& { return c; }, checkpoint_settings());
+    add_table<TrainingSetOptions>(
+        &s, "training_set", [](TrainConfig& c) -> TrainingSetOptions& { return c.training_set; },
+        training_set_settings());
+    add_table<BoostOptions>(
+        &s, "boost", [](TrainConfig& c) -> BoostOptions& { return c.boost; }, boost_settings());
+    add_table<ContextRegionOptions>(
+        &s, "regions", [](TrainConfig& c) -> ContextRegionOptions& { return c.regions; }, region_settings());
+    add_table<TrainConfig>(
+        &s, "features", [](TrainConfig& c) -> TrainConfig& { return c; }, feature_settings());
+    add_table<TrainConfig>(
+        &s, "checkpoint", [](TrainConfig& c) -> TrainConfig& { return c; }, checkpoint_settings());
     return s;
   }();
   return schema;
@@ -191,7 +194,7 @@ void TrainConfig::check() const {
   // Seeds are written to config.toml as TOML integers (int64).
   constexpr uint64_t kMaxSeed = static_cast<uint64_t>(std::numeric_limits<int64_t>::max());
   for (const auto& [name, seed] : {std::pair{"training_set.seed", training_set.seed},
-                                  std::pair{"boost.seed", boost.seed}, std::pair{"regions.seed", regions.seed}}) {
+                                   std::pair{"boost.seed", boost.seed}, std::pair{"regions.seed", regions.seed}}) {
     LMB_CHECK(seed <= kMaxSeed, "config: " << name << " = " << seed << " must be in 0.." << kMaxSeed);
   }
 }

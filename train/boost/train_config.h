@@ -5,9 +5,9 @@
 // Tables: [training_set] (TrainingSetOptions), [boost] (BoostOptions), [regions]
 // (ContextRegionOptions), [features] threads, [checkpoint] interval, keep
 // (train/checkpoint/checkpoint_h5.h; not compared on resume), and, for a run of one area only,
-// [area] file, id, landmarks, landmarks_hash (AreaReference; outside the schema: not a number each). Every key is named once, in the
-// schema (train_config_schema(), built from the options' own schemas in
-// train/boost/boost_options.h), which reads, writes, checks and describes the config.
+// [area] file, id, landmarks, landmarks_hash (AreaReference; outside the schema: not a number each). Every key is named
+// once, in the schema (train_config_schema(), built from the options' own schemas in train/boost/boost_options.h),
+// which reads, writes, checks and describes the config.
 #pragma once
 
 #include <filesystem>

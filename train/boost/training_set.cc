@@ -48,12 +48,12 @@ std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
       LMB_CHECK(l >= 0 && l < num_landmarks,
                 "training set: class landmark " << l << " is not a landmark of the map (" << num_landmarks << ")");
       LMB_CHECK(i == 0 || l > options.class_landmarks[i - 1],
-                "training set: class landmarks must be ascending and distinct (" << l << " after "
-                                                                                 << options.class_landmarks[i - 1] << ")");
+                "training set: class landmarks must be ascending and distinct ("
+                    << l << " after " << options.class_landmarks[i - 1] << ")");
       LMB_CHECK(static_cast<int64_t>(observations[l].size()) >= options.min_train_observations,
-                "training set: class landmark " << l << " has " << observations[l].size()
-                                                << " map observations, fewer than min_train_observations = "
-                                                << options.min_train_observations);
+                "training set: class landmark "
+                    << l << " has " << observations[l].size()
+                    << " map observations, fewer than min_train_observations = " << options.min_train_observations);
     }
     candidates = options.class_landmarks;
   } else {
@@ -62,8 +62,8 @@ std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
         candidates.push_back(l);
       }
     }
-    LMB_CHECK(!candidates.empty(), "training set: no landmark has at least "
-                                       << options.min_train_observations << " map observations");
+    LMB_CHECK(!candidates.empty(),
+              "training set: no landmark has at least " << options.min_train_observations << " map observations");
     std::sort(candidates.begin(), candidates.end(), [&](landmark_t a, landmark_t b) {
       if (map.landmarks[a].quality != map.landmarks[b].quality) {
         return map.landmarks[a].quality > map.landmarks[b].quality;
@@ -85,20 +85,16 @@ void TrainingSet::check() const {
   LMB_CHECK(num_classes >= 1, "training set: no landmark classes");
   LMB_CHECK(static_cast<int32_t>(class_landmark.size()) == num_classes &&
                 static_cast<int32_t>(class_position.size()) == num_classes,
-            "training set: class_landmark/class_position must have num_classes = " << num_classes
-                                                                                  << " entries");
-  LMB_CHECK(static_cast<int64_t>(sample_word.size()) == n &&
-                static_cast<int64_t>(sample_position.size()) == n &&
-                static_cast<int64_t>(sample_frame.size()) == n &&
-                static_cast<int64_t>(sample_keypoint.size()) == n &&
+            "training set: class_landmark/class_position must have num_classes = " << num_classes << " entries");
+  LMB_CHECK(static_cast<int64_t>(sample_word.size()) == n && static_cast<int64_t>(sample_position.size()) == n &&
+                static_cast<int64_t>(sample_frame.size()) == n && static_cast<int64_t>(sample_keypoint.size()) == n &&
                 static_cast<int64_t>(sample_is_validation.size()) == n,
             "training set: per-sample arrays must all have " << n << " entries");
   LMB_CHECK(sample_weight.empty() || static_cast<int64_t>(sample_weight.size()) == n,
             "training set: sample_weight must be empty or have " << n << " entries");
   for (size_t i = 0; i < sample_weight.size(); ++i) {
     LMB_CHECK(std::isfinite(sample_weight[i]) && sample_weight[i] > 0.f,
-              "training set: sample " << i << " has weight " << sample_weight[i]
-                                      << " (must be finite and > 0)");
+              "training set: sample " << i << " has weight " << sample_weight[i] << " (must be finite and > 0)");
   }
   std::vector<int64_t> train_count(static_cast<size_t>(num_classes) + 1, 0);
   for (int64_t i = 0; i < n; ++i) {
@@ -108,8 +104,8 @@ void TrainingSet::check() const {
     if (!sample_is_validation[i]) ++train_count[c];
   }
   for (int32_t c = 0; c < num_classes; ++c) {
-    LMB_CHECK(train_count[c] > 0, "training set: class " << c << " (landmark " << class_landmark[c]
-                                                         << ") has no training positives");
+    LMB_CHECK(train_count[c] > 0,
+              "training set: class " << c << " (landmark " << class_landmark[c] << ") has no training positives");
   }
   LMB_CHECK(train_count[num_classes] > 0,
             "training set: no background training samples (the map has no untracked keypoints and "
@@ -120,12 +116,12 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
                                const TrainingSetOptions& options) {
   options.check();
   const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
-  LMB_CHECK(static_cast<int64_t>(keypoint_words.size()) == num_keypoints,
-            "training set: " << keypoint_words.size() << " visual words given for " << num_keypoints
-                             << " map keypoints");
+  LMB_CHECK(
+      static_cast<int64_t>(keypoint_words.size()) == num_keypoints,
+      "training set: " << keypoint_words.size() << " visual words given for " << num_keypoints << " map keypoints");
   LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_keypoints,
-            "map: keypoint_landmark has " << map.keypoint_landmark.size() << " entries for "
-                                          << num_keypoints << " keypoints");
+            "map: keypoint_landmark has " << map.keypoint_landmark.size() << " entries for " << num_keypoints
+                                          << " keypoints");
   const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
 
   // Map (non-query) observations per landmark.
@@ -170,7 +166,8 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
   if (static_cast<int64_t>(background.size()) > options.background_cap) {
     std::vector<std::pair<uint64_t, int64_t>> keyed;
     keyed.reserve(background.size());
-    for (int64_t k : background) keyed.emplace_back(counter_hash(options.seed, kBackgroundTag, static_cast<uint64_t>(k)), k);
+    for (int64_t k : background)
+      keyed.emplace_back(counter_hash(options.seed, kBackgroundTag, static_cast<uint64_t>(k)), k);
     std::nth_element(keyed.begin(), keyed.begin() + options.background_cap, keyed.end());
     keyed.resize(static_cast<size_t>(options.background_cap));
     background.clear();
@@ -228,8 +225,8 @@ std::vector<int64_t> held_out_observations(const LandmarkMap& map, const std::ve
                                           << " keypoints");
   std::vector<char> is_class(static_cast<size_t>(num_landmarks), 0);
   for (landmark_t l : class_landmarks) {
-    LMB_CHECK(l >= 0 && l < num_landmarks, "held-out observations: class landmark " << l << " out of range [0, "
-                                                                                    << num_landmarks << ")");
+    LMB_CHECK(l >= 0 && l < num_landmarks,
+              "held-out observations: class landmark " << l << " out of range [0, " << num_landmarks << ")");
     is_class[static_cast<size_t>(l)] = 1;
   }
   std::vector<std::vector<int64_t>> observations(static_cast<size_t>(num_landmarks));

@@ -16,18 +16,18 @@
 namespace lmb {
 
 struct TrainingSet {
-  int32_t num_classes = 0;                   // C landmark classes; the background class is C
-  std::vector<landmark_t> class_landmark;    // size C: the map landmark of each class
+  int32_t num_classes = 0;                      // C landmark classes; the background class is C
+  std::vector<landmark_t> class_landmark;       // size C: the map landmark of each class
   std::vector<Eigen::Vector3d> class_position;  // size C: world frame, meters
 
   // Per sample (all of size num_samples()):
-  std::vector<int32_t> sample_class;         // 0..C (C = background)
-  std::vector<int32_t> sample_word;          // visual word of the keypoint descriptor, -1 = none
+  std::vector<int32_t> sample_class;             // 0..C (C = background)
+  std::vector<int32_t> sample_word;              // visual word of the keypoint descriptor, -1 = none
   std::vector<Eigen::Vector3f> sample_position;  // its landmark's position (world, meters), NaN
                                                  // for untracked keypoints
-  std::vector<frame_t> sample_frame;         // map frame
-  std::vector<int64_t> sample_keypoint;      // index into LandmarkMap::keypoints, -1 if synthetic
-  std::vector<uint8_t> sample_is_validation; // 1 = held-out map observation (never trained on)
+  std::vector<frame_t> sample_frame;             // map frame
+  std::vector<int64_t> sample_keypoint;          // index into LandmarkMap::keypoints, -1 if synthetic
+  std::vector<uint8_t> sample_is_validation;     // 1 = held-out map observation (never trained on)
   // Optional initial weight of every entry of a sample (finite, > 0); empty = all 1.
   std::vector<float> sample_weight;
 

@@ -83,9 +83,9 @@ std::string config_difference(const std::string& checkpoint_toml, const std::str
 
 void write_checkpoint(const fs::path& path, const Checkpoint& ck) {
   const LearnerState& st = ck.state;
-  LMB_CHECK(ck.feature_space.num_dims == st.model.num_dims,
-            path.string() << ": the model has " << st.model.num_dims << " feature dims, its feature space "
-                          << ck.feature_space.num_dims);
+  LMB_CHECK(ck.feature_space.num_dims == st.model.num_dims, path.string() << ": the model has " << st.model.num_dims
+                                                                          << " feature dims, its feature space "
+                                                                          << ck.feature_space.num_dims);
   H5::Exception::dontPrint();
   try {
     // Built in memory, written by the atomic writer (common/io/h5_util.h).
@@ -148,9 +148,10 @@ Checkpoint read_checkpoint(const fs::path& path) {
     const int64_t version = r.int_attribute("format_version");
     if (version == 1) {
       throw CheckpointVersionError(
-          name + ": written by an older lboost (checkpoint format version 1), which does not record the "
-                 "context regions, vocabulary and map it was trained with; finish the run with the lboost that "
-                 "started it, or train into a new --out folder");
+          name +
+          ": written by an older lboost (checkpoint format version 1), which does not record the "
+          "context regions, vocabulary and map it was trained with; finish the run with the lboost that "
+          "started it, or train into a new --out folder");
     }
     if (version != kCheckpointVersion) {
       throw CheckpointVersionError(name + ": attribute 'format_version': " + std::to_string(version) +
@@ -186,8 +187,8 @@ Checkpoint read_checkpoint(const fs::path& path) {
     get("/learner/negative_unit", &st.negative_unit);
     get("/learner/last_validation", &last);
     const uint32_t stored_crc = static_cast<uint32_t>(r.int_attribute("crc32"));
-    LMB_CHECK(crc == stored_crc, name << ": CRC-32 mismatch (stored " << std::hex << stored_crc << ", computed "
-                                      << crc << "): corrupt checkpoint");
+    LMB_CHECK(crc == stored_crc, name << ": CRC-32 mismatch (stored " << std::hex << stored_crc << ", computed " << crc
+                                      << "): corrupt checkpoint");
     LMB_CHECK(last.size() == 1, name << ": dataset '/learner/last_validation': expected 1 value");
     st.last_validation = last[0];
     st.model = deserialize_boost_model(string_of(bytes), name + ": /model");

@@ -36,11 +36,11 @@ inline constexpr const char* kCheckpointFormat = "landmarkboost-checkpoint";
 inline constexpr int kCheckpointVersion = 2;  // 1: no feature space (refused)
 
 struct Checkpoint {
-  int32_t rounds = 0;       // rounds done
-  uint64_t seed = 0;        // boost.seed
-  int32_t ranks = 1;        // ranks of the run that wrote it
-  std::string config;       // the effective config TOML of the run
-  std::string data;         // the training data source (map path or synthetic preset)
+  int32_t rounds = 0;          // rounds done
+  uint64_t seed = 0;           // boost.seed
+  int32_t ranks = 1;           // ranks of the run that wrote it
+  std::string config;          // the effective config TOML of the run
+  std::string data;            // the training data source (map path or synthetic preset)
   FeatureSpace feature_space;  // what the stumps were trained on
   LearnerState state;
 };

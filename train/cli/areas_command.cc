@@ -43,8 +43,7 @@ void run_areas(const AreasArgs& args) {
   file.map_landmarks = static_cast<int64_t>(map.landmarks.size());
   const AreaSplit& split = file.split;
   const std::vector<landmark_t> uncovered = uncovered_landmarks(map, split);
-  write_area_file(args.out, file,
-                  "lboost areas of " + std::filesystem::absolute(args.map).lexically_normal().string());
+  write_area_file(args.out, file, "lboost areas of " + std::filesystem::absolute(args.map).lexically_normal().string());
 
   int64_t total = 0, truncated = 0;
   size_t largest = 0;
@@ -52,32 +51,36 @@ void run_areas(const AreasArgs& args) {
     total += static_cast<int64_t>(a.landmarks.size());
     truncated += a.num_truncated;
     largest = std::max(largest, a.landmarks.size());
-    std::printf("areas: area %d: %zu landmarks (%lld in its cell)%s, landmarks x %.2f..%.2f y %.2f..%.2f "
-                "z %.2f..%.2f\n",
-                a.id, a.landmarks.size(), static_cast<long long>(a.num_core),
-                a.num_truncated ? (", " + std::to_string(a.num_truncated) + " overlap landmarks left out").c_str() : "",
-                a.bounds.lo.x(), a.bounds.hi.x(), a.bounds.lo.y(), a.bounds.hi.y(), a.bounds.lo.z(), a.bounds.hi.z());
+    std::printf(
+        "areas: area %d: %zu landmarks (%lld in its cell)%s, landmarks x %.2f..%.2f y %.2f..%.2f "
+        "z %.2f..%.2f\n",
+        a.id, a.landmarks.size(), static_cast<long long>(a.num_core),
+        a.num_truncated ? (", " + std::to_string(a.num_truncated) + " overlap landmarks left out").c_str() : "",
+        a.bounds.lo.x(), a.bounds.hi.x(), a.bounds.lo.y(), a.bounds.hi.y(), a.bounds.lo.z(), a.bounds.hi.z());
   }
-  std::printf("areas: %zu areas of at most %d classes (largest %zu), %lld eligible landmarks (>= %d map "
-              "observations), %lld uncovered, %.2f areas per landmark, overlap %g m, reach %.2f m -> %s\n",
-              split.areas.size(), split.options.max_classes, largest, static_cast<long long>(split.num_eligible),
-              split.options.min_observations, static_cast<long long>(uncovered.size()),
-              static_cast<double>(total) / static_cast<double>(split.num_eligible - uncovered.size()),
-              split.options.overlap, split.options.reach, args.out.c_str());
+  std::printf(
+      "areas: %zu areas of at most %d classes (largest %zu), %lld eligible landmarks (>= %d map "
+      "observations), %lld uncovered, %.2f areas per landmark, overlap %g m, reach %.2f m -> %s\n",
+      split.areas.size(), split.options.max_classes, largest, static_cast<long long>(split.num_eligible),
+      split.options.min_observations, static_cast<long long>(uncovered.size()),
+      static_cast<double>(total) / static_cast<double>(split.num_eligible - uncovered.size()), split.options.overlap,
+      split.options.reach, args.out.c_str());
   if (truncated > 0) {
-    std::printf("areas: warning: %lld overlap landmarks left out of areas whose landmarks cannot be halved "
-                "(raise --max-classes or lower --overlap)\n",
-                static_cast<long long>(truncated));
+    std::printf(
+        "areas: warning: %lld overlap landmarks left out of areas whose landmarks cannot be halved "
+        "(raise --max-classes or lower --overlap)\n",
+        static_cast<long long>(truncated));
   }
   for (double noise : args.prior_noise) {
     const AreaCoverage c = query_coverage(map, split, noise, args.seed);
     const double n = static_cast<double>(std::max<int64_t>(1, c.num_keypoints));
-    std::printf("areas: prior noise %g m: %d query frames, %.2f areas selected per frame (max %d); of %lld query "
-                "keypoints with a true landmark (%.1f%% eligible) %.1f%% are in a selected area, %.1f%% in the "
-                "frame's best one\n",
-                noise, c.num_query_frames, c.mean_selected_areas, c.max_selected_areas,
-                static_cast<long long>(c.num_keypoints), 100.0 * static_cast<double>(c.num_eligible) / n,
-                100.0 * static_cast<double>(c.num_covered_any) / n, 100.0 * static_cast<double>(c.num_covered_best) / n);
+    std::printf(
+        "areas: prior noise %g m: %d query frames, %.2f areas selected per frame (max %d); of %lld query "
+        "keypoints with a true landmark (%.1f%% eligible) %.1f%% are in a selected area, %.1f%% in the "
+        "frame's best one\n",
+        noise, c.num_query_frames, c.mean_selected_areas, c.max_selected_areas, static_cast<long long>(c.num_keypoints),
+        100.0 * static_cast<double>(c.num_eligible) / n, 100.0 * static_cast<double>(c.num_covered_any) / n,
+        100.0 * static_cast<double>(c.num_covered_best) / n);
   }
 }
 

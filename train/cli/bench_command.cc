@@ -8,28 +8,26 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "common/context_embedding.h"
 #include "common/context_regions.h"
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "common/random.h"
 #include "common/vocabulary.h"
 #include "train/cli/commands.h"
 #include "train/features/build_features.h"
-#include "common/file_io.h"
 
 namespace lmb::cli {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 struct ContextBenchArgs {
   std::string map_path;
   std::string vocab_path;
@@ -82,10 +80,9 @@ LandmarkMap synthetic_map(const ContextBenchArgs& a) {
       kp.y = static_cast<float>(rng.uniform(0, 479));
       kp.scale = static_cast<float>(std::exp(rng.uniform(std::log(12.0), std::log(48.0))));
       map.keypoints.push_back(kp);
-      map.keypoint_landmark.push_back(
-          rng.uniform() < a.synthetic_landmark_fraction
-              ? static_cast<landmark_t>(rng.below(static_cast<uint64_t>(num_landmarks)))
-              : kInvalidLandmarkId);
+      map.keypoint_landmark.push_back(rng.uniform() < a.synthetic_landmark_fraction
+                                          ? static_cast<landmark_t>(rng.below(static_cast<uint64_t>(num_landmarks)))
+                                          : kInvalidLandmarkId);
     }
   }
   return map;
@@ -119,8 +116,7 @@ NaiveTimes time_naive_and_fast(const LandmarkMap& map, const ContextRegions& reg
     const frame_t f = frame_of[subset[i]];
     const FrameKeypoints frame = map_frame_keypoints(map, f, words);
     embed_context_brute_force(regions, layout.num_words, frame,
-                              static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint),
-                              row.data());
+                              static_cast<int32_t>(subset[i] - map.frames[f].first_keypoint), row.data());
     for (uint8_t v : row) checksum_naive = checksum_naive * 31 + v;
   }
   const double naive_per_sample = (cpu_seconds() - cpu) / subset.size();
@@ -156,8 +152,7 @@ UsedDimsTimes time_used_dims(const LandmarkMap& map, const ContextRegions& regio
   }
   int32_t used_regions = 0;
   for (size_t i = 0; i < dims.size(); ++i) {
-    if (layout.is_context(dims[i]) &&
-        (i == 0 || layout.region_of(dims[i]) != layout.region_of(dims[i - 1]))) {
+    if (layout.is_context(dims[i]) && (i == 0 || layout.region_of(dims[i]) != layout.region_of(dims[i - 1]))) {
       ++used_regions;
     }
   }
@@ -170,8 +165,7 @@ UsedDimsTimes time_used_dims(const LandmarkMap& map, const ContextRegions& regio
   uint64_t checksum_naive = 0;  // keeps the naive loop from being optimised away
   const int frames_to_use = std::min<int>(a.used_dims_frames, map.num_frames());
   for (int i = 0; i < frames_to_use; ++i) {
-    const frame_t f = static_cast<frame_t>(
-        (static_cast<int64_t>(i) * map.num_frames()) / frames_to_use);
+    const frame_t f = static_cast<frame_t>((static_cast<int64_t>(i) * map.num_frames()) / frames_to_use);
     const MapFrame& mf = map.frames[f];
     if (mf.num_keypoints == 0) continue;
     max_frame_keypoints = std::max<int64_t>(max_frame_keypoints, mf.num_keypoints);
@@ -194,8 +188,8 @@ UsedDimsTimes time_used_dims(const LandmarkMap& map, const ContextRegions& regio
         if (!layout.is_context(dims[j])) break;
         const int32_t r = layout.region_of(dims[j]);
         if (j > 0 && layout.region_of(dims[j - 1]) == r) continue;
-        checksum_naive += static_cast<uint64_t>(
-            region_counts_brute_force(regions, layout.num_words, frame, k, r, counts.data()));
+        checksum_naive +=
+            static_cast<uint64_t>(region_counts_brute_force(regions, layout.num_words, frame, k, r, counts.data()));
       }
     }
     naive_seconds += (cpu_seconds() - cpu);
@@ -204,22 +198,20 @@ UsedDimsTimes time_used_dims(const LandmarkMap& map, const ContextRegions& regio
   const double query_us = 1e6 * query_seconds / std::max<int64_t>(1, query_keypoints);
   const double frame_us = 1e6 * (prep_seconds + reset_seconds) / std::max<int64_t>(1, query_keypoints);
   const double naive_us = 1e6 * naive_seconds / std::max<int64_t>(1, naive_keypoints);
-  spdlog::info("bench context: {} used dims ({} regions): {:.1f} CPU-us/keypoint to compute them, "
-               "plus {:.1f} us/keypoint for the frame (alignment {:.2f} ms + index {:.2f} ms per frame); "
-               "naive {:.1f} us/keypoint: {:.1f}x (query only), {:.1f}x (with the frame)",
-               dims.size(), used_regions, query_us, frame_us,
-               1e3 * prep_seconds / std::max(1, frames_to_use),
-               1e3 * reset_seconds / std::max(1, frames_to_use), naive_us, naive_us / query_us,
-               naive_us / (query_us + frame_us));
+  spdlog::info(
+      "bench context: {} used dims ({} regions): {:.1f} CPU-us/keypoint to compute them, "
+      "plus {:.1f} us/keypoint for the frame (alignment {:.2f} ms + index {:.2f} ms per frame); "
+      "naive {:.1f} us/keypoint: {:.1f}x (query only), {:.1f}x (with the frame)",
+      dims.size(), used_regions, query_us, frame_us, 1e3 * prep_seconds / std::max(1, frames_to_use),
+      1e3 * reset_seconds / std::max(1, frames_to_use), naive_us, naive_us / query_us,
+      naive_us / (query_us + frame_us));
   if (checksum_naive == 1) spdlog::debug("bench context: checksum 1");
   return UsedDimsTimes{query_us, frame_us, naive_us, dims.size()};
 }
 
 void run_context_bench(const ContextBenchArgs& a) {
-  LMB_CHECK(!a.map_path.empty() || a.synthetic_frames > 0,
-            "bench context: give --map map.h5 or --synthetic N");
-  LMB_CHECK(a.map_path.empty() || a.synthetic_frames == 0,
-            "bench context: --map and --synthetic exclude each other");
+  LMB_CHECK(!a.map_path.empty() || a.synthetic_frames > 0, "bench context: give --map map.h5 or --synthetic N");
+  LMB_CHECK(a.map_path.empty() || a.synthetic_frames == 0, "bench context: --map and --synthetic exclude each other");
   LMB_CHECK(a.threads >= 1 && a.threads <= 256, "--threads " << a.threads << " must be in 1..256");
   LMB_CHECK(a.background_ratio >= 0, "--background-ratio must be >= 0");
   LMB_CHECK(a.naive_samples >= 1, "--naive-samples must be >= 1");
@@ -232,9 +224,8 @@ void run_context_bench(const ContextBenchArgs& a) {
   const LandmarkMap map = a.map_path.empty() ? synthetic_map(a) : read_map_h5(a.map_path);
   const std::string source =
       a.map_path.empty() ? "synthetic (" + std::to_string(a.synthetic_frames) + " frames)" : a.map_path;
-  spdlog::info("bench context: map {}: {} frames, {} keypoints, {} landmarks, loaded in {:.1f} s",
-               source, map.frames.size(), map.keypoints.size(), map.landmarks.size(),
-               seconds_since(t));
+  spdlog::info("bench context: map {}: {} frames, {} keypoints, {} landmarks, loaded in {:.1f} s", source,
+               map.frames.size(), map.keypoints.size(), map.landmarks.size(), seconds_since(t));
 
   Vocabulary vocabulary;
   if (!a.vocab_path.empty()) {
@@ -243,16 +234,15 @@ void run_context_bench(const ContextBenchArgs& a) {
     LMB_CHECK(a.synthetic_frames > 0, "bench context: --vocab is required with --map");
     // Synthetic only: 16 words trained on 20,000 of the map's random descriptors.
     const int64_t n = std::min<int64_t>(20000, static_cast<int64_t>(map.keypoints.size()));
-    vocabulary = train_vocabulary(map.descriptors.data(), n, map.descriptor_bytes,
-                                  VocabularyTrainOptions{});
+    vocabulary = train_vocabulary(map.descriptors.data(), n, map.descriptor_bytes, VocabularyTrainOptions{});
   }
   ContextRegionOptions region_options;
   region_options.num_regions = a.regions;
   region_options.seed = a.region_seed;
   const ContextRegions regions(region_options);
   const EmbeddingLayout layout = embedding_layout(map, regions, vocabulary);
-  spdlog::info("bench context: {} regions x {} words + {} bits = {} dims", layout.num_regions,
-               layout.num_words, 8 * layout.descriptor_bytes, layout.num_dims());
+  spdlog::info("bench context: {} regions x {} words + {} bits = {} dims", layout.num_regions, layout.num_words,
+               8 * layout.descriptor_bytes, layout.num_dims());
 
   // Samples: every map-frame keypoint with a landmark, plus background keypoints (no landmark)
   // drawn at random, background_ratio per landmark sample; in keypoint order.
@@ -266,8 +256,8 @@ void run_context_bench(const ContextBenchArgs& a) {
   const int64_t positives = static_cast<int64_t>(samples.size());
   Rng rng(counter_hash(a.seed, 0x42454E43 /* "BENC" */));
   rng.shuffle(background);
-  const int64_t num_background = std::min<int64_t>(
-      static_cast<int64_t>(background.size()), std::llround(a.background_ratio * positives));
+  const int64_t num_background =
+      std::min<int64_t>(static_cast<int64_t>(background.size()), std::llround(a.background_ratio * positives));
   samples.insert(samples.end(), background.begin(), background.begin() + num_background);
   std::sort(samples.begin(), samples.end());
   LMB_CHECK(!samples.empty(), "bench context: the map has no map-frame keypoints");
@@ -277,16 +267,16 @@ void run_context_bench(const ContextBenchArgs& a) {
   build_options.num_threads = a.threads;
   t = Clock::now();
   double cpu = cpu_seconds();
-  const FeatureMatrix features =
-      build_training_features(map, regions, vocabulary, samples, build_options);
+  const FeatureMatrix features = build_training_features(map, regions, vocabulary, samples, build_options);
   const double build_seconds = seconds_since(t);
   const double build_cpu = cpu_seconds() - cpu;
   const double gib = static_cast<double>(features.data.size()) / (1024.0 * 1024.0 * 1024.0);
-  spdlog::info("bench context: built {} samples ({} with a landmark, {} background) x {} dims "
-               "on {} threads in {:.2f} s wall, {:.2f} s CPU ({:.1f} CPU-us/sample); {:.2f} GiB "
-               "uint8 ({} bytes/sample)",
-               samples.size(), positives, num_background, layout.num_dims(), a.threads,
-               build_seconds, build_cpu, 1e6 * build_cpu / samples.size(), gib, layout.num_dims());
+  spdlog::info(
+      "bench context: built {} samples ({} with a landmark, {} background) x {} dims "
+      "on {} threads in {:.2f} s wall, {:.2f} s CPU ({:.1f} CPU-us/sample); {:.2f} GiB "
+      "uint8 ({} bytes/sample)",
+      samples.size(), positives, num_background, layout.num_dims(), a.threads, build_seconds, build_cpu,
+      1e6 * build_cpu / samples.size(), gib, layout.num_dims());
 
   // 2. Naive regions x keypoints loop on a subset, against the fast path on the same subset.
   const std::vector<uint8_t> words = keypoint_words(map, vocabulary, a.threads);
@@ -295,13 +285,13 @@ void run_context_bench(const ContextBenchArgs& a) {
   const double fast_subset_per_sample = naive.fast_per_sample;
   const size_t subset_size = naive.samples;
   const double build_per_sample_thread = build_cpu / samples.size();
-  spdlog::info("bench context: naive loop {:.1f} CPU-us/sample ({} samples) -> all samples on {} "
-               "threads ~{:.0f} s; fast path {:.1f} CPU-us/sample on the same subset (frame index "
-               "built for each subset sample's frame), {:.1f} in the full build: {:.1f}x faster "
-               "than naive",
-               1e6 * naive_per_sample, subset_size, a.threads,
-               naive_per_sample * samples.size() / a.threads, 1e6 * fast_subset_per_sample,
-               1e6 * build_per_sample_thread, naive_per_sample / build_per_sample_thread);
+  spdlog::info(
+      "bench context: naive loop {:.1f} CPU-us/sample ({} samples) -> all samples on {} "
+      "threads ~{:.0f} s; fast path {:.1f} CPU-us/sample on the same subset (frame index "
+      "built for each subset sample's frame), {:.1f} in the full build: {:.1f}x faster "
+      "than naive",
+      1e6 * naive_per_sample, subset_size, a.threads, naive_per_sample * samples.size() / a.threads,
+      1e6 * fast_subset_per_sample, 1e6 * build_per_sample_thread, naive_per_sample / build_per_sample_thread);
 
   // 3. Only a model's used dims (random, sorted) for every keypoint of some frames.
   const UsedDimsTimes used = time_used_dims(map, regions, layout, words, a, rng);
@@ -338,14 +328,13 @@ void add_bench_command(CLI::App& app) {
   bench->require_subcommand(1);
 
   auto args = std::make_shared<ContextBenchArgs>();
-  auto* ctx = bench->add_subcommand(
-      "context",
-      "Time to build all training feature vectors (landmark keypoints + background) and to "
-      "compute only a model's used dims, each against the naive regions x keypoints loop");
+  auto* ctx =
+      bench->add_subcommand("context",
+                            "Time to build all training feature vectors (landmark keypoints + background) and to "
+                            "compute only a model's used dims, each against the naive regions x keypoints loop");
   ctx->add_option("--map", args->map_path, "map.h5");
   ctx->add_option("--vocab", args->vocab_path, "vocabulary (.lbv); optional with --synthetic");
-  ctx->add_option("--synthetic", args->synthetic_frames,
-                  "instead of --map: this many random frames");
+  ctx->add_option("--synthetic", args->synthetic_frames, "instead of --map: this many random frames");
   ctx->add_option("--synthetic-keypoints", args->synthetic_keypoints, "keypoints per random frame")
       ->capture_default_str();
   ctx->add_option("--synthetic-landmark-fraction", args->synthetic_landmark_fraction,
@@ -354,13 +343,10 @@ void add_bench_command(CLI::App& app) {
   ctx->add_option("--threads", args->threads, "threads for the full build")->capture_default_str();
   ctx->add_option("--regions", args->regions, "context regions")->capture_default_str();
   ctx->add_option("--region-seed", args->region_seed, "region set seed")->capture_default_str();
-  ctx->add_option("--background-ratio", args->background_ratio,
-                  "background samples per landmark sample")
+  ctx->add_option("--background-ratio", args->background_ratio, "background samples per landmark sample")
       ->capture_default_str();
-  ctx->add_option("--used-dims", args->used_dims, "random dims a model would use")
-      ->capture_default_str();
-  ctx->add_option("--naive-samples", args->naive_samples, "samples for the naive comparison")
-      ->capture_default_str();
+  ctx->add_option("--used-dims", args->used_dims, "random dims a model would use")->capture_default_str();
+  ctx->add_option("--naive-samples", args->naive_samples, "samples for the naive comparison")->capture_default_str();
   ctx->add_option("--used-dims-frames", args->used_dims_frames, "frames for the used-dims timing")
       ->capture_default_str();
   ctx->add_option("--seed", args->seed, "sampling seed")->capture_default_str();

@@ -18,22 +18,22 @@
 #include <string>
 #include <vector>
 
+#include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
-#include <spdlog/spdlog.h>
 
+#include "common/context_embedding.h"
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/hamming.h"
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "common/random.h"
-#include "common/context_embedding.h"
 #include "infer/classifier.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
-#include "common/file_io.h"
 #include "train/cli/commands.h"
 #include "train/eval/timing.h"
 #include "train/export/synthetic_model.h"
@@ -49,8 +49,8 @@ struct BenchInferArgs {
   std::string map;
   int keypoints = 1000;  // per frame: the first N of each query frame (all when fewer)
   int repeats = 3;
-  int max_frames = 0;    // 0 = every query frame (map) / number of synthetic frames
-  int frames = 5;        // synthetic frames (without --map)
+  int max_frames = 0;              // 0 = every query frame (map) / number of synthetic frames
+  int frames = 5;                  // synthetic frames (without --map)
   int train_descriptors = 400000;  // synthetic training descriptors (without --map)
   int ransac_iterations = 500;
   bool popcount = true;
@@ -146,8 +146,7 @@ BenchData load_bench_data(const BenchInferArgs& a, int bytes) {
   if (!a.map.empty()) {
     d = map_bench_data(a, bytes);
   } else {
-    LMB_CHECK(a.frames >= 1 && a.train_descriptors >= 1,
-              "bench infer: --frames and --train-descriptors must be >= 1");
+    LMB_CHECK(a.frames >= 1 && a.train_descriptors >= 1, "bench infer: --frames and --train-descriptors must be >= 1");
     d.frames = synthetic_frames(a.max_frames > 0 ? std::min(a.frames, a.max_frames) : a.frames, a.keypoints, bytes,
                                 a.synthetic.seed + 1);
     Rng rng(a.synthetic.seed + 2);
@@ -203,8 +202,8 @@ int64_t popcount_1nn(const uint8_t* desc, int n, const BenchData& d, int bytes) 
   return checksum;
 }
 
-EndToEnd time_end_to_end(const BenchInferArgs& a, const BenchData& d, const Localizer& dense,
-                         const Localizer& inverted, cv::BFMatcher& bf, int bytes, int64_t& checksum) {
+EndToEnd time_end_to_end(const BenchInferArgs& a, const BenchData& d, const Localizer& dense, const Localizer& inverted,
+                         cv::BFMatcher& bf, int bytes, int64_t& checksum) {
   EndToEnd e;
   for (int rep = 0; rep < a.repeats; ++rep) {
     for (const BenchFrame& f : d.frames) {
@@ -270,8 +269,8 @@ StageCpu time_stages(const BenchInferArgs& a, const std::shared_ptr<const Model>
       const double t0 = thread_cpu_ms();
       std::vector<uint8_t> words(static_cast<size_t>(n));
       model->vocabulary().quantize(desc, n, words.data());
-      const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
-                                                                f.gravity_in_cam, "bench");
+      const FrameKeypoints fk =
+          frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n, f.gravity_in_cam, "bench");
       const double t1 = thread_cpu_ms();
       double embedding_ms = 0, unscreened_embedding_ms = 0;
       checksum += static_cast<int64_t>(classifier.classify(fk, desc, "bench", &embedding_ms).matches.size());
@@ -304,14 +303,13 @@ struct Unbatched {
   double dense_ms = 0, inverted_ms = 0;
 };
 
-Unbatched time_unbatched(const std::shared_ptr<const Model>& model, const BenchFrame& f, int bytes,
-                         int64_t& checksum) {
+Unbatched time_unbatched(const std::shared_ptr<const Model>& model, const BenchFrame& f, int bytes, int64_t& checksum) {
   Unbatched u;
   const int n = static_cast<int>(f.keypoints.size());
   std::vector<uint8_t> words(static_cast<size_t>(n));
   model->vocabulary().quantize(f.descriptors.data(), n, words.data());
-  const FrameKeypoints fk = frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n,
-                                                            f.gravity_in_cam, "bench");
+  const FrameKeypoints fk =
+      frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n, f.gravity_in_cam, "bench");
   Classifier c(model);
   c.index_frame(fk);
   std::vector<uint8_t> values(model->used_dims().size());
@@ -361,32 +359,37 @@ void print_bench(const BenchInferArgs& a, const Model& m, const BenchFigures& b)
       static_cast<long long>(m.stump_classes().size()), m.used_dims().size(),
       static_cast<long long>(m.word_classes().size()), b.load_ms);
   std::printf("  machine: %s\n", machine_info().summary().c_str());
-  std::printf("  %zu %s frames x %d repeats, %.0f keypoints a frame; %d training descriptors; 1 thread; %d RANSAC iterations\n",
-              b.frames, a.map.empty() ? "synthetic" : "query", a.repeats, kp_per_frame, b.num_train,
-              a.ransac_iterations);
+  std::printf(
+      "  %zu %s frames x %d repeats, %.0f keypoints a frame; %d training descriptors; 1 thread; %d RANSAC iterations\n",
+      b.frames, a.map.empty() ? "synthetic" : "query", a.repeats, kp_per_frame, b.num_train, a.ransac_iterations);
   std::printf("  dense:         embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame\n",
               sd.embedding / nr, sd.classification / nr, sd.pose / nr, sd.total / nr);
-  std::printf("  inverted file: embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame "
-              "(%.0f correspondences, %.1f inliers)\n",
-              si.embedding / nr, si.classification / nr, si.pose / nr, si.total / nr, b.e.correspondences / nr,
-              b.e.inliers / nr);
-  std::printf("  unbatched scoring (one keypoint at a time, first frame): dense %.2f ms, inverted file %.2f ms a frame\n",
-              b.unbatched.dense_ms, b.unbatched.inverted_ms);
+  std::printf(
+      "  inverted file: embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame "
+      "(%.0f correspondences, %.1f inliers)\n",
+      si.embedding / nr, si.classification / nr, si.pose / nr, si.total / nr, b.e.correspondences / nr,
+      b.e.inliers / nr);
+  std::printf(
+      "  unbatched scoring (one keypoint at a time, first frame): dense %.2f ms, inverted file %.2f ms a frame\n",
+      b.unbatched.dense_ms, b.unbatched.inverted_ms);
   std::printf("  OpenCV BFMatcher (Hamming): 1-NN %.2f ms, 2-NN %.2f ms a frame; popcount 1-NN loop: %.2f ms a frame\n",
               bf, b.e.bf_knn_ms / nr, b.e.popcount_ms / nr);
-  std::printf("  thread CPU time a frame: localization dense %.2f ms, inverted file %.2f ms; BFMatcher 1-NN %.2f ms "
-              "(inverted-file localization / BFMatcher 1-NN: 1/%.1f)\n",
-              sd.cpu / nr, si.cpu / nr, b.e.bf_cpu_ms / nr, b.e.bf_cpu_ms / si.cpu);
-  std::printf("  thread CPU time a frame by stage, inverted file (each stage run on its own): embedding %.2f ms, "
-              "scoring %.2f ms, pose %.2f ms\n",
-              b.stages.embedding / nr, b.stages.scoring / nr, b.stages.pose / nr);
-  std::printf("  screening: %.2f%% of the candidate classes scored exactly; scoring without screening %.2f ms "
-              "(%.1fx)\n",
-              100.0 * b.stages.scored_share, b.stages.unscreened / nr, b.stages.unscreened / b.stages.scoring);
-  std::printf("  matching (embedding + classification) / BFMatcher 1-NN: dense %.4f (1/%.1f), inverted file %.4f "
-              "(1/%.1f) (checksum %lld)\n",
-              match_dense / bf, bf / match_dense, match_inverted / bf, bf / match_inverted,
-              static_cast<long long>(b.checksum));
+  std::printf(
+      "  thread CPU time a frame: localization dense %.2f ms, inverted file %.2f ms; BFMatcher 1-NN %.2f ms "
+      "(inverted-file localization / BFMatcher 1-NN: 1/%.1f)\n",
+      sd.cpu / nr, si.cpu / nr, b.e.bf_cpu_ms / nr, b.e.bf_cpu_ms / si.cpu);
+  std::printf(
+      "  thread CPU time a frame by stage, inverted file (each stage run on its own): embedding %.2f ms, "
+      "scoring %.2f ms, pose %.2f ms\n",
+      b.stages.embedding / nr, b.stages.scoring / nr, b.stages.pose / nr);
+  std::printf(
+      "  screening: %.2f%% of the candidate classes scored exactly; scoring without screening %.2f ms "
+      "(%.1fx)\n",
+      100.0 * b.stages.scored_share, b.stages.unscreened / nr, b.stages.unscreened / b.stages.scoring);
+  std::printf(
+      "  matching (embedding + classification) / BFMatcher 1-NN: dense %.4f (1/%.1f), inverted file %.4f "
+      "(1/%.1f) (checksum %lld)\n",
+      match_dense / bf, bf / match_dense, match_inverted / bf, bf / match_inverted, static_cast<long long>(b.checksum));
 }
 
 nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFigures& b) {
@@ -406,16 +409,25 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
           {"keypoints_per_frame", static_cast<double>(b.e.keypoints_total) / nr},
           {"training_descriptors", b.num_train},
           {"ransac_iterations", a.ransac_iterations},
-          {"dense_ms", {{"embedding", sd.embedding / nr}, {"classification", sd.classification / nr},
-                        {"pose", sd.pose / nr}, {"total", sd.total / nr}}},
-          {"inverted_file_ms", {{"embedding", si.embedding / nr}, {"classification", si.classification / nr},
-                                {"pose", si.pose / nr}, {"total", si.total / nr}}},
-          {"cpu_ms", {{"dense_localization", sd.cpu / nr}, {"inverted_file_localization", si.cpu / nr},
-                      {"bfmatcher", b.e.bf_cpu_ms / nr},
-                      {"inverted_file_stages", {{"embedding", b.stages.embedding / nr},
-                                                {"scoring", b.stages.scoring / nr},
-                                                {"pose", b.stages.pose / nr},
-                                                {"scoring_unscreened", b.stages.unscreened / nr}}}}},
+          {"dense_ms",
+           {{"embedding", sd.embedding / nr},
+            {"classification", sd.classification / nr},
+            {"pose", sd.pose / nr},
+            {"total", sd.total / nr}}},
+          {"inverted_file_ms",
+           {{"embedding", si.embedding / nr},
+            {"classification", si.classification / nr},
+            {"pose", si.pose / nr},
+            {"total", si.total / nr}}},
+          {"cpu_ms",
+           {{"dense_localization", sd.cpu / nr},
+            {"inverted_file_localization", si.cpu / nr},
+            {"bfmatcher", b.e.bf_cpu_ms / nr},
+            {"inverted_file_stages",
+             {{"embedding", b.stages.embedding / nr},
+              {"scoring", b.stages.scoring / nr},
+              {"pose", b.stages.pose / nr},
+              {"scoring_unscreened", b.stages.unscreened / nr}}}}},
           {"screening_scored_share", b.stages.scored_share},
           {"unbatched_scoring_ms", {{"dense", b.unbatched.dense_ms}, {"inverted_file", b.unbatched.inverted_ms}}},
           {"bfmatcher_ms", bf},
@@ -427,8 +439,7 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
 
 void run_bench_infer(const BenchInferArgs& a) {
   LMB_CHECK(a.keypoints >= 1 && a.repeats >= 1, "bench infer: --keypoints and --repeats must be >= 1");
-  LMB_CHECK(a.synthetic_paper != !a.model.empty(),
-            "bench infer: give exactly one of --model and --synthetic-paper");
+  LMB_CHECK(a.synthetic_paper != !a.model.empty(), "bench infer: give exactly one of --model and --synthetic-paper");
   BenchFigures b;
   const std::shared_ptr<const Model> model = load_bench_model(a, &b.load_ms);
   const int bytes = model->descriptor_bytes();
@@ -463,14 +474,16 @@ void add_bench_infer_command(CLI::App& app) {
   cmd->add_option("--classes", args->synthetic.num_classes, "Synthetic model: classes")->capture_default_str();
   cmd->add_option("--stumps", args->synthetic.num_stumps, "Synthetic model: stumps")->capture_default_str();
   cmd->add_option("--seed", args->synthetic.seed, "Synthetic model and frames: seed")->capture_default_str();
-  cmd->add_option("--map", args->map, "Map whose query frames and training observations are used (map.h5); "
-                                      "default: synthetic frames and descriptors");
+  cmd->add_option("--map", args->map,
+                  "Map whose query frames and training observations are used (map.h5); "
+                  "default: synthetic frames and descriptors");
   cmd->add_option("--keypoints", args->keypoints, "Keypoints a frame (the first N)")->capture_default_str();
   cmd->add_option("--repeats", args->repeats, "Passes over the frames")->capture_default_str();
   cmd->add_option("--max-frames", args->max_frames, "At most this many query frames (0 = all)")->capture_default_str();
   cmd->add_option("--frames", args->frames, "Synthetic frames (without --map)")->capture_default_str();
   cmd->add_option("--train-descriptors", args->train_descriptors,
-                  "Synthetic training descriptors for the baselines (without --map)")->capture_default_str();
+                  "Synthetic training descriptors for the baselines (without --map)")
+      ->capture_default_str();
   cmd->add_option("--ransac-iterations", args->ransac_iterations, "RANSAC iterations")->capture_default_str();
   cmd->add_flag("!--no-popcount", args->popcount, "Skip the popcount baseline");
   cmd->add_option("--json", args->json, "Also write the figures as JSON");

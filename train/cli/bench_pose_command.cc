@@ -20,8 +20,8 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "common/error.h"
 #include "common/io/map_h5.h"
@@ -75,8 +75,9 @@ void run_bench_pose(const BenchPoseArgs& a) {
   LMB_CHECK(a.iterations >= 1 && a.baseline_iterations >= 1, "bench pose: iterations must be >= 1");
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
-  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(),
-            a.map << ": " << map.descriptor_bytes << "-byte descriptors, the model expects " << model->descriptor_bytes());
+  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(), a.map << ": " << map.descriptor_bytes
+                                                                     << "-byte descriptors, the model expects "
+                                                                     << model->descriptor_bytes());
 
   // The correspondences of every query frame, once (the pose of this pass is not used).
   LocalizerOptions lo;
@@ -90,8 +91,8 @@ void run_bench_pose(const BenchPoseArgs& a) {
     if (a.max_frames > 0 && static_cast<int>(frames.size()) >= a.max_frames) break;
     const std::vector<Keypoint> keypoints(map.keypoints.begin() + mf.first_keypoint,
                                           map.keypoints.begin() + mf.first_keypoint + mf.num_keypoints);
-    const LocalizeResult r = localizer.localize(map.cameras[mf.camera], keypoints, map.descriptor(mf.first_keypoint),
-                                                mf.gravity_in_cam);
+    const LocalizeResult r =
+        localizer.localize(map.cameras[mf.camera], keypoints, map.descriptor(mf.first_keypoint), mf.gravity_in_cam);
     Frame fr;
     fr.camera = map.cameras[mf.camera];
     fr.truth = mf.cam_from_world;
@@ -177,8 +178,8 @@ void run_bench_pose(const BenchPoseArgs& a) {
     }
     const double ms = s.cpu_ms / runs;
     const int iterations = k == 0 ? a.baseline_iterations : a.iterations;
-    std::printf("%-20s %10d %8.4f %8.4f %8.4f %12.3f %8.2fx", s.name.c_str(), iterations, sum / a.seeds, lo_r, hi_r,
-                ms, baseline_ms / ms);
+    std::printf("%-20s %10d %8.4f %8.4f %8.4f %12.3f %8.2fx", s.name.c_str(), iterations, sum / a.seeds, lo_r, hi_r, ms,
+                baseline_ms / ms);
     if (k == 0) {
       std::printf(" %8s %8s %8s\n", "-", "-", "-");
     } else {

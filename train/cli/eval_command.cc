@@ -75,18 +75,17 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--keypoint-ranks", args->keypoint_ranks,
                   "Side file: every query keypoint's rank of its true landmark, per method");
   cmd->add_option("--methods", o.methods, method_help)->delimiter(',')->capture_default_str();
-  cmd->add_option("--top-k", o.top_k, "Ranked landmarks per keypoint (MRR and miss-rate depth)")
-      ->capture_default_str();
+  cmd->add_option("--top-k", o.top_k, "Ranked landmarks per keypoint (MRR and miss-rate depth)")->capture_default_str();
   cmd->add_option("--min-margin", o.min_margin,
                   "LandmarkBoost's background rejection: a keypoint's best match is accepted (fed to RANSAC) "
                   "only when its score beats the background's by more than this; the default 0 rejects, "
                   "-inf turns rejection off. P@1, MRR and miss rate always rank without rejection")
       ->capture_default_str();
   cmd->add_option("--max-correspondences", o.max_correspondences,
-                  "Most confident matches fed to RANSAC, every method (0 = all)")->capture_default_str();
-  cmd->add_option("--ransac-iterations", o.pose.max_iterations, "RANSAC iterations")->capture_default_str();
-  cmd->add_option("--max-error", o.pose.max_reprojection_error_px, "Inlier threshold, pixels")
+                  "Most confident matches fed to RANSAC, every method (0 = all)")
       ->capture_default_str();
+  cmd->add_option("--ransac-iterations", o.pose.max_iterations, "RANSAC iterations")->capture_default_str();
+  cmd->add_option("--max-error", o.pose.max_reprojection_error_px, "Inlier threshold, pixels")->capture_default_str();
   cmd->add_option("--min-inliers", o.pose.min_inliers, "Inliers for a pose")->capture_default_str();
   cmd->add_option("--seed", o.pose.seed, "RANSAC seed (the same for every method)")->capture_default_str();
   cmd->add_flag("--uniform-sampling{false}", o.pose.progressive_sampling,
@@ -101,8 +100,7 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--ransac-sweep-seeds", o.sweep.seeds, "Seeds of the sweep: --seed, --seed + 1, ...")
       ->capture_default_str();
-  cmd->add_option("--ratio", o.ratio, "Lowe's ratio of the ratio-test methods: d1 < ratio * d2")
-      ->capture_default_str();
+  cmd->add_option("--ratio", o.ratio, "Lowe's ratio of the ratio-test methods: d1 < ratio * d2")->capture_default_str();
   cmd->add_option("--faiss-hnsw-m", o.faiss.m, "faiss_hnsw_ratio: HNSW graph degree M")->capture_default_str();
   cmd->add_option("--faiss-ef-construction", o.faiss.ef_construction, "faiss_hnsw_ratio: efConstruction")
       ->capture_default_str();

@@ -22,8 +22,8 @@
 #include "common/io/map_h5.h"
 #include "common/vocabulary.h"
 #include "infer/model.h"
-#include "train/boost/boost_model.h"
 #include "train/areas/area_training.h"
+#include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
 #include "train/cli/commands.h"
@@ -41,7 +41,7 @@ struct ExportArgs {
   std::string map;
   std::string vocab;
   std::string out;
-  std::optional<int32_t> regions;      // as recorded in the model unless given (then checked)
+  std::optional<int32_t> regions;  // as recorded in the model unless given (then checked)
   std::optional<int64_t> region_seed;
   ExportOptions options;
   std::string fusion = "on";
@@ -73,8 +73,8 @@ ContextRegions training_regions(const ExportArgs& a, const FeatureSpace& trained
   ro.check();
   const ContextRegions given(ro);
   LMB_CHECK(given == recorded, model_name << " was trained with " << recorded.size() << " regions of seed "
-                                          << recorded.options().seed << ", not " << given.size()
-                                          << " of seed " << ro.seed
+                                          << recorded.options().seed << ", not " << given.size() << " of seed "
+                                          << ro.seed
                                           << " (--regions and --region-seed are optional: the model records them)");
   return recorded;
 }
@@ -107,14 +107,14 @@ void run_export(const ExportArgs& a) {
   ModelData data = export_model_data(trained.model, map, vocabulary, regions, a.options, &stats);
   if (a.fusion == "on") {
     // The held-out observations are those of the run's training set: rebuilt from its config.
-    LMB_CHECK(!a.run_dir.empty(), "export: --fusion on needs --run (the training set of its config.toml); "
-                                  "give --fusion off with --boost-model");
+    LMB_CHECK(!a.run_dir.empty(),
+              "export: --fusion on needs --run (the training set of its config.toml); "
+              "give --fusion off with --boost-model");
     const TrainConfig config = read_train_config(std::filesystem::path(a.run_dir) / "config.toml");
     const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary);
     TrainingSetOptions set_options = config.training_set;
     if (config.area.set()) set_options.class_landmarks = area_class_landmarks(config.area, map);
-    const TrainingSet set = build_training_set(map, std::vector<int32_t>(words8.begin(), words8.end()),
-                                               set_options);
+    const TrainingSet set = build_training_set(map, std::vector<int32_t>(words8.begin(), words8.end()), set_options);
     const Model plain(data);
     DescriptorFusionStats fs;
     data.fusion = fit_descriptor_fusion(plain, map, set, a.fusion_options, &fs);
@@ -122,10 +122,11 @@ void run_export(const ExportArgs& a) {
     for (size_t i = 0; i < fs.weight_p1.size(); ++i) {
       curve += fmt::format("{}{}:{:.3f}", i ? " " : "", a.fusion_options.weights[i], fs.weight_p1[i]);
     }
-    spdlog::info("export: descriptor fusion weight {} ({} exemplars; g from {} training observations); held-out "
-                 "P@1 {:.4f} with it, {:.4f} stump sums alone, {:.4f} nearest exemplar alone ({} samples)",
-                 fs.weight, fs.exemplars, fs.distance_samples, fs.fit_p1_with, fs.fit_p1_without, fs.fit_p1_hamming,
-                 fs.fit_samples);
+    spdlog::info(
+        "export: descriptor fusion weight {} ({} exemplars; g from {} training observations); held-out "
+        "P@1 {:.4f} with it, {:.4f} stump sums alone, {:.4f} nearest exemplar alone ({} samples)",
+        fs.weight, fs.exemplars, fs.distance_samples, fs.fit_p1_with, fs.fit_p1_without, fs.fit_p1_hamming,
+        fs.fit_samples);
     spdlog::info("export: held-out P@1 by weight: {}", curve);
   }
   const Model model(std::move(data));
@@ -133,17 +134,15 @@ void run_export(const ExportArgs& a) {
   spdlog::info(
       "export: {} classes, {} stumps reading {} dims, {} sharing entries, inverted file {} entries "
       "({:.1f} candidates per keypoint) -> {} ({} bytes)",
-      stats.num_classes, stats.num_stumps, stats.num_used_dims, stats.sharing_entries,
-      stats.inverted_file_entries, stats.mean_candidates, a.out,
-      std::filesystem::file_size(a.out));
+      stats.num_classes, stats.num_stumps, stats.num_used_dims, stats.sharing_entries, stats.inverted_file_entries,
+      stats.mean_candidates, a.out, std::filesystem::file_size(a.out));
 }
 
 }  // namespace
 
 void add_export_command(CLI::App& app) {
   auto args = std::make_shared<ExportArgs>();
-  auto* cmd = app.add_subcommand(
-      "export", "Turn a training run into model.lbm, the file the inference library loads");
+  auto* cmd = app.add_subcommand("export", "Turn a training run into model.lbm, the file the inference library loads");
   cmd->add_option("--run", args->run_dir, "Run dir of `lboost train` (reads RUN/model.bin)");
   cmd->add_option("--boost-model", args->boost_model, "The trained model file (LMBBOOST) instead of --run");
   cmd->add_option("--map", args->map, "The map the model was trained on (map.h5)")->required();

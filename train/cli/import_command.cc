@@ -20,15 +20,17 @@ namespace lmb::cli {
 namespace {
 
 void print_gravity_agreement(const GravityAgreement& g, const std::string& world_up) {
-  std::printf("import: accelerometer vs ground-truth gravity (world up %s) over %d frames: median %.2f deg, "
-              "mean %.2f deg, 90%% %.2f deg\n",
-              world_up.c_str(), g.frames, g.median_deg, g.mean_deg, g.p90_deg);
+  std::printf(
+      "import: accelerometer vs ground-truth gravity (world up %s) over %d frames: median %.2f deg, "
+      "mean %.2f deg, 90%% %.2f deg\n",
+      world_up.c_str(), g.frames, g.median_deg, g.mean_deg, g.p90_deg);
   std::printf("import: median angle by world up axis: +x %.1f, -x %.1f, +y %.1f, -y %.1f, +z %.1f, -z %.1f deg\n",
               g.median_deg_by_world_axis[0], g.median_deg_by_world_axis[1], g.median_deg_by_world_axis[2],
               g.median_deg_by_world_axis[3], g.median_deg_by_world_axis[4], g.median_deg_by_world_axis[5]);
-  std::printf("import: best ground-truth time offset %+.3f s (median %.2f deg); fitted accelerometer rotation is "
-              "%.2f deg from the assumed one (median %.2f deg after fitting)\n",
-              g.best_time_offset_s, g.best_time_offset_median_deg, g.fitted_rotation_offset_deg, g.fitted_median_deg);
+  std::printf(
+      "import: best ground-truth time offset %+.3f s (median %.2f deg); fitted accelerometer rotation is "
+      "%.2f deg from the assumed one (median %.2f deg after fitting)\n",
+      g.best_time_offset_s, g.best_time_offset_median_deg, g.fitted_rotation_offset_deg, g.fitted_median_deg);
 }
 
 // Prints the visual time-offset scan (see train/import/visual_time_offset.h) of the sequence.
@@ -37,8 +39,8 @@ void run_time_offset_scan(const TumImportOptions& options) {
   const std::filesystem::path& dir = options.data_dirs.front();
   const std::vector<TumImage> images = read_tum_image_list(dir / "rgb.txt");
   const TumTrajectory trajectory = read_tum_trajectory(dir / "groundtruth.txt");
-  const TimeOffsetScan scan = scan_time_offset_visual(dir, images, trajectory,
-                                                      parse_camera_line(options.camera), 0.05, 0.005, options.max_gap_s);
+  const TimeOffsetScan scan = scan_time_offset_visual(dir, images, trajectory, parse_camera_line(options.camera), 0.05,
+                                                      0.005, options.max_gap_s);
   std::printf("import: visual time offset scan over %d frame pairs (median relative-rotation disagreement):\n",
               scan.pairs);
   for (size_t k = 0; k < scan.offset_s.size(); ++k) {
@@ -54,10 +56,11 @@ void run_tum(const TumImportOptions& options, bool scan_offset) {
   for (const auto& d : options.query_dirs) sources += (sources.empty() ? "" : ", ") + d.string() + " (query)";
   spdlog::info("import tum: {} -> {}", sources, options.out_dir.string());
   const TumImportStats s = import_tum(options);
-  std::printf("import: %d frames listed, %d imported (%d map, %d query), %d skipped without ground truth within "
-              "%.0f ms, %d skipped without accelerometer\n",
-              s.listed_frames, s.imported_frames, s.map_frames, s.query_frames, s.skipped_no_pose,
-              options.max_gap_s * 1000, s.skipped_no_accelerometer);
+  std::printf(
+      "import: %d frames listed, %d imported (%d map, %d query), %d skipped without ground truth within "
+      "%.0f ms, %d skipped without accelerometer\n",
+      s.listed_frames, s.imported_frames, s.map_frames, s.query_frames, s.skipped_no_pose, options.max_gap_s * 1000,
+      s.skipped_no_accelerometer);
   std::string session_list;
   for (size_t i = 0; i < s.sessions.size(); ++i) {
     session_list += (i ? ", " : "") + s.sessions[i].name + " (" + session_kind_name(s.sessions[i].kind) + ", " +
@@ -75,20 +78,22 @@ void run_colmap(const ColmapImportOptions& options) {
                options.out_dir.string());
   const ColmapImportStats s = import_colmap(options);
   if (s.depths) {
-    std::printf("import: the model's 3D points lie at depth median %.3g, 95th percentile %.3g (model units, %lld "
-                "observations); lboost map --max-depth (default 40, same units) must cover the scene\n",
-                s.depths->median, s.depths->p95, static_cast<long long>(s.depths->observations));
+    std::printf(
+        "import: the model's 3D points lie at depth median %.3g, 95th percentile %.3g (model units, %lld "
+        "observations); lboost map --max-depth (default 40, same units) must cover the scene\n",
+        s.depths->median, s.depths->p95, static_cast<long long>(s.depths->observations));
   }
   if (s.up_estimate) {
     const UpEstimate& e = *s.up_estimate;
-    std::printf("import: --up auto: up = (%.4f, %.4f, %.4f), minus the mean image down direction (camera +y) of %d "
-                "cameras (mean resultant length %.3f; 1 = all parallel); nearest world axis %s, %.1f deg away\n",
-                e.up.x(), e.up.y(), e.up.z(), e.cameras, e.mean_resultant_length, e.nearest_axis.c_str(),
-                e.nearest_axis_deg);
+    std::printf(
+        "import: --up auto: up = (%.4f, %.4f, %.4f), minus the mean image down direction (camera +y) of %d "
+        "cameras (mean resultant length %.3f; 1 = all parallel); nearest world axis %s, %.1f deg away\n",
+        e.up.x(), e.up.y(), e.up.z(), e.cameras, e.mean_resultant_length, e.nearest_axis.c_str(), e.nearest_axis_deg);
     if (e.mean_resultant_length < 0.5) {
-      std::printf("import: warning: the cameras' down directions disagree (mean resultant length %.3f < 0.5): the "
-                  "estimate assumes upright cameras; prefer a gravity file or a known --up AXIS\n",
-                  e.mean_resultant_length);
+      std::printf(
+          "import: warning: the cameras' down directions disagree (mean resultant length %.3f < 0.5): the "
+          "estimate assumes upright cameras; prefer a gravity file or a known --up AXIS\n",
+          e.mean_resultant_length);
     }
   }
   if (!s.gravity_lines_unused.empty()) {
@@ -96,8 +101,8 @@ void run_colmap(const ColmapImportOptions& options) {
                 options.gravity_file.string().c_str(), s.gravity_lines_unused.size(),
                 s.gravity_lines_unused.front().c_str());
   }
-  std::printf("import: %s model, %d images (%d map, %d query), %s; wrote %s\n", s.binary ? "binary" : "text",
-              s.images, s.map_frames, s.query_frames, s.has_gravity ? "gravity.txt written" : "no gravity file",
+  std::printf("import: %s model, %d images (%d map, %d query), %s; wrote %s\n", s.binary ? "binary" : "text", s.images,
+              s.map_frames, s.query_frames, s.has_gravity ? "gravity.txt written" : "no gravity file",
               options.out_dir.string().c_str());
 }
 

@@ -12,8 +12,8 @@
 
 #include "common/error.h"
 #include "common/io/map_h5.h"
-#include "train/cli/commands.h"
 #include "train/checkpoint/checkpoint_h5.h"
+#include "train/cli/commands.h"
 #include "train/mapping/depth_ground_truth.h"
 #include "train/mapping/descriptor_nn.h"
 
@@ -50,8 +50,9 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
     with_query += l.num_query_observations > 0 ? 1 : 0;
   }
   if (!map.landmarks.empty()) {
-    const auto [lo, hi] = std::minmax_element(map.landmarks.begin(), map.landmarks.end(),
-                                              [](const Landmark& a, const Landmark& b) { return a.quality < b.quality; });
+    const auto [lo, hi] =
+        std::minmax_element(map.landmarks.begin(), map.landmarks.end(),
+                            [](const Landmark& a, const Landmark& b) { return a.quality < b.quality; });
     quality_min = lo->quality;
     quality_max = hi->quality;
   }
@@ -71,10 +72,9 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
   j["landmarks_with_5_map_observations"] = at_least_5;
   j["landmarks_with_10_map_observations"] = at_least_10;
   j["landmarks_seen_by_queries"] = with_query;
-  j["map_observations_per_landmark"] = {
-      {"mean", static_cast<double>(map_with) / n},
-      {"median", obs.empty() ? 0 : obs[obs.size() / 2]},
-      {"max", obs.empty() ? 0 : obs.back()}};
+  j["map_observations_per_landmark"] = {{"mean", static_cast<double>(map_with) / n},
+                                        {"median", obs.empty() ? 0 : obs[obs.size() / 2]},
+                                        {"max", obs.empty() ? 0 : obs.back()}};
   j["mean_reprojection_error_px"] = error_sum / n;
   j["quality"] = {{"min", quality_min}, {"max", quality_max}};
   // Per session: frames, keypoints, keypoints with a landmark, and (map sessions) landmarks that
@@ -112,8 +112,12 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
 
 void inspect_checkpoint(const InspectArgs& args) {
   const Checkpoint ck = read_checkpoint(args.map_path);
-  const nlohmann::json j = {{"file", args.map_path}, {"format", kCheckpointFormat}, {"rounds", ck.rounds},
-                            {"ranks", ck.ranks},     {"data", ck.data},              {"crc32", "ok"},
+  const nlohmann::json j = {{"file", args.map_path},
+                            {"format", kCheckpointFormat},
+                            {"rounds", ck.rounds},
+                            {"ranks", ck.ranks},
+                            {"data", ck.data},
+                            {"crc32", "ok"},
                             {"stumps", ck.state.model.stumps.size()}};
   if (args.json) {
     std::printf("%s\n", j.dump(2).c_str());
@@ -165,8 +169,9 @@ void run_inspect(const InspectArgs& args) {
               map.descriptor_bytes, map.cameras.size());
   std::printf("frames: %d map, %d query\n", j["map_frames"].get<int>(), j["query_frames"].get<int>());
   for (const auto& e : j["sessions"]) {
-    std::printf("session %s (%s): %lld frames, %lld keypoints, %lld with a landmark", e["name"].get<std::string>().c_str(),
-                e["kind"].get<std::string>().c_str(), e["frames"].get<long long>(), e["keypoints"].get<long long>(),
+    std::printf("session %s (%s): %lld frames, %lld keypoints, %lld with a landmark",
+                e["name"].get<std::string>().c_str(), e["kind"].get<std::string>().c_str(),
+                e["frames"].get<long long>(), e["keypoints"].get<long long>(),
                 e["keypoints_with_landmark"].get<long long>());
     if (e.contains("landmarks_seen_only_here")) {
       std::printf("; %lld landmarks seen by no other map session", e["landmarks_seen_only_here"].get<long long>());
@@ -178,7 +183,8 @@ void run_inspect(const InspectArgs& args) {
               j["query_keypoints"].get<long long>(), j["query_keypoints_with_landmark"].get<long long>());
   std::printf("landmarks: %zu (%lld with >= 5 and %lld with >= 10 map observations, %lld seen by queries)\n",
               map.landmarks.size(), j["landmarks_with_5_map_observations"].get<long long>(),
-              j["landmarks_with_10_map_observations"].get<long long>(), j["landmarks_seen_by_queries"].get<long long>());
+              j["landmarks_with_10_map_observations"].get<long long>(),
+              j["landmarks_seen_by_queries"].get<long long>());
   std::printf("map observations per landmark: mean %.2f, median %d, max %d\n",
               j["map_observations_per_landmark"]["mean"].get<double>(),
               j["map_observations_per_landmark"]["median"].get<int>(),
@@ -187,20 +193,22 @@ void run_inspect(const InspectArgs& args) {
               j["quality"]["min"].get<double>(), j["quality"]["max"].get<double>());
   if (!args.no_nn) {
     const auto& nn = j["hamming_nn"];
-    std::printf("hamming NN precision@1: %.4f (%lld of %lld query keypoints; %lld map descriptors; "
-                "mean NN distance %.1f bits, to true landmark %.1f bits)\n",
-                nn["precision_at_1"].get<double>(), nn["correct"].get<long long>(), nn["queries"].get<long long>(),
-                nn["database"].get<long long>(), nn["mean_nn_distance_bits"].get<double>(),
-                nn["mean_true_landmark_distance_bits"].get<double>());
+    std::printf(
+        "hamming NN precision@1: %.4f (%lld of %lld query keypoints; %lld map descriptors; "
+        "mean NN distance %.1f bits, to true landmark %.1f bits)\n",
+        nn["precision_at_1"].get<double>(), nn["correct"].get<long long>(), nn["queries"].get<long long>(),
+        nn["database"].get<long long>(), nn["mean_nn_distance_bits"].get<double>(),
+        nn["mean_true_landmark_distance_bits"].get<double>());
   }
   if (j.contains("depth_check")) {
     const auto& d = j["depth_check"];
-    std::printf("depth check (%lld landmarks): track purity %.4f (observations %.4f, pure tracks %.4f); "
-                "position error median %.4f m, mean %.4f m, p90 %.4f m\n",
-                d["landmarks_checked"].get<long long>(), d["mean_track_purity"].get<double>(),
-                d["observation_purity"].get<double>(), d["pure_track_share"].get<double>(),
-                d["median_position_error_m"].get<double>(), d["mean_position_error_m"].get<double>(),
-                d["p90_position_error_m"].get<double>());
+    std::printf(
+        "depth check (%lld landmarks): track purity %.4f (observations %.4f, pure tracks %.4f); "
+        "position error median %.4f m, mean %.4f m, p90 %.4f m\n",
+        d["landmarks_checked"].get<long long>(), d["mean_track_purity"].get<double>(),
+        d["observation_purity"].get<double>(), d["pure_track_share"].get<double>(),
+        d["median_position_error_m"].get<double>(), d["mean_position_error_m"].get<double>(),
+        d["p90_position_error_m"].get<double>());
   }
 }
 
@@ -208,7 +216,8 @@ void run_inspect(const InspectArgs& args) {
 
 void add_inspect_command(CLI::App& app) {
   auto args = std::make_shared<InspectArgs>();
-  auto* cmd = app.add_subcommand("inspect", "Print statistics of a map.h5 and its descriptor aliasing figure, or check a checkpoint");
+  auto* cmd = app.add_subcommand(
+      "inspect", "Print statistics of a map.h5 and its descriptor aliasing figure, or check a checkpoint");
   cmd->add_option("map", args->map_path, "map.h5 file, or a training checkpoint ckpt-*.h5")->required();
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   cmd->add_flag("--no-nn", args->no_nn, "Skip the Hamming nearest-neighbour figure");

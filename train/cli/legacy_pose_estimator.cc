@@ -50,9 +50,8 @@ class SeededAbsolutePoseProblem : public OpenGvProblem {
   }
 
   // 1 - cos of the angle between bearing i and the direction to point i under world_from_cam.
-  static double distance(const Eigen::Matrix3d& cam_from_world_rotation,
-                         const Eigen::Vector3d& camera_center, const Eigen::Vector3d& point,
-                         const Eigen::Vector3d& bearing) {
+  static double distance(const Eigen::Matrix3d& cam_from_world_rotation, const Eigen::Vector3d& camera_center,
+                         const Eigen::Vector3d& point, const Eigen::Vector3d& bearing) {
     const Eigen::Vector3d x = cam_from_world_rotation * (point - camera_center);
     return 1.0 - x.dot(bearing) / x.norm();
   }
@@ -85,8 +84,8 @@ using SacProblem = SeededAbsolutePoseProblem;
 
 // MSAC cost of a model over the valid correspondences: sum of min(distance, threshold), where
 // distance is OpenGV's 1 - cos(angle).
-double truncated_cost(const SacProblem& problem, const opengv::transformation_t& model,
-                      const std::vector<int>& indices, double threshold) {
+double truncated_cost(const SacProblem& problem, const opengv::transformation_t& model, const std::vector<int>& indices,
+                      double threshold) {
   std::vector<double> distances;
   distances.reserve(indices.size());
   problem.getSelectedDistancesToModel(model, indices, distances);
@@ -115,11 +114,10 @@ LegacyPoseResult estimate_absolute_pose(const Camera& camera, const std::vector<
                                        << " world points; they must correspond one to one");
   const size_t n = pixels.size();
   for (size_t i = 0; i < n; ++i) {
-    LMB_CHECK(pixels[i].allFinite(), "estimate_absolute_pose: pixel " << i << " is not finite ("
-                                                                       << pixels[i].transpose() << ")");
-    LMB_CHECK(points_world[i].allFinite(), "estimate_absolute_pose: world point "
-                                               << i << " is not finite ("
-                                               << points_world[i].transpose() << ")");
+    LMB_CHECK(pixels[i].allFinite(),
+              "estimate_absolute_pose: pixel " << i << " is not finite (" << pixels[i].transpose() << ")");
+    LMB_CHECK(points_world[i].allFinite(),
+              "estimate_absolute_pose: world point " << i << " is not finite (" << points_world[i].transpose() << ")");
   }
 
   LegacyPoseResult result;
@@ -143,8 +141,7 @@ LegacyPoseResult estimate_absolute_pose(const Camera& camera, const std::vector<
   const double loss_scale = 0.5 * threshold_angle;
 
   opengv::absolute_pose::CentralAbsoluteAdapter adapter(bearings, points);
-  auto problem =
-      std::make_shared<detail::SacProblem>(adapter, bearings, points, valid, options.seed);
+  auto problem = std::make_shared<detail::SacProblem>(adapter, bearings, points, valid, options.seed);
 
   // OpenGV's loop stops once its counter exceeds maxIterations, i.e. after maxIterations + 1
   // hypotheses: pass one less. It also gives up after 10 * maxIterations failed P3P samples, so

@@ -15,9 +15,9 @@
 namespace lmb::legacy {
 
 struct LegacyPoseOptions {
-  int max_iterations = 500;               // hypotheses (OpenGV's evaluates at least 2)
+  int max_iterations = 500;  // hypotheses (OpenGV's evaluates at least 2)
   double max_reprojection_error_px = 8.0;
-  double confidence = 0.9999;             // OpenGV's adaptive stopping
+  double confidence = 0.9999;  // OpenGV's adaptive stopping
   uint64_t seed = 0;
   int min_inliers = 12;
   bool refine = true;

@@ -13,8 +13,8 @@
 #include <thread>
 #include <vector>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "common/error.h"
 #include "common/file_io.h"
@@ -23,9 +23,9 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
+#include "train/eval/evaluation.h"
 #include "train/eval/metrics.h"
 #include "train/eval/report.h"
-#include "train/eval/evaluation.h"
 
 namespace lmb::cli {
 
@@ -131,10 +131,14 @@ nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all
                           {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
   jf["num_inliers"] = r.pose.num_inliers;
   const RansacStats& st = r.pose.stats;
-  jf["ransac"] = {{"iterations", st.iterations},     {"models", st.models},
-                  {"refinements", st.refinements},   {"subset_size", st.subset_size},
-                  {"stop_subset", st.stop_subset},   {"score", st.score},
-                  {"runner_up_inliers", st.runner_up_inliers}, {"runner_up_shared", st.runner_up_shared}};
+  jf["ransac"] = {{"iterations", st.iterations},
+                  {"models", st.models},
+                  {"refinements", st.refinements},
+                  {"subset_size", st.subset_size},
+                  {"stop_subset", st.stop_subset},
+                  {"score", st.score},
+                  {"runner_up_inliers", st.runner_up_inliers},
+                  {"runner_up_shared", st.runner_up_shared}};
   jf["num_correspondences"] = r.correspondence_keypoint.size();
   jf["num_keypoints"] = frame.num_keypoints;
   int matched = 0;
@@ -204,10 +208,11 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
           {"accepted_matches", mm.num_accepted},
           {"background_rejection_rate", mm.background_rejection_rate},
           {"background_keypoints", mm.num_background},
-          {"ms_per_frame", {{"embedding", embedding_ms / nf},
-                            {"classification", classification_ms / nf},
-                            {"pose", pose_ms / nf},
-                            {"total", total_ms / nf}}}};
+          {"ms_per_frame",
+           {{"embedding", embedding_ms / nf},
+            {"classification", classification_ms / nf},
+            {"pose", pose_ms / nf},
+            {"total", total_ms / nf}}}};
 }
 
 void print_summary(const nlohmann::json& s, int threads, const std::string& out) {
@@ -253,7 +258,8 @@ void run_localize(const LocalizeArgs& a) {
                     {"seed", a.options.pose.seed},
                     {"prosac", a.options.pose.progressive_sampling}};
   nlohmann::json jframes = nlohmann::json::array();
-  for (size_t i = 0; i < frames.size(); ++i) jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
+  for (size_t i = 0; i < frames.size(); ++i)
+    jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
   out["frames"] = std::move(jframes);
   out["summary"] = summary_json(map, frames, outcomes);
   write_file_atomically(a.out, out.dump(1) + "\n");
@@ -264,8 +270,8 @@ void run_localize(const LocalizeArgs& a) {
 
 void add_localize_command(CLI::App& app) {
   auto args = std::make_shared<LocalizeArgs>();
-  auto* cmd = app.add_subcommand(
-      "localize", "Localize the query frames of a map with model.lbm; write poses and matches as JSON");
+  auto* cmd = app.add_subcommand("localize",
+                                 "Localize the query frames of a map with model.lbm; write poses and matches as JSON");
   cmd->add_option("--model", args->model, "Inference model (model.lbm)")->required();
   cmd->add_option("--map", args->map, "Map whose query frames are localized (map.h5)")->required();
   cmd->add_option("--queries", args->queries, "Frame names to localize (default: every query frame)");
@@ -275,13 +281,14 @@ void add_localize_command(CLI::App& app) {
                 "Score only the keypoint word's candidate classes");
   cmd->add_option("--min-margin", args->options.classifier.min_margin,
                   "Background rejection: a match must beat the background's score by more than this "
-                  "(-inf = no rejection)")->capture_default_str();
+                  "(-inf = no rejection)")
+      ->capture_default_str();
   cmd->add_option("--pose-top-k", args->options.pose_top_k, "Matches per keypoint fed to RANSAC")
       ->capture_default_str();
   cmd->add_option("--max-correspondences", args->options.max_correspondences,
-                  "Best-margin matches fed to RANSAC (0 = all)")->capture_default_str();
-  cmd->add_option("--ransac-iterations", args->options.pose.max_iterations, "RANSAC iterations")
+                  "Best-margin matches fed to RANSAC (0 = all)")
       ->capture_default_str();
+  cmd->add_option("--ransac-iterations", args->options.pose.max_iterations, "RANSAC iterations")->capture_default_str();
   cmd->add_option("--max-error", args->options.pose.max_reprojection_error_px, "Inlier threshold, pixels")
       ->capture_default_str();
   cmd->add_option("--min-inliers", args->options.pose.min_inliers, "Inliers for a pose")->capture_default_str();

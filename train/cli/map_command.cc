@@ -52,8 +52,8 @@ void run_map(const MapArgs& args) {
     } else {
       std::printf("map: gravity of %s: %s\n", args.collections[k].c_str(), gravity.description.c_str());
     }
-    inputs.push_back(CollectionInput{args.collections[k], args.labels.empty() ? "" : args.labels[k],
-                                     gravity.gravity_file});
+    inputs.push_back(
+        CollectionInput{args.collections[k], args.labels.empty() ? "" : args.labels[k], gravity.gravity_file});
     names += (k ? ", " : "") + args.collections[k];
   }
   options.check();
@@ -64,9 +64,9 @@ void run_map(const MapArgs& args) {
   LMB_CHECK(!map.landmarks.empty(), names << ": no landmark survived mapping (too few overlapping "
                                           << "map frames?); nothing written");
   write_map_h5(map, args.out);
-  std::printf("map: %d map frames, %d query frames (%d outside), %lld keypoints (%s, %d bytes)\n",
-              stats.num_map_frames, stats.num_query_frames, stats.num_outside_frames,
-              static_cast<long long>(stats.num_keypoints), map.detector.c_str(), map.descriptor_bytes);
+  std::printf("map: %d map frames, %d query frames (%d outside), %lld keypoints (%s, %d bytes)\n", stats.num_map_frames,
+              stats.num_query_frames, stats.num_outside_frames, static_cast<long long>(stats.num_keypoints),
+              map.detector.c_str(), map.descriptor_bytes);
   std::vector<int> frames(map.sessions.size(), 0);
   for (const MapFrame& f : map.frames) ++frames[static_cast<size_t>(f.session)];
   std::string session_list;
@@ -78,10 +78,11 @@ void run_map(const MapArgs& args) {
   std::printf("map: %lld frame pairs, %lld matches, %lld tracks -> %lld landmarks\n",
               static_cast<long long>(stats.num_pairs), static_cast<long long>(stats.num_matches),
               static_cast<long long>(stats.num_tracks), static_cast<long long>(stats.num_landmarks));
-  std::printf("map: %.2f map observations per landmark, %lld query keypoints with a landmark, "
-              "mean reprojection error %.2f px\n",
-              stats.mean_map_observations, static_cast<long long>(stats.num_query_observations),
-              stats.mean_reprojection_error_px);
+  std::printf(
+      "map: %.2f map observations per landmark, %lld query keypoints with a landmark, "
+      "mean reprojection error %.2f px\n",
+      stats.mean_map_observations, static_cast<long long>(stats.num_query_observations),
+      stats.mean_reprojection_error_px);
   std::printf("map: %.1f s (detect %.1f s, match %.1f s, triangulate %.1f s), wrote %s\n", stats.total_seconds,
               stats.detect_seconds, stats.match_seconds, stats.triangulate_seconds, args.out.c_str());
 }
@@ -124,8 +125,7 @@ void add_map_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-depth", args->options.matching.max_depth, "Max depth for guided matching, world units")
       ->capture_default_str();
-  cmd->add_option("--min-observations", args->options.min_map_observations,
-                  "Map-frame observations a landmark needs")
+  cmd->add_option("--min-observations", args->options.min_map_observations, "Map-frame observations a landmark needs")
       ->capture_default_str();
   cmd->callback([args, up] {
     args->up_given = up->count() > 0;

@@ -31,8 +31,8 @@
 #include <spdlog/sinks/base_sink.h>
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "common/context_regions.h"
 #include "common/error.h"
@@ -130,7 +130,7 @@ HammingBaseline hamming_nn_validation_p1(const LandmarkMap& map, const TrainingS
 struct RankData {
   TrainingSet set;
   FeatureMatrix features;
-  std::string source;  // checked on resume
+  std::string source;          // checked on resume
   FeatureSpace feature_space;  // rank 0 (the map's fingerprint is computed there only)
   HammingBaseline hamming;
 };
@@ -156,8 +156,8 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
   if (!a.synthetic.empty()) {
     SyntheticBoostProblem p = make_synthetic_boost_problem(synthetic_preset(a.synthetic));
     d.set = std::move(p.set);
-    d.features = comm.distributed() ? keep_rank_columns(std::move(p.features), comm.rank(), comm.size())
-                                    : std::move(p.features);
+    d.features =
+        comm.distributed() ? keep_rank_columns(std::move(p.features), comm.rank(), comm.size()) : std::move(p.features);
     d.source = "synthetic:" + a.synthetic;
     d.feature_space = synthetic_feature_space(d.source, d.features.num_dims);
   } else {
@@ -169,16 +169,15 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
     TrainingSetOptions set_options = config.training_set;
     if (config.area.set()) {
       set_options.class_landmarks = area_class_landmarks(config.area, map);
-      spdlog::info("train: area {} of {}: {} landmark classes (training_set.top_k_landmarks not used)",
-                   config.area.id, config.area.file, set_options.class_landmarks.size());
+      spdlog::info("train: area {} of {}: {} landmark classes (training_set.top_k_landmarks not used)", config.area.id,
+                   config.area.file, set_options.class_landmarks.size());
     }
     d.set = build_training_set(map, words, set_options);
     const ContextRegions regions(config.regions);
     FeatureBuildOptions feature_options;
     feature_options.num_threads = config.feature_threads;
     if (comm.distributed()) {
-      feature_options.dims =
-          rank_dims(embedding_layout(map, regions, vocabulary).num_dims(), comm.rank(), comm.size());
+      feature_options.dims = rank_dims(embedding_layout(map, regions, vocabulary).num_dims(), comm.rank(), comm.size());
     }
     d.features = build_training_features(map, regions, vocabulary, d.set.sample_keypoint, feature_options);
     if (comm.rank() == 0) {
@@ -199,8 +198,10 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
                static_cast<double>(d.features.data.size()) / 1048576.0,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   if (d.hamming.all >= 0.0) {
-    spdlog::info("train: Hamming nearest-neighbour baseline, validation P@1 {:.4f} against every training "
-                 "sample, {:.4f} against the landmark classes' samples only", d.hamming.all, d.hamming.landmarks);
+    spdlog::info(
+        "train: Hamming nearest-neighbour baseline, validation P@1 {:.4f} against every training "
+        "sample, {:.4f} against the landmark classes' samples only",
+        d.hamming.all, d.hamming.landmarks);
   }
   return d;
 }
@@ -240,8 +241,10 @@ class RunFolder {
                         << "); wait for it to end or use another --out folder");
     }
     if (status == FileLock::Status::kUnsupported) {
-      spdlog::warn("train: {}: the file system does not support file locks; nothing stops a second trainer "
-                   "from using this run folder at the same time", lock_path.string());
+      spdlog::warn(
+          "train: {}: the file system does not support file locks; nothing stops a second trainer "
+          "from using this run folder at the same time",
+          lock_path.string());
     }
   }
   // From here on the folder is the run's: nothing is undone.
@@ -315,8 +318,8 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   job.config_toml = config_text;
   job.checkpoint_interval = config.checkpoint_interval;
   job.checkpoint_keep = config.checkpoint_keep;
-  job.data = a.synthetic.empty() ? std::filesystem::absolute(a.map).lexically_normal().string()
-                                  : "synthetic:" + a.synthetic;
+  job.data =
+      a.synthetic.empty() ? std::filesystem::absolute(a.map).lexically_normal().string() : "synthetic:" + a.synthetic;
   const std::optional<Checkpoint> resume = find_resume_checkpoint(comm, job);
   const RankData data = load_rank_data(a, config, comm);
   job.feature_space = data.feature_space;
@@ -334,7 +337,8 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
     round_log.emplace(run_dir / "metrics.jsonl", config.boost.num_rounds);
     folder.start();
   });
-  const TrainingJobResult r = run_training_job(comm, learner, job, resume, [&](const RoundStats& s) { round_log->log(s); });
+  const TrainingJobResult r =
+      run_training_job(comm, learner, job, resume, [&](const RoundStats& s) { round_log->log(s); });
 
   // Per-rank figures for the summary.
   const int64_t max_rss_kb = comm.allreduce_max(static_cast<int64_t>(peak_rss_mb() * 1024.0));
@@ -417,7 +421,8 @@ void run_train(const TrainArgs& a) {
   } catch (const std::exception& e) {
     if (!comm.distributed()) throw;
     // One rank failed alone: the others may be waiting in a collective, so end the whole job.
-    std::fprintf(stderr, "lboost train: rank %d of %d: error: %s\n", comm.rank(), comm.size(), one_line(e.what()).c_str());
+    std::fprintf(stderr, "lboost train: rank %d of %d: error: %s\n", comm.rank(), comm.size(),
+                 one_line(e.what()).c_str());
     std::fflush(stderr);
     comm.abort(1);
   }
@@ -441,13 +446,14 @@ void add_train_command(CLI::App& app) {
   // The flags' help: the config key they set, its help and default (train/boost/train_config.h).
   auto key = [](const char* name) { return std::string(name) + ": " + describe_config_key(name); };
   cmd->add_option("--rounds", args->rounds, key("boost.num_rounds"));
-  cmd->add_option("--dims-per-round", args->dims_per_round, key("boost.dims_per_round") + ", at most the feature dimension");
+  cmd->add_option("--dims-per-round", args->dims_per_round,
+                  key("boost.dims_per_round") + ", at most the feature dimension");
   cmd->add_option("--top-k", args->top_k, key("training_set.top_k_landmarks"));
   cmd->add_option("--area", args->area,
                   "FILE:ID: train area ID of the areas file FILE (lboost areas): its landmarks are the classes "
                   "(recorded as [area] in config.toml and checked on resume; docs/areas.md)");
-  cmd->add_option("--seed", args->seed, "boost.seed and training_set.seed (default " +
-                                            std::to_string(TrainConfig().boost.seed) + ")");
+  cmd->add_option("--seed", args->seed,
+                  "boost.seed and training_set.seed (default " + std::to_string(TrainConfig().boost.seed) + ")");
   cmd->add_option("--threads", args->threads, key("features.threads"));
   cmd->add_option("--checkpoint-interval", args->checkpoint_interval, key("checkpoint.interval"));
   cmd->add_option("--checkpoint-keep", args->checkpoint_keep, key("checkpoint.keep"));

@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
+#include <spdlog/spdlog.h>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <spdlog/spdlog.h>
 
 #include "common/error.h"
 #include "common/file_io.h"
@@ -32,8 +32,8 @@ struct VocabArgs {
 bool is_image(const std::filesystem::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".ppm" ||
-         ext == ".pgm" || ext == ".tif" || ext == ".tiff";
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".ppm" || ext == ".pgm" ||
+         ext == ".tif" || ext == ".tiff";
 }
 
 // All images under the folders, recursively, sorted so that the result does not depend on the
@@ -94,9 +94,8 @@ void run_vocab(const VocabArgs& a) {
     }
     count += desc.rows;
   }
-  LMB_CHECK(count >= a.words, "--images: only " << count << " descriptors found in "
-                                               << images.size() << " images; need at least "
-                                               << a.words);
+  LMB_CHECK(count >= a.words, "--images: only " << count << " descriptors found in " << images.size()
+                                                << " images; need at least " << a.words);
   // Deterministic subsample (partial Fisher-Yates with lmb::Rng) down to max_descriptors.
   if (count > a.max_descriptors) {
     Rng rng(counter_hash(a.seed, 0x53554253 /* "SUBS" */));
@@ -114,25 +113,22 @@ void run_vocab(const VocabArgs& a) {
                   kept.data() + i * descriptor_bytes);
     }
     descriptors.swap(kept);
-    spdlog::info("vocab: {} descriptors of {} bytes, subsampled to {}", count, descriptor_bytes,
-                 a.max_descriptors);
+    spdlog::info("vocab: {} descriptors of {} bytes, subsampled to {}", count, descriptor_bytes, a.max_descriptors);
     count = a.max_descriptors;
   } else {
     spdlog::info("vocab: {} descriptors of {} bytes", count, descriptor_bytes);
   }
 
   VocabularyTrainStats stats;
-  const Vocabulary vocabulary = train_vocabulary(
-      descriptors.data(), count, descriptor_bytes, options, &stats, [&](int it, int64_t cost) {
+  const Vocabulary vocabulary =
+      train_vocabulary(descriptors.data(), count, descriptor_bytes, options, &stats, [&](int it, int64_t cost) {
         spdlog::info("vocab: iteration {:3d} cost {} (mean {:.3f} bits)", it, cost,
                      static_cast<double>(cost) / static_cast<double>(count));
       });
   vocabulary.save(a.out);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("vocab: {} words after {} iterations ({}), {} reseeded; wrote {} in {:.1f} s",
-               vocabulary.num_words(), stats.iterations,
-               stats.converged ? "converged" : "iteration limit", stats.reseeded_words, a.out,
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  spdlog::info("vocab: {} words after {} iterations ({}), {} reseeded; wrote {} in {:.1f} s", vocabulary.num_words(),
+               stats.iterations, stats.converged ? "converged" : "iteration limit", stats.reseeded_words, a.out,
                seconds);
 }
 
@@ -140,22 +136,18 @@ void run_vocab(const VocabArgs& a) {
 
 void add_vocab_command(CLI::App& app) {
   auto args = std::make_shared<VocabArgs>();
-  auto* cmd = app.add_subcommand(
-      "vocab",
-      "Train the binary visual vocabulary (k-majority in Hamming space, k-means++ init) on "
-      "images that are NOT the map's; writes an LMBVOCAB file");
-  cmd->add_option("--images", args->image_dirs, "image folder, scanned recursively (repeatable)")
-      ->required();
+  auto* cmd = app.add_subcommand("vocab",
+                                 "Train the binary visual vocabulary (k-majority in Hamming space, k-means++ init) on "
+                                 "images that are NOT the map's; writes an LMBVOCAB file");
+  cmd->add_option("--images", args->image_dirs, "image folder, scanned recursively (repeatable)")->required();
   cmd->add_option("--out", args->out, "output vocabulary file (.lbv)")->required();
   cmd->add_option("--words", args->words, "number of visual words, 4..256")->capture_default_str();
   cmd->add_option("--seed", args->seed, "k-means++ and subsampling seed")->capture_default_str();
   cmd->add_option("--detector", args->detector, "BRISK (64-byte) or ORB (32-byte); use the map's")
       ->capture_default_str();
-  cmd->add_option("--max-descriptors", args->max_descriptors,
-                  "random subsample of at most this many descriptors")
+  cmd->add_option("--max-descriptors", args->max_descriptors, "random subsample of at most this many descriptors")
       ->capture_default_str();
-  cmd->add_option("--max-iterations", args->max_iterations, "k-majority iteration limit")
-      ->capture_default_str();
+  cmd->add_option("--max-iterations", args->max_iterations, "k-majority iteration limit")->capture_default_str();
   cmd->callback([args] { run_vocab(*args); });
 }
 

@@ -56,10 +56,11 @@ void run_world(const WorldArgs& a) {
   override_if_set(a.floor_stains_per_m, &o.floor_stains_per_m);
   o.check();
   LMB_CHECK(!a.out.empty(), "world: --out is required");
-  spdlog::info("world: preset {} seed {} {} corridor {:.1f} m, {} map frames in {} session{} + {} query frames in "
-               "each of {} session{} -> {}",
-               o.preset, o.seed, o.non_aliased ? "non-aliased" : "aliased", o.length_m, o.map_frames, o.map_sessions,
-               o.map_sessions > 1 ? "s" : "", o.query_frames, o.query_sessions, o.query_sessions > 1 ? "s" : "", a.out);
+  spdlog::info(
+      "world: preset {} seed {} {} corridor {:.1f} m, {} map frames in {} session{} + {} query frames in "
+      "each of {} session{} -> {}",
+      o.preset, o.seed, o.non_aliased ? "non-aliased" : "aliased", o.length_m, o.map_frames, o.map_sessions,
+      o.map_sessions > 1 ? "s" : "", o.query_frames, o.query_sessions, o.query_sessions > 1 ? "s" : "", a.out);
   int last_decile = 0;
   const WorldWriteStats s = write_world(o, a.out, [&](int done, int total) {
     const int decile = done * 10 / total;
@@ -74,7 +75,8 @@ void run_world(const WorldArgs& a) {
   if (a.stats) {
     const LandmarkStats ls = estimate_landmarks(a.out);
     std::printf(
-        "landmark estimate (BRISK, exact depth, 1 cm merge radius): map_frames %d, map_keypoints %lld (%.0f/frame), points %lld, "
+        "landmark estimate (BRISK, exact depth, 1 cm merge radius): map_frames %d, map_keypoints %lld (%.0f/frame), "
+        "points %lld, "
         "landmarks>=3 %lld, landmarks>=10 %lld, query_keypoints %lld, query_on_landmark %lld (%.1f%%), %.1f s\n",
         ls.map_frames, static_cast<long long>(ls.map_keypoints),
         ls.map_keypoints / std::max(1.0, static_cast<double>(ls.map_frames)), static_cast<long long>(ls.points),

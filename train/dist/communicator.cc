@@ -56,8 +56,7 @@ Communicator Communicator::world(const MpiSession& session) {
   return session.active() ? Communicator(MPI_COMM_WORLD) : Communicator();
 }
 
-std::vector<uint8_t> Communicator::allgather_bytes(const std::vector<uint8_t>& local,
-                                                   std::vector<int64_t>* offsets) {
+std::vector<uint8_t> Communicator::allgather_bytes(const std::vector<uint8_t>& local, std::vector<int64_t>* offsets) {
   offsets->assign(static_cast<size_t>(size_) + 1, 0);
   if (size_ == 1) {
     (*offsets)[1] = static_cast<int64_t>(local.size());

@@ -68,9 +68,8 @@ RefinementPlan plan_refinement(const std::vector<ScreenedCandidate>& chosen, con
       it->cost += 1.0;
     }
   }
-  std::sort(dims.begin(), dims.end(), [](const DimCost& x, const DimCost& y) {
-    return x.cost != y.cost ? x.cost > y.cost : x.dim < y.dim;
-  });
+  std::sort(dims.begin(), dims.end(),
+            [](const DimCost& x, const DimCost& y) { return x.cost != y.cost ? x.cost > y.cost : x.dim < y.dim; });
   auto screener = [&](int32_t dim) {
     for (const auto& [d, r] : screening.screener) {
       if (d == dim) return r;

@@ -64,10 +64,14 @@ std::string run_dist_bench(Communicator& comm, const BoostBenchOptions& options)
   j["seconds_per_round"] = wall / n;
   // CPU time: fair on a shared machine; the slowest rank's CPU per round bounds the wall time on
   // idle cores (the ranks wait for each other every round).
-  j["cpu_seconds_per_round_max_rank"] = static_cast<double>(comm.allreduce_max(static_cast<int64_t>(cpu * 1e6))) / 1e6 / n;
-  j["cpu_seconds_per_round_sum_ranks"] = static_cast<double>(comm.allreduce_sum(static_cast<int64_t>(cpu * 1e6))) / 1e6 / n;
-  j["rank0_seconds_per_round"] = {{"histogram", t.histogram / n}, {"search", t.search / n},
-                                  {"update", t.update / n}, {"eval_and_mining", t.eval / n}};
+  j["cpu_seconds_per_round_max_rank"] =
+      static_cast<double>(comm.allreduce_max(static_cast<int64_t>(cpu * 1e6))) / 1e6 / n;
+  j["cpu_seconds_per_round_sum_ranks"] =
+      static_cast<double>(comm.allreduce_sum(static_cast<int64_t>(cpu * 1e6))) / 1e6 / n;
+  j["rank0_seconds_per_round"] = {{"histogram", t.histogram / n},
+                                  {"search", t.search / n},
+                                  {"update", t.update / n},
+                                  {"eval_and_mining", t.eval / n}};
   j["mean_sharing_size"] = t.sharing_size / n;
   const std::string model = serialize_boost_model(learner.model());
   j["model_crc32"] = crc32(reinterpret_cast<const uint8_t*>(model.data()), model.size());  // same for any R

@@ -6,8 +6,8 @@
 #include <CLI/CLI.hpp>
 
 #include "common/error.h"
-#include "train/dist/dist_bench.h"
 #include "common/file_io.h"
+#include "train/dist/dist_bench.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"Distributed JointBoost training benchmark (paper-shape synthetic problem by default)"};

@@ -41,8 +41,8 @@ class ByteReader {
 
 }  // namespace
 
-FeatureParallelLearner::FeatureParallelLearner(Collectives& comm, const FeatureMatrix& features,
-                                               const TrainingSet& set, const BoostOptions& options)
+FeatureParallelLearner::FeatureParallelLearner(Collectives& comm, const FeatureMatrix& features, const TrainingSet& set,
+                                               const BoostOptions& options)
     : SerialStumpLearner(features, set, options, comm) {
   const int R = comm.size();
   const std::vector<int32_t> own = rank_dims(features.num_dims, comm.rank(), R);

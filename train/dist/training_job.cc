@@ -77,8 +77,8 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
     result.resumed_from = resume->rounds;
     if (comm.rank() == 0) {
       spdlog::info("train: resumed from {} ({} rounds, written by {} rank(s)), now {} rank(s)",
-                   CheckpointDir(options.run_dir).path_for(resume->rounds).string(), resume->rounds,
-                   resume->ranks, comm.size());
+                   CheckpointDir(options.run_dir).path_for(resume->rounds).string(), resume->rounds, resume->ranks,
+                   comm.size());
     }
   }
   const CheckpointDir dir(options.run_dir);
@@ -120,7 +120,8 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
       checkpoint_cpu += cpu_seconds() - cpu_before;
     }
     if (stop && !last) {
-      if (comm.rank() == 0) spdlog::warn("train: stop requested by a signal after round {}: checkpointed, exiting for a requeue", done);
+      if (comm.rank() == 0)
+        spdlog::warn("train: stop requested by a signal after round {}: checkpointed, exiting for a requeue", done);
       result.stopped = true;
       break;
     }

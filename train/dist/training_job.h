@@ -46,14 +46,14 @@ struct TrainingJobOptions {
 };
 
 struct TrainingJobResult {
-  bool stopped = false;           // stopped on a signal after checkpointing
-  int32_t resumed_from = 0;       // rounds done by the checkpoint resumed from (0 = fresh start)
-  int32_t rounds_run = 0;         // rounds this process ran
-  double round_seconds = 0.0;     // wall time of those rounds
-  double round_cpu_seconds = 0.0; // this process's CPU time in those rounds (checkpoints excluded)
+  bool stopped = false;            // stopped on a signal after checkpointing
+  int32_t resumed_from = 0;        // rounds done by the checkpoint resumed from (0 = fresh start)
+  int32_t rounds_run = 0;          // rounds this process ran
+  double round_seconds = 0.0;      // wall time of those rounds
+  double round_cpu_seconds = 0.0;  // this process's CPU time in those rounds (checkpoints excluded)
   double checkpoint_seconds = 0.0;
   int32_t checkpoints_written = 0;
-  int64_t bytes_sent = 0;         // this rank's communicated payload during the rounds
+  int64_t bytes_sent = 0;  // this rank's communicated payload during the rounds
   int64_t bytes_received = 0;
 };
 

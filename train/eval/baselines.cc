@@ -24,8 +24,8 @@ void check_observations(const TrainingObservations& obs, const char* who) {
   LMB_CHECK(obs.descriptor_bytes > 0, who << ": descriptor_bytes " << obs.descriptor_bytes << " must be > 0");
   LMB_CHECK(obs.size() > 0, who << ": no training observation");
   LMB_CHECK(static_cast<int64_t>(obs.descriptors.size()) == obs.size() * obs.descriptor_bytes,
-            who << ": " << obs.descriptors.size() << " descriptor bytes for " << obs.size()
-                << " observations of " << obs.descriptor_bytes << " bytes");
+            who << ": " << obs.descriptors.size() << " descriptor bytes for " << obs.size() << " observations of "
+                << obs.descriptor_bytes << " bytes");
 }
 
 }  // namespace
@@ -34,8 +34,8 @@ TrainingObservations collect_training_observations(const LandmarkMap& map,
                                                    const std::vector<landmark_t>& selected_landmarks,
                                                    const std::vector<int64_t>& excluded_keypoints) {
   const int64_t num_kp = static_cast<int64_t>(map.keypoints.size());
-  LMB_CHECK(map.descriptor_bytes > 0, "collect_training_observations: map descriptor_bytes is "
-                                          << map.descriptor_bytes);
+  LMB_CHECK(map.descriptor_bytes > 0,
+            "collect_training_observations: map descriptor_bytes is " << map.descriptor_bytes);
   LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_kp &&
                 static_cast<int64_t>(map.descriptors.size()) == num_kp * map.descriptor_bytes,
             "collect_training_observations: map keypoint, landmark and descriptor counts disagree");
@@ -85,8 +85,8 @@ std::vector<RankedCandidate> neighbors_to_candidates(const std::vector<Neighbor>
 BruteforceHamming::BruteforceHamming(TrainingObservations observations, Backend backend)
     : obs_(std::move(observations)), backend_(backend) {
   check_observations(obs_, "BruteforceHamming");
-  LMB_CHECK(obs_.descriptor_bytes * 8 <= 65535, "BruteforceHamming: descriptors of " << obs_.descriptor_bytes
-                                                                                     << " bytes are too long");
+  LMB_CHECK(obs_.descriptor_bytes * 8 <= 65535,
+            "BruteforceHamming: descriptors of " << obs_.descriptor_bytes << " bytes are too long");
 }
 
 std::vector<Neighbor> BruteforceHamming::knn(const uint8_t* descriptor, int k) const {
@@ -114,8 +114,7 @@ std::vector<Neighbor> BruteforceHamming::knn(const uint8_t* descriptor, int k) c
   return out;
 }
 
-std::vector<std::vector<Neighbor>> BruteforceHamming::knn_opencv(const uint8_t* descriptors, int64_t num,
-                                                                 int k) const {
+std::vector<std::vector<Neighbor>> BruteforceHamming::knn_opencv(const uint8_t* descriptors, int64_t num, int k) const {
   const cv::Mat train(static_cast<int>(obs_.size()), obs_.descriptor_bytes, CV_8U,
                       const_cast<uint8_t*>(obs_.descriptors.data()));
   const cv::Mat query(static_cast<int>(num), obs_.descriptor_bytes, CV_8U, const_cast<uint8_t*>(descriptors));
@@ -137,8 +136,7 @@ std::vector<RankedCandidate> BruteforceHamming::query(const uint8_t* descriptor,
   return neighbors_to_candidates(knn(descriptor, k), obs_.landmark);
 }
 
-std::vector<std::vector<Neighbor>> BruteforceHamming::knn_batch(const uint8_t* descriptors, int64_t num,
-                                                                int k) const {
+std::vector<std::vector<Neighbor>> BruteforceHamming::knn_batch(const uint8_t* descriptors, int64_t num, int k) const {
   LMB_CHECK(k >= 1, "BruteforceHamming::knn_batch: k " << k << " must be >= 1");
   if (num <= 0) return {};
   if (backend_ == Backend::kOpenCv) return knn_opencv(descriptors, num, k);

@@ -80,10 +80,10 @@ class BruteforceHamming {
 };
 
 struct ProjectedKdTreeOptions {
-  int dims = 16;                     // PCA output dimensions, 1 .. descriptor bits
-  int64_t max_pca_samples = 20000;   // PCA fit on at most this many observations (even stride)
-  int leaf_size = 32;                // kd-tree leaf capacity, >= 1
-  void check() const;                // throws lmb::Error naming the field
+  int dims = 16;                    // PCA output dimensions, 1 .. descriptor bits
+  int64_t max_pca_samples = 20000;  // PCA fit on at most this many observations (even stride)
+  int leaf_size = 32;               // kd-tree leaf capacity, >= 1
+  void check() const;               // throws lmb::Error naming the field
 };
 
 class ProjectedKdTree {
@@ -119,11 +119,11 @@ class ProjectedKdTree {
 
   TrainingObservations obs_;
   ProjectedKdTreeOptions options_;
-  Eigen::VectorXf mean_;                   // descriptor bits
-  Eigen::MatrixXf components_;             // bits x dims, unit columns
-  std::vector<float> points_;              // projected observations, row-major
-  std::vector<int64_t> order_;             // observation indices, leaves are contiguous ranges
-  std::vector<float> tree_points_;         // points_ permuted by order_
+  Eigen::VectorXf mean_;            // descriptor bits
+  Eigen::MatrixXf components_;      // bits x dims, unit columns
+  std::vector<float> points_;       // projected observations, row-major
+  std::vector<int64_t> order_;      // observation indices, leaves are contiguous ranges
+  std::vector<float> tree_points_;  // points_ permuted by order_
   std::vector<Node> nodes_;
 };
 

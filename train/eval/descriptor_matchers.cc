@@ -40,7 +40,8 @@ nlohmann::json ProjectedKnnIndex::parameters() const {
 void DescriptorMatcherOptions::check() const {
   LMB_CHECK(top_k >= 1, "DescriptorMatcherOptions: top_k " << top_k << " must be >= 1");
   LMB_CHECK(knn_k >= top_k, "DescriptorMatcherOptions: knn_k " << knn_k << " must be >= top_k " << top_k);
-  LMB_CHECK(!ratio_test || knn_k >= 2, "DescriptorMatcherOptions: knn_k " << knn_k << " must be >= 2 for the ratio test");
+  LMB_CHECK(!ratio_test || knn_k >= 2,
+            "DescriptorMatcherOptions: knn_k " << knn_k << " must be >= 2 for the ratio test");
   LMB_CHECK(std::isfinite(ratio) && ratio > 0.0 && ratio <= 1.0,
             "DescriptorMatcherOptions: ratio " << ratio << " must be in (0, 1]");
 }
@@ -114,8 +115,8 @@ FrameMatches DescriptorMatcher::match(const EvalQuery& q) const {
     std::vector<RankedCandidate>& c = r.ranking[static_cast<size_t>(k)];
     c = neighbors_to_candidates(nn[static_cast<size_t>(k)], index_->observations().landmark);
     if (c.size() > static_cast<size_t>(options_.top_k)) c.resize(static_cast<size_t>(options_.top_k));
-    accept[static_cast<size_t>(k)] = passes_ratio_test(nn[static_cast<size_t>(k)], q.descriptors + k * bytes,
-                                                       *index_, options_);
+    accept[static_cast<size_t>(k)] =
+        passes_ratio_test(nn[static_cast<size_t>(k)], q.descriptors + k * bytes, *index_, options_);
   }
   r.match_ms = ms_since(t0);
   r.cpu_ms = thread_cpu_ms() - c0;

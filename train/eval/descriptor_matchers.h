@@ -77,12 +77,12 @@ class ProjectedKnnIndex : public KnnIndex {
 enum class RatioNeighbor { kOtherLandmark, kSecondObservation };
 
 struct DescriptorMatcherOptions {
-  int top_k = 20;       // ranked landmarks kept per keypoint, >= 1
-  int knn_k = 80;       // nearest observations searched per keypoint, >= top_k
+  int top_k = 20;  // ranked landmarks kept per keypoint, >= 1
+  int knn_k = 80;  // nearest observations searched per keypoint, >= top_k
   bool ratio_test = false;
-  double ratio = 0.8;   // in (0, 1]
+  double ratio = 0.8;  // in (0, 1]
   RatioNeighbor ratio_neighbor = RatioNeighbor::kOtherLandmark;
-  void check() const;   // throws lmb::Error naming the field
+  void check() const;  // throws lmb::Error naming the field
 };
 
 // Whether the best match of one keypoint's sorted neighbours (knn_k of them, or fewer when the

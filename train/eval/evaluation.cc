@@ -7,8 +7,8 @@
 #include <memory>
 #include <vector>
 
-#include <opencv2/core.hpp>
 #include <spdlog/spdlog.h>
+#include <opencv2/core.hpp>
 
 #include "common/error.h"
 #include "common/io/map_h5.h"
@@ -41,8 +41,8 @@ std::vector<int32_t> selected_sessions(const LandmarkMap& map, const EvalOptions
   std::vector<int32_t> out;
   for (const std::string& name : a.query_sessions) {
     const int32_t s = map.find_session(name);
-    LMB_CHECK(s >= 0, "eval: --query-session '" << name << "': " << a.map << " has no such session (query sessions: "
-                                                << query_names << ")");
+    LMB_CHECK(s >= 0, "eval: --query-session '" << name << "': " << a.map
+                                                << " has no such session (query sessions: " << query_names << ")");
     LMB_CHECK(map.sessions[s].kind != SessionKind::kMap,
               "eval: --query-session '" << name << "': a map session of " << a.map
                                         << " (its frames trained the model; --run ranks its held-out observations)");
@@ -252,8 +252,8 @@ RetrievalMetrics rank_held_out(const EvalMethod& method, const MethodContext& co
 nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build, const nlohmann::json& parameters) {
   nlohmann::json thresholds = nlohmann::json::array();
   for (const PoseThresholds& t : a.pose_thresholds) {
-    thresholds.push_back({{"max_position_error_m", t.max_position_error_m},
-                          {"max_rotation_error_deg", t.max_rotation_error_deg}});
+    thresholds.push_back(
+        {{"max_position_error_m", t.max_position_error_m}, {"max_rotation_error_deg", t.max_rotation_error_deg}});
   }
   return {{"model", a.model},
           {"map", a.map},
@@ -293,17 +293,17 @@ std::vector<char> check_model_fits_map(const Model& model, const std::string& mo
                                        const std::string& map_name) {
   LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
             map_name << ": " << map.descriptor_bytes << "-byte descriptors, but " << model_name << " expects "
-                  << model.descriptor_bytes() << " (a model of another detector?)");
+                     << model.descriptor_bytes() << " (a model of another detector?)");
   std::vector<char> is_class(map.landmarks.size(), 0);
   for (int32_t c = 0; c < model.num_classes(); ++c) {
     const landmark_t l = model.class_landmark(c);
     LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
               model_name << ": class " << c << " is landmark " << l << ", but " << map_name << " has "
-                      << map.landmarks.size() << " landmarks (the model was trained on another map)");
+                         << map.landmarks.size() << " landmarks (the model was trained on another map)");
     const double d = (map.landmarks[l].position - model.class_position(c)).norm();
     LMB_CHECK(d <= 1e-6 * std::max(1.0, map.landmarks[l].position.norm()),
               model_name << ": class " << c << " (landmark " << l << ") lies " << d << " m from that landmark in "
-                      << map_name << " (the model was trained on another map)");
+                         << map_name << " (the model was trained on another map)");
     is_class[l] = 1;
   }
   return is_class;
@@ -331,10 +331,11 @@ EvalResult run_evaluation(const EvalOptions& a) {
   const std::vector<std::string> names = a.method_names();
   std::string method_list;
   for (const std::string& m : names) method_list += (method_list.empty() ? "" : ", ") + m;
-  spdlog::info("eval: {} query frames, {} keypoints ({} with a true landmark, {} of them a model class), "
-               "model {} classes, {} stumps; methods: {}",
-               counts.query_frames, counts.query_keypoints, counts.query_keypoints_with_truth, with_class_truth,
-               model->num_classes(), model->data().stumps.size(), method_list);
+  spdlog::info(
+      "eval: {} query frames, {} keypoints ({} with a true landmark, {} of them a model class), "
+      "model {} classes, {} stumps; methods: {}",
+      counts.query_frames, counts.query_keypoints, counts.query_keypoints_with_truth, with_class_truth,
+      model->num_classes(), model->data().stumps.size(), method_list);
 
   // The held-out map observations of the model's training run (the validation column).
   std::vector<int64_t> held;
@@ -359,11 +360,12 @@ EvalResult run_evaluation(const EvalOptions& a) {
     const Clock::time_point t0 = Clock::now();
     const EvalMethod& method = find_eval_method(name);
     MethodRun run = evaluate_method(method, context, queries, query_session, sessions.size());
-    spdlog::info("eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
-                 "correct, {:.2f} ms/frame matching ({:.1f} s)",
-                 name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr,
-                 run.result.matches.match_precision, run.result.matches.match_recall, run.result.pose.num_correct,
-                 run.result.pose.num_frames, run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
+    spdlog::info(
+        "eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
+        "correct, {:.2f} ms/frame matching ({:.1f} s)",
+        name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr, run.result.matches.match_precision,
+        run.result.matches.match_recall, run.result.pose.num_correct, run.result.pose.num_frames,
+        run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
     if (!held.empty()) {
       const RetrievalMetrics r = rank_held_out(method, held_context, held_queries);
       held_methods[name] = {{"precision_at_1", r.precision_at_1}, {"mrr", r.mrr}};
@@ -398,13 +400,12 @@ EvalResult run_evaluation(const EvalOptions& a) {
   out.report["dataset"]["query_sessions"] = session_names;
   out.report["sessions"] = session_reports;
   if (a.training_set) {
-    out.report["held_out_map_observations"] = {
-        {"frames", held_queries.size()},
-        {"keypoints", held.size()},
-        {"validation_fraction", a.training_set->validation_fraction},
-        {"min_train_observations", a.training_set->min_train_observations},
-        {"seed", a.training_set->seed},
-        {"methods", held_methods}};
+    out.report["held_out_map_observations"] = {{"frames", held_queries.size()},
+                                               {"keypoints", held.size()},
+                                               {"validation_fraction", a.training_set->validation_fraction},
+                                               {"min_train_observations", a.training_set->min_train_observations},
+                                               {"seed", a.training_set->seed},
+                                               {"methods", held_methods}};
   }
   out.report["generalization_gap"] = generalization_gap(out.report);
   nlohmann::json frame_names = nlohmann::json::array();
@@ -412,9 +413,10 @@ EvalResult run_evaluation(const EvalOptions& a) {
   out.report["query_frame_names"] = frame_names;
   out.keypoint_ranks = {{"frames", frame_names},
                         {"truth_rank", ranks},
-                        {"note", "per method, per query frame, per keypoint: 1-based rank of the true landmark "
-                                 "among the method's candidates, 0 when absent or the keypoint has no true "
-                                 "landmark among the model's classes"}};
+                        {"note",
+                         "per method, per query frame, per keypoint: 1-based rank of the true landmark "
+                         "among the method's candidates, 0 when absent or the keypoint has no true "
+                         "landmark among the model's classes"}};
   char heading[512];
   std::snprintf(heading, sizeof(heading),
                 "Results on %lld query frames, %lld query keypoints with a true landmark among the model's %d "
@@ -431,7 +433,8 @@ EvalResult run_evaluation(const EvalOptions& a) {
 void attach_training_summary(nlohmann::json& report, const std::filesystem::path& run_dir) {
   const std::filesystem::path summary = run_dir / "summary.json";
   std::ifstream in(summary);
-  LMB_CHECK(in.good(), "eval: --run " << run_dir.string() << ": no summary.json (not a finished `lboost train` run dir)");
+  LMB_CHECK(in.good(),
+            "eval: --run " << run_dir.string() << ": no summary.json (not a finished `lboost train` run dir)");
   try {
     report["training"] = nlohmann::json::parse(in);
   } catch (const nlohmann::json::exception& e) {

@@ -18,10 +18,10 @@
 namespace lmb {
 
 struct FaissHnswOptions {
-  int m = 32;                 // graph degree (faiss's M; 2 M links on level 0)
-  int ef_construction = 40;   // candidate list while building (faiss's default)
-  int ef_search = 64;         // candidate list while searching; faiss searches with max(ef_search, k)
-  void check() const;         // throws lmb::Error naming the field
+  int m = 32;                // graph degree (faiss's M; 2 M links on level 0)
+  int ef_construction = 40;  // candidate list while building (faiss's default)
+  int ef_search = 64;        // candidate list while searching; faiss searches with max(ef_search, k)
+  void check() const;        // throws lmb::Error naming the field
 };
 
 class FaissHnswIndex : public KnnIndex {

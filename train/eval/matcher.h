@@ -28,7 +28,7 @@ struct EvalQuery {
   std::vector<Keypoint> keypoints;  // pixels of the distorted image (COLMAP convention)
   const uint8_t* descriptors = nullptr;
   Eigen::Vector3d gravity_in_cam = Eigen::Vector3d(0, 1, 0);
-  Rigid3d true_cam_from_world;      // ground truth
+  Rigid3d true_cam_from_world;  // ground truth
   // Per keypoint: its true landmark when that landmark is one of the model's classes, else
   // kInvalidLandmarkId (a "background" keypoint for the metrics).
   std::vector<landmark_t> truth;
@@ -36,7 +36,7 @@ struct EvalQuery {
 
 // One 2D-3D match a method gives to the pose estimator.
 struct Correspondence {
-  int32_t keypoint = -1;                          // index into EvalQuery::keypoints
+  int32_t keypoint = -1;  // index into EvalQuery::keypoints
   landmark_t landmark = kInvalidLandmarkId;
   Eigen::Vector3d point_world = Eigen::Vector3d::Zero();  // the landmark's position, map units
   // Higher = more trusted (LandmarkBoost: the margin over the background; descriptors: minus the

@@ -99,8 +99,8 @@ TrainingObservations MethodContext::class_observations() const {
   for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
   TrainingObservations obs =
       collect_training_observations(*map, classes, excluded_keypoints ? *excluded_keypoints : std::vector<int64_t>());
-  LMB_CHECK(obs.size() > 0, options->map << ": the model's " << classes.size()
-                                         << " landmarks have no observation in non-query frames");
+  LMB_CHECK(obs.size() > 0,
+            options->map << ": the model's " << classes.size() << " landmarks have no observation in non-query frames");
   return obs;
 }
 
@@ -119,10 +119,10 @@ const std::vector<EvalMethod>& eval_methods() {
        [](const MethodContext& c) { return make_landmarkboost(c, true); }},
       {"bruteforce_hamming", "exact Hamming k-NN over the training observations (--hamming-backend)",
        make_bruteforce_hamming},
-      {"hamming_ratio",
-       "exact Hamming 1-NN with Lowe's ratio test against the nearest other landmark (--ratio)",
+      {"hamming_ratio", "exact Hamming 1-NN with Lowe's ratio test against the nearest other landmark (--ratio)",
        [](const MethodContext& c) { return make_hamming_ratio(c, RatioNeighbor::kOtherLandmark); }},
-      {"hamming_ratio_2nn", "the same against the 2nd nearest observation, whatever its landmark (OpenCV's 2-NN recipe)",
+      {"hamming_ratio_2nn",
+       "the same against the 2nd nearest observation, whatever its landmark (OpenCV's 2-NN recipe)",
        [](const MethodContext& c) { return make_hamming_ratio(c, RatioNeighbor::kSecondObservation); }},
       {"projected_kdtree", "exact k-NN of PCA-projected descriptors (--pca-dims)", make_projected_kdtree},
       {"faiss_hnsw_ratio",

@@ -22,21 +22,21 @@ namespace lmb {
 
 // Everything `lboost eval` is configured with (its flags, one field each).
 struct EvalOptions {
-  std::string model;                  // model.lbm
-  std::string map;                    // map.h5 the model was trained on, with its query frames
-  std::vector<std::string> methods;   // names from eval_methods(); empty = all
-  int top_k = 20;                     // ranked landmarks per keypoint, 1..10000
-  double min_margin = 0.0;            // LandmarkBoost's background rejection for the pose (-inf = none)
-  int max_correspondences = 0;        // most confident accepted matches fed to RANSAC (0 = all)
-  PoseEstimatorOptions pose;          // RANSAC: iterations, inlier threshold, min inliers, seed
+  std::string model;                 // model.lbm
+  std::string map;                   // map.h5 the model was trained on, with its query frames
+  std::vector<std::string> methods;  // names from eval_methods(); empty = all
+  int top_k = 20;                    // ranked landmarks per keypoint, 1..10000
+  double min_margin = 0.0;           // LandmarkBoost's background rejection for the pose (-inf = none)
+  int max_correspondences = 0;       // most confident accepted matches fed to RANSAC (0 = all)
+  PoseEstimatorOptions pose;         // RANSAC: iterations, inlier threshold, min inliers, seed
   // A frame is correct within the first pair (frames_correct, the PR curve, the sweep); recall is
   // reported at every pair.
   std::vector<PoseThresholds> pose_thresholds = {PoseThresholds{}};
-  PoseSweepOptions sweep;             // pose recall over RANSAC budgets and seeds
+  PoseSweepOptions sweep;                  // pose recall over RANSAC budgets and seeds
   std::string hamming_backend = "opencv";  // the exact Hamming methods: opencv (BFMatcher) or popcount
-  int pca_dims = 16;                  // projected_kdtree
-  double ratio = 0.8;                 // the ratio-test methods: Lowe's ratio, in (0, 1]
-  FaissHnswOptions faiss;             // faiss_hnsw_ratio
+  int pca_dims = 16;                       // projected_kdtree
+  double ratio = 0.8;                      // the ratio-test methods: Lowe's ratio, in (0, 1]
+  FaissHnswOptions faiss;                  // faiss_hnsw_ratio
   // The query sessions evaluated, by name (sessions of kind query); empty = every query session.
   std::vector<std::string> query_sessions;
   // The training-set options of the model's training run (RUN_DIR/config.toml). When set, the

@@ -18,9 +18,9 @@ void check_candidates(const KeypointRanking& r, size_t index) {
     LMB_CHECK(c[i].landmark != kInvalidLandmarkId,
               "evaluate_retrieval: keypoint " << index << " candidate " << i << " is kInvalidLandmarkId");
     for (size_t j = 0; j < i; ++j) {
-      LMB_CHECK(c[i].landmark != c[j].landmark, "evaluate_retrieval: keypoint "
-                                                    << index << " lists landmark " << c[i].landmark
-                                                    << " twice (ranks " << j + 1 << " and " << i + 1 << ")");
+      LMB_CHECK(c[i].landmark != c[j].landmark, "evaluate_retrieval: keypoint " << index << " lists landmark "
+                                                                                << c[i].landmark << " twice (ranks "
+                                                                                << j + 1 << " and " << i + 1 << ")");
     }
   }
 }
@@ -107,8 +107,8 @@ RetrievalMetrics evaluate_retrieval(const std::vector<KeypointRanking>& rankings
       returned += still_long;
       hits += hits_at_rank[n];
       const double fp = static_cast<double>(returned - hits);
-      m.miss_rate_curve.push_back(MissRatePoint{static_cast<int>(n), fp / count,
-                                                1.0 - static_cast<double>(hits) / count});
+      m.miss_rate_curve.push_back(
+          MissRatePoint{static_cast<int>(n), fp / count, 1.0 - static_cast<double>(hits) / count});
     }
   }
   m.miss_rate_at_fppi_0_1 = miss_rate_at_fppi(m.miss_rate_curve, 0.1);
@@ -181,8 +181,7 @@ std::vector<PoseThresholds> parse_pose_thresholds(const std::string& text, const
   return out;
 }
 
-bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world,
-                 const PoseThresholds& thresholds) {
+bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world, const PoseThresholds& thresholds) {
   return within(position_error(cam_from_world, true_cam_from_world), thresholds.max_position_error_m) &&
          within(rotation_error_deg(cam_from_world, true_cam_from_world), thresholds.max_rotation_error_deg);
 }
@@ -234,9 +233,9 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames, const PoseTh
     match_sum += f.match_ms;
     total_sum += f.total_ms;
     if (!f.localized) continue;
-    LMB_CHECK(f.num_inliers <= f.num_correspondences,
-              "evaluate_poses: frame " << i << " has " << f.num_inliers << " inliers but only "
-                                       << f.num_correspondences << " correspondences");
+    LMB_CHECK(f.num_inliers <= f.num_correspondences, "evaluate_poses: frame "
+                                                          << i << " has " << f.num_inliers << " inliers but only "
+                                                          << f.num_correspondences << " correspondences");
     LMB_CHECK(std::isfinite(f.confidence), "evaluate_poses: frame " << i << " has a non-finite confidence");
     ++m.num_localized;
     const double pe = position_error(f.cam_from_world, f.true_cam_from_world);

@@ -113,14 +113,14 @@ double miss_rate_at_fppi(const std::vector<MissRatePoint>& curve, double fppi);
 
 // What a method produced for one query frame.
 struct FrameOutcome {
-  bool localized = false;        // the pose estimator reported success
-  Rigid3d cam_from_world;        // the estimate; meaningful only when localized
-  Rigid3d true_cam_from_world;   // ground truth
-  double confidence = 0.0;       // higher = more trusted, e.g. the inlier count; swept for the PR curve
-  int num_correspondences = 0;   // 2D-3D matches fed to PnP + RANSAC
-  int num_inliers = 0;           // inliers of the returned pose (ignored when not localized)
-  double match_ms = 0.0;         // matching / classification time of the frame, milliseconds
-  double total_ms = 0.0;         // matching + pose estimation time of the frame, milliseconds
+  bool localized = false;       // the pose estimator reported success
+  Rigid3d cam_from_world;       // the estimate; meaningful only when localized
+  Rigid3d true_cam_from_world;  // ground truth
+  double confidence = 0.0;      // higher = more trusted, e.g. the inlier count; swept for the PR curve
+  int num_correspondences = 0;  // 2D-3D matches fed to PnP + RANSAC
+  int num_inliers = 0;          // inliers of the returned pose (ignored when not localized)
+  double match_ms = 0.0;        // matching / classification time of the frame, milliseconds
+  double total_ms = 0.0;        // matching + pose estimation time of the frame, milliseconds
 };
 
 struct PoseThresholds {
@@ -134,8 +134,7 @@ struct PoseThresholds {
 std::vector<PoseThresholds> parse_pose_thresholds(const std::string& text, const std::string& what);
 
 // Whether an estimate is within the thresholds of the truth (the rule below, slack included).
-bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world,
-                 const PoseThresholds& thresholds);
+bool pose_within(const Rigid3d& cam_from_world, const Rigid3d& true_cam_from_world, const PoseThresholds& thresholds);
 
 // One point of the pose precision-recall curve: frames accepted when localized and
 // confidence >= threshold.
@@ -193,7 +192,7 @@ double trapezoid_auc(const std::vector<PosePrPoint>& curve);
 // Pose recall at several RANSAC iteration budgets and seeds (the same correspondences, one
 // RANSAC run per budget and seed): how much of a method's recall is the luck of one seed.
 struct PoseSweep {
-  std::vector<int> iterations;                      // budgets
+  std::vector<int> iterations;  // budgets
   std::vector<uint64_t> seeds;
   std::vector<std::vector<int64_t>> frames_correct;  // [budget][seed]
   int64_t num_frames = 0;

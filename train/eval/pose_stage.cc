@@ -8,8 +8,8 @@ namespace lmb {
 
 PoseInput select_correspondences(const EvalQuery& query, const std::vector<Correspondence>& accepted,
                                  int max_correspondences) {
-  LMB_CHECK(max_correspondences >= 0, "select_correspondences: max_correspondences " << max_correspondences
-                                                                                      << " must be >= 0");
+  LMB_CHECK(max_correspondences >= 0,
+            "select_correspondences: max_correspondences " << max_correspondences << " must be >= 0");
   std::vector<size_t> order(accepted.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   const size_t limit = static_cast<size_t>(max_correspondences);
@@ -22,9 +22,9 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
   PoseInput input;
   for (size_t i : order) {
     const Correspondence& c = accepted[i];
-    LMB_CHECK(c.keypoint >= 0 && static_cast<size_t>(c.keypoint) < query.keypoints.size(),
-              "select_correspondences: keypoint " << c.keypoint << " out of range [0, " << query.keypoints.size()
-                                                  << ")");
+    LMB_CHECK(
+        c.keypoint >= 0 && static_cast<size_t>(c.keypoint) < query.keypoints.size(),
+        "select_correspondences: keypoint " << c.keypoint << " out of range [0, " << query.keypoints.size() << ")");
     const Keypoint& kp = query.keypoints[static_cast<size_t>(c.keypoint)];
     input.pixels.emplace_back(kp.x, kp.y);
     input.points_world.push_back(c.point_world);
@@ -33,10 +33,10 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
   return input;
 }
 
-FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
-                                 const PoseEstimatorOptions& options) {
+FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options) {
   LMB_CHECK(query.camera != nullptr, "estimate_frame_pose: query frame " << query.frame << " has no camera");
-  const PoseResult pose = estimate_absolute_pose(*query.camera, input.pixels, input.points_world, options, input.quality);
+  const PoseResult pose =
+      estimate_absolute_pose(*query.camera, input.pixels, input.points_world, options, input.quality);
   FrameOutcome o;
   o.localized = pose.success;
   o.cam_from_world = pose.cam_from_world;

@@ -33,13 +33,12 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
 
 // RANSAC on `input` with `options`: the frame's outcome with its truth, correspondence and inlier
 // counts and confidence = inlier count. Times are left to the caller.
-FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
-                                 const PoseEstimatorOptions& options);
+FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options);
 
 // The RANSAC budgets and seeds of the pose-recall sweep.
 struct PoseSweepOptions {
   std::vector<int> iterations = {50, 100, 500};  // each >= 1 (PoseEstimatorOptions::max_iterations)
-  int seeds = 5;  // seeds base, base + 1, ..., base + seeds - 1, base = the pose options' seed; >= 1
+  int seeds = 5;       // seeds base, base + 1, ..., base + seeds - 1, base = the pose options' seed; >= 1
   void check() const;  // throws lmb::Error naming the field
 };
 

@@ -32,8 +32,12 @@ nlohmann::json sweep_report(const PoseSweep& sweep) {
     lo.push_back(number(range.min));
     hi.push_back(number(range.max));
   }
-  return {{"ransac_iterations", sweep.iterations}, {"seeds", sweep.seeds}, {"recall", recall},
-          {"mean", mean}, {"min", lo}, {"max", hi}};
+  return {{"ransac_iterations", sweep.iterations},
+          {"seeds", sweep.seeds},
+          {"recall", recall},
+          {"mean", mean},
+          {"min", lo},
+          {"max", hi}};
 }
 
 double scalar(const nlohmann::json& m, const char* key) {
@@ -75,15 +79,16 @@ nlohmann::json method_report(const MethodResult& r) {
   m["frames_localized"] = p.num_localized;
   m["frames_correct"] = p.num_correct;
 
-  nlohmann::json mr = {{"n", nlohmann::json::array()}, {"fppi", nlohmann::json::array()},
-                       {"miss_rate", nlohmann::json::array()}};
+  nlohmann::json mr = {
+      {"n", nlohmann::json::array()}, {"fppi", nlohmann::json::array()}, {"miss_rate", nlohmann::json::array()}};
   for (const MissRatePoint& pt : q.miss_rate_curve) {
     mr["n"].push_back(pt.n);
     mr["fppi"].push_back(number(pt.fppi));
     mr["miss_rate"].push_back(number(pt.miss_rate));
   }
   m["miss_rate_curve"] = mr;
-  nlohmann::json pr = {{"threshold", nlohmann::json::array()}, {"recall", nlohmann::json::array()},
+  nlohmann::json pr = {{"threshold", nlohmann::json::array()},
+                       {"recall", nlohmann::json::array()},
                        {"precision", nlohmann::json::array()}};
   for (const PosePrPoint& pt : p.pr_curve) {
     pr["threshold"].push_back(number(pt.threshold));
@@ -211,7 +216,8 @@ std::string format_sweep_table(const nlohmann::json& methods) {
   const nlohmann::json& seeds = first->at("seeds");
   char line[512];
   std::snprintf(line, sizeof(line), "\npose recall over %zu RANSAC seeds (%llu..%llu), mean [min, max]:\n%-24s",
-                seeds.size(), seeds.front().get<unsigned long long>(), seeds.back().get<unsigned long long>(), "method");
+                seeds.size(), seeds.front().get<unsigned long long>(), seeds.back().get<unsigned long long>(),
+                "method");
   out += line;
   for (const auto& it : first->at("ransac_iterations")) {
     std::snprintf(line, sizeof(line), " %21s", (std::to_string(it.get<int>()) + " iterations").c_str());
@@ -282,9 +288,9 @@ std::string format_thresholds_table(const nlohmann::json& methods) {
 std::string format_results_table(const nlohmann::json& report) {
   std::string out;
   char line[512];
-  std::snprintf(line, sizeof(line), "%-24s %7s %7s %8s %7s %7s %7s %8s %7s %9s %9s %7s %10s %10s\n", "method",
-                "P@1", "MRR", "MR@1FP", "m_prec", "m_rec", "bg_rej", "rec20/5", "AUC", "med_pos_m", "med_rot_d",
-                "inlier", "match_ms", "total_ms");
+  std::snprintf(line, sizeof(line), "%-24s %7s %7s %8s %7s %7s %7s %8s %7s %9s %9s %7s %10s %10s\n", "method", "P@1",
+                "MRR", "MR@1FP", "m_prec", "m_rec", "bg_rej", "rec20/5", "AUC", "med_pos_m", "med_rot_d", "inlier",
+                "match_ms", "total_ms");
   out += line;
   const auto methods = report.find("methods");
   if (methods == report.end() || !methods->is_object()) return out;
@@ -294,10 +300,9 @@ std::string format_results_table(const nlohmann::json& report) {
     std::snprintf(line, sizeof(line),
                   "%-24s %7.4f %7.4f %8.4f %7.4f %7.4f %7.4f %8.4f %7.4f %9.3f %9.3f %7.4f %10.3f %10.3f\n",
                   name.c_str(), scalar(m, "precision_at_1"), scalar(m, "mrr"), mr1, scalar(m, "match_precision"),
-                  scalar(m, "match_recall"), scalar(m, "background_rejection_rate"),
-                  scalar(m, "pose_recall_20cm_5deg"), scalar(m, "pose_auc"), scalar(m, "median_position_error_m"),
-                  scalar(m, "median_rotation_error_deg"), scalar(m, "mean_inlier_ratio"),
-                  scalar(m, "match_ms_per_frame"), scalar(m, "total_ms_per_frame"));
+                  scalar(m, "match_recall"), scalar(m, "background_rejection_rate"), scalar(m, "pose_recall_20cm_5deg"),
+                  scalar(m, "pose_auc"), scalar(m, "median_position_error_m"), scalar(m, "median_rotation_error_deg"),
+                  scalar(m, "mean_inlier_ratio"), scalar(m, "match_ms_per_frame"), scalar(m, "total_ms_per_frame"));
     out += line;
   }
   return out + format_thresholds_table(*methods) + format_sweep_table(*methods);

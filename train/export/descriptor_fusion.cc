@@ -14,16 +14,15 @@
 namespace lmb {
 
 void DescriptorFusionOptions::check() const {
-  LMB_CHECK(bin_width >= 1 && bin_width <= 64,
-            "descriptor fusion: bin_width = " << bin_width << " must be in 1..64");
+  LMB_CHECK(bin_width >= 1 && bin_width <= 64, "descriptor fusion: bin_width = " << bin_width << " must be in 1..64");
   LMB_CHECK(max_distance_samples >= 1,
             "descriptor fusion: max_distance_samples = " << max_distance_samples << " must be >= 1");
   LMB_CHECK(max_fit_samples >= 1, "descriptor fusion: max_fit_samples = " << max_fit_samples << " must be >= 1");
   LMB_CHECK(!weights.empty(), "descriptor fusion: no candidate weights");
   for (size_t i = 0; i < weights.size(); ++i) {
-    LMB_CHECK(std::isfinite(weights[i]) && weights[i] >= 0.0 && (i == 0 || weights[i] > weights[i - 1]),
-              "descriptor fusion: weights must be finite, >= 0 and ascending (weights[" << i
-                                                                                     << "] = " << weights[i] << ")");
+    LMB_CHECK(
+        std::isfinite(weights[i]) && weights[i] >= 0.0 && (i == 0 || weights[i] > weights[i - 1]),
+        "descriptor fusion: weights must be finite, >= 0 and ascending (weights[" << i << "] = " << weights[i] << ")");
   }
 }
 
@@ -71,7 +70,8 @@ std::vector<int64_t> hash_subset(const std::vector<int64_t>& items, const std::v
                                  int64_t cap, uint64_t seed, uint64_t tag) {
   if (static_cast<int64_t>(items.size()) <= cap) return items;
   std::vector<std::pair<uint64_t, size_t>> keyed(items.size());
-  for (size_t i = 0; i < items.size(); ++i) keyed[i] = {counter_hash(seed, tag, static_cast<uint64_t>(keypoint_of[i])), i};
+  for (size_t i = 0; i < items.size(); ++i)
+    keyed[i] = {counter_hash(seed, tag, static_cast<uint64_t>(keypoint_of[i])), i};
   std::nth_element(keyed.begin(), keyed.begin() + cap, keyed.end());
   std::vector<size_t> chosen;
   for (int64_t i = 0; i < cap; ++i) chosen.push_back(keyed[i].second);
@@ -213,8 +213,8 @@ struct HeldOutScores {
 // Step 2's inputs: the held-out observations' exact stump sums H of every class, batch by batch of
 // Classifier::kBatch samples (the classifier's kernels, so the same doubles), reduced per sample to
 // the entries fused_first reads.
-HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const TrainingSet& set,
-                             const Exemplars& ex, const DescriptorFusionOptions& options) {
+HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const TrainingSet& set, const Exemplars& ex,
+                             const DescriptorFusionOptions& options) {
   const int32_t C = model.num_classes();
   const int32_t max_distance = 8 * map.descriptor_bytes;
   std::vector<int64_t> fit_all, fit_keypoints;
@@ -223,8 +223,9 @@ HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const T
     fit_all.push_back(s);
     fit_keypoints.push_back(set.sample_keypoint[s]);
   }
-  LMB_CHECK(!fit_all.empty(), "descriptor fusion: no held-out map observation to fit the weight on "
-                              "(training_set.validation_fraction is 0?)");
+  LMB_CHECK(!fit_all.empty(),
+            "descriptor fusion: no held-out map observation to fit the weight on "
+            "(training_set.validation_fraction is 0?)");
   std::vector<int64_t> fit_samples =
       hash_subset(fit_all, fit_keypoints, options.max_fit_samples, options.seed, kFitTag);
   const std::vector<frame_t> frame_of = keypoint_frames(map);
@@ -292,7 +293,8 @@ HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const T
       classifier.index_frame(map_frame_keypoints(map, f, words), "descriptor fusion: map frame " + std::to_string(f));
       indexed = f;
     }
-    classifier.compute_used_values(static_cast<int32_t>(k - map.frames[f].first_keypoint), map.descriptor(k), one.data());
+    classifier.compute_used_values(static_cast<int32_t>(k - map.frames[f].first_keypoint), map.descriptor(k),
+                                   one.data());
     const size_t j = batch.size();
     for (size_t u = 0; u < U; ++u) values[u * kBatch + j] = one[u];
     batch.push_back(s);

@@ -31,9 +31,9 @@
 namespace lmb {
 
 struct DescriptorFusionOptions {
-  int32_t bin_width = 8;                 // Hamming bits per likelihood-ratio bin, 1..64
-  int32_t max_distance_samples = 4096;   // training observations for g (seeded subset)
-  int32_t max_fit_samples = 4096;        // held-out observations for alpha (seeded subset)
+  int32_t bin_width = 8;                // Hamming bits per likelihood-ratio bin, 1..64
+  int32_t max_distance_samples = 4096;  // training observations for g (seeded subset)
+  int32_t max_fit_samples = 4096;       // held-out observations for alpha (seeded subset)
   // Candidate weights alpha, ascending, >= 0; 0 = no fusion term.
   std::vector<double> weights = {0.0,   0.0625, 0.125, 0.1875, 0.25, 0.3125, 0.375, 0.4375, 0.5,
                                  0.625, 0.75,   0.875, 1.0,    1.25, 1.5,    2.0,   3.0,    4.0};
@@ -60,7 +60,6 @@ struct DescriptorFusionStats {
 // set and the model disagree, a class has no map observation, or there is no held-out sample or
 // no training observation with a second one of its class.
 DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& map, const TrainingSet& set,
-                                       const DescriptorFusionOptions& options,
-                                       DescriptorFusionStats* stats = nullptr);
+                                       const DescriptorFusionOptions& options, DescriptorFusionStats* stats = nullptr);
 
 }  // namespace lmb

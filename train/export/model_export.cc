@@ -8,22 +8,20 @@
 namespace lmb {
 
 void ExportOptions::check() const {
-  LMB_CHECK(min_word_observations >= 1, "export options: min_word_observations = "
-                                            << min_word_observations << " must be >= 1");
+  LMB_CHECK(min_word_observations >= 1,
+            "export options: min_word_observations = " << min_word_observations << " must be >= 1");
 }
 
-ModelData export_model_data(const BoostModel& boost, const LandmarkMap& map,
-                            const Vocabulary& vocabulary, const ContextRegions& regions,
-                            const ExportOptions& options, ExportStats* stats) {
+ModelData export_model_data(const BoostModel& boost, const LandmarkMap& map, const Vocabulary& vocabulary,
+                            const ContextRegions& regions, const ExportOptions& options, ExportStats* stats) {
   options.check();
   boost.check();
   const EmbeddingLayout layout = embedding_layout(map, regions, vocabulary);
-  LMB_CHECK(boost.num_dims == layout.num_dims(),
-            "export: the boost model has " << boost.num_dims << " feature dims, but "
-                                           << layout.num_regions << " regions x " << layout.num_words
-                                           << " words + " << 8 * layout.descriptor_bytes
-                                           << " bits = " << layout.num_dims()
-                                           << " (regions or vocabulary differ from training)");
+  LMB_CHECK(boost.num_dims == layout.num_dims(), "export: the boost model has "
+                                                     << boost.num_dims << " feature dims, but " << layout.num_regions
+                                                     << " regions x " << layout.num_words << " words + "
+                                                     << 8 * layout.descriptor_bytes << " bits = " << layout.num_dims()
+                                                     << " (regions or vocabulary differ from training)");
   ModelData d;
   d.detector = map.detector;
   d.descriptor_bytes = map.descriptor_bytes;

@@ -37,8 +37,8 @@ struct ExportStats {
 // boost.check() fails, the map's descriptor length differs from the vocabulary's, the model's
 // feature dimension differs from regions x words + descriptor bits, or a class landmark id is not
 // in the map.
-ModelData export_model_data(const BoostModel& boost, const LandmarkMap& map,
-                            const Vocabulary& vocabulary, const ContextRegions& regions,
-                            const ExportOptions& options = {}, ExportStats* stats = nullptr);
+ModelData export_model_data(const BoostModel& boost, const LandmarkMap& map, const Vocabulary& vocabulary,
+                            const ContextRegions& regions, const ExportOptions& options = {},
+                            ExportStats* stats = nullptr);
 
 }  // namespace lmb

@@ -12,11 +12,9 @@ void SyntheticModelOptions::check() const {
   LMB_CHECK(num_classes >= 1, "synthetic model: num_classes = " << num_classes << " must be >= 1");
   LMB_CHECK(num_stumps >= 1, "synthetic model: num_stumps = " << num_stumps << " must be >= 1");
   LMB_CHECK(num_regions >= 1, "synthetic model: num_regions = " << num_regions << " must be >= 1");
-  LMB_CHECK(num_words >= 4 && num_words <= 256,
-            "synthetic model: num_words = " << num_words << " outside 4..256");
+  LMB_CHECK(num_words >= 4 && num_words <= 256, "synthetic model: num_words = " << num_words << " outside 4..256");
   LMB_CHECK(descriptor_bytes >= 1 && descriptor_bytes <= kMaxDescriptorBytes,
-            "synthetic model: descriptor_bytes = " << descriptor_bytes << " outside 1.."
-                                                   << kMaxDescriptorBytes);
+            "synthetic model: descriptor_bytes = " << descriptor_bytes << " outside 1.." << kMaxDescriptorBytes);
   LMB_CHECK(context_stump_share >= 0.0 && context_stump_share <= 1.0,
             "synthetic model: context_stump_share = " << context_stump_share << " outside [0, 1]");
   LMB_CHECK(sharing_m0 > 0.0 && std::isfinite(sharing_m0),
@@ -26,8 +24,7 @@ void SyntheticModelOptions::check() const {
   LMB_CHECK(background_share >= 0.0 && background_share <= 1.0,
             "synthetic model: background_share = " << background_share << " outside [0, 1]");
   LMB_CHECK(extra_word_probability >= 0.0 && extra_word_probability <= 1.0,
-            "synthetic model: extra_word_probability = " << extra_word_probability
-                                                         << " outside [0, 1]");
+            "synthetic model: extra_word_probability = " << extra_word_probability << " outside [0, 1]");
 }
 
 ModelData make_synthetic_model(const SyntheticModelOptions& o, SyntheticModelStats* stats) {
@@ -48,8 +45,7 @@ ModelData make_synthetic_model(const SyntheticModelOptions& o, SyntheticModelSta
   d.num_classes = C;
   for (int32_t c = 0; c < C; ++c) {
     d.class_landmark.push_back(c);
-    d.class_position.emplace_back(rng.uniform(0.0, 100.0), rng.uniform(0.0, 20.0),
-                                  rng.uniform(0.0, 5.0));
+    d.class_position.emplace_back(rng.uniform(0.0, 100.0), rng.uniform(0.0, 20.0), rng.uniform(0.0, 5.0));
   }
   for (int32_t c = 0; c <= C; ++c) d.bias.push_back(rng.normal());
 
@@ -63,15 +59,15 @@ ModelData make_synthetic_model(const SyntheticModelOptions& o, SyntheticModelSta
       s.dim = static_cast<int32_t>(rng.below(static_cast<uint64_t>(layout.num_context_dims())));
       s.theta = static_cast<uint8_t>(rng.below(64));
     } else {
-      s.dim = layout.num_context_dims() +
-              static_cast<int32_t>(rng.below(static_cast<uint64_t>(8 * o.descriptor_bytes)));
+      s.dim =
+          layout.num_context_dims() + static_cast<int32_t>(rng.below(static_cast<uint64_t>(8 * o.descriptor_bytes)));
       s.theta = 0;
     }
     s.a = rng.normal();
     s.b = 0.5 * rng.normal();
     const double mean = 0.5 * C * std::pow(1.0 + m / o.sharing_m0, -o.sharing_decay);
-    const int32_t size = static_cast<int32_t>(
-        std::clamp(std::lround(mean * std::exp(0.5 * rng.normal())), 1L, static_cast<long>(C)));
+    const int32_t size =
+        static_cast<int32_t>(std::clamp(std::lround(mean * std::exp(0.5 * rng.normal())), 1L, static_cast<long>(C)));
     // A random subset of `size` classes: a partial Fisher-Yates shuffle.
     for (int32_t i = 0; i < size; ++i) {
       std::swap(all[i], all[i + static_cast<int32_t>(rng.below(static_cast<uint64_t>(C - i)))]);

@@ -43,7 +43,6 @@ struct SyntheticModelStats {
 };
 
 // Builds the model data (passes ModelData::check). Throws lmb::Error for invalid options.
-ModelData make_synthetic_model(const SyntheticModelOptions& options,
-                               SyntheticModelStats* stats = nullptr);
+ModelData make_synthetic_model(const SyntheticModelOptions& options, SyntheticModelStats* stats = nullptr);
 
 }  // namespace lmb

@@ -63,19 +63,16 @@ std::string frame_name(const LandmarkMap& map, frame_t f) {
 }  // namespace
 
 void FeatureBuildOptions::check(int32_t num_dims) const {
-  LMB_CHECK(num_threads >= 1 && num_threads <= 256,
-            "features: num_threads = " << num_threads << " must be in 1..256");
+  LMB_CHECK(num_threads >= 1 && num_threads <= 256, "features: num_threads = " << num_threads << " must be in 1..256");
   for (size_t i = 0; i < dims.size(); ++i) {
     LMB_CHECK(dims[i] >= 0 && dims[i] < num_dims,
               "features: dims[" << i << "] = " << dims[i] << " is outside 0.." << num_dims - 1);
     LMB_CHECK(i == 0 || dims[i] > dims[i - 1],
-              "features: dims must be sorted ascending without repeats (dims[" << i << "] = "
-                                                                            << dims[i] << ")");
+              "features: dims must be sorted ascending without repeats (dims[" << i << "] = " << dims[i] << ")");
   }
 }
 
-EmbeddingLayout embedding_layout(const LandmarkMap& map, const ContextRegions& regions,
-                                 const Vocabulary& vocabulary) {
+EmbeddingLayout embedding_layout(const LandmarkMap& map, const ContextRegions& regions, const Vocabulary& vocabulary) {
   vocabulary.check_descriptor_bytes(map.descriptor_bytes, "map descriptors");
   EmbeddingLayout layout{regions.size(), vocabulary.num_words(), map.descriptor_bytes};
   layout.check();
@@ -87,23 +84,19 @@ std::vector<frame_t> keypoint_frames(const LandmarkMap& map) {
   std::vector<frame_t> frames(static_cast<size_t>(n), kInvalidFrameId);
   for (frame_t f = 0; f < map.num_frames(); ++f) {
     const MapFrame& fr = map.frames[f];
-    LMB_CHECK(fr.first_keypoint >= 0 && fr.num_keypoints >= 0 &&
-                  fr.first_keypoint + fr.num_keypoints <= n,
+    LMB_CHECK(fr.first_keypoint >= 0 && fr.num_keypoints >= 0 && fr.first_keypoint + fr.num_keypoints <= n,
               "map: " << frame_name(map, f) << " keypoints [" << fr.first_keypoint << ", "
-                      << fr.first_keypoint + fr.num_keypoints << ") exceed the " << n
-                      << " keypoints");
+                      << fr.first_keypoint + fr.num_keypoints << ") exceed the " << n << " keypoints");
     for (int64_t k = fr.first_keypoint; k < fr.first_keypoint + fr.num_keypoints; ++k) {
       LMB_CHECK(frames[k] == kInvalidFrameId,
-                "map: keypoint " << k << " belongs to two frames (" << frames[k] << " and " << f
-                                 << ")");
+                "map: keypoint " << k << " belongs to two frames (" << frames[k] << " and " << f << ")");
       frames[k] = f;
     }
   }
   return frames;
 }
 
-std::vector<uint8_t> keypoint_words(const LandmarkMap& map, const Vocabulary& vocabulary,
-                                    int num_threads) {
+std::vector<uint8_t> keypoint_words(const LandmarkMap& map, const Vocabulary& vocabulary, int num_threads) {
   vocabulary.check_descriptor_bytes(map.descriptor_bytes, "map descriptors");
   const int64_t n = static_cast<int64_t>(map.keypoints.size());
   LMB_CHECK(static_cast<int64_t>(map.descriptors.size()) == n * map.descriptor_bytes,
@@ -119,8 +112,7 @@ std::vector<uint8_t> keypoint_words(const LandmarkMap& map, const Vocabulary& vo
   return words;
 }
 
-FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t f,
-                                   const std::vector<uint8_t>& words) {
+FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t f, const std::vector<uint8_t>& words) {
   LMB_CHECK(f >= 0 && f < map.num_frames(), "map: frame " << f << " out of range");
   const MapFrame& fr = map.frames[f];
   LMB_CHECK(fr.camera >= 0 && fr.camera < static_cast<camera_t>(map.cameras.size()),
@@ -129,24 +121,22 @@ FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t f,
                 fr.first_keypoint + fr.num_keypoints <= static_cast<int64_t>(words.size()) &&
                 fr.first_keypoint + fr.num_keypoints <= static_cast<int64_t>(map.keypoints.size()),
             "map: " << frame_name(map, f) << " keypoint range out of bounds");
-  return frame_keypoints_from_detections(
-      map.cameras[fr.camera], map.keypoints.data() + fr.first_keypoint,
-      words.data() + fr.first_keypoint, fr.num_keypoints, fr.gravity_in_cam,
-      "map: " + frame_name(map, f));
+  return frame_keypoints_from_detections(map.cameras[fr.camera], map.keypoints.data() + fr.first_keypoint,
+                                         words.data() + fr.first_keypoint, fr.num_keypoints, fr.gravity_in_cam,
+                                         "map: " + frame_name(map, f));
 }
 
 FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegions& regions,
-                                      const Vocabulary& vocabulary,
-                                      const std::vector<int64_t>& sample_keypoints,
+                                      const Vocabulary& vocabulary, const std::vector<int64_t>& sample_keypoints,
                                       const FeatureBuildOptions& options) {
   const EmbeddingLayout layout = embedding_layout(map, regions, vocabulary);
   options.check(layout.num_dims());
   const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
   const int64_t num_samples = static_cast<int64_t>(sample_keypoints.size());
   for (int64_t i = 0; i < num_samples; ++i) {
-    LMB_CHECK(sample_keypoints[i] >= 0 && sample_keypoints[i] < num_keypoints,
-              "features: sample " << i << " keypoint " << sample_keypoints[i] << " is outside 0.."
-                                  << num_keypoints - 1);
+    LMB_CHECK(
+        sample_keypoints[i] >= 0 && sample_keypoints[i] < num_keypoints,
+        "features: sample " << i << " keypoint " << sample_keypoints[i] << " is outside 0.." << num_keypoints - 1);
   }
   const std::vector<frame_t> frame_of = keypoint_frames(map);
   for (int64_t i = 0; i < num_samples; ++i) {
@@ -166,9 +156,8 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
   // Samples grouped by frame: order[] sorted by (frame, sample index); one task per frame.
   std::vector<int64_t> order(static_cast<size_t>(num_samples));
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](int64_t a, int64_t b) {
-    return frame_of[sample_keypoints[a]] < frame_of[sample_keypoints[b]];
-  });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int64_t a, int64_t b) { return frame_of[sample_keypoints[a]] < frame_of[sample_keypoints[b]]; });
   std::vector<int64_t> task_begin;
   for (int64_t i = 0; i < num_samples; ++i) {
     if (i == 0 || frame_of[sample_keypoints[order[i]]] != frame_of[sample_keypoints[order[i - 1]]]) {
@@ -186,8 +175,8 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
   std::vector<ThreadState> states;
   states.reserve(static_cast<size_t>(threads));
   for (int t = 0; t < threads; ++t) {
-    states.push_back({FrameContext(regions, layout.num_words),
-                      std::vector<uint8_t>(static_cast<size_t>(kRowBlock) * stored)});
+    states.push_back(
+        {FrameContext(regions, layout.num_words), std::vector<uint8_t>(static_cast<size_t>(kRowBlock) * stored)});
   }
   const DimPlan plan = all_dims ? DimPlan() : DimPlan(regions, layout, options.dims);
   const int32_t context_dims = layout.num_context_dims();

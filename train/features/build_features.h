@@ -26,18 +26,15 @@ struct FeatureBuildOptions {
 
 // The embedding layout for a map, regions and vocabulary. Throws lmb::Error when the map's
 // descriptor length differs from the vocabulary's.
-EmbeddingLayout embedding_layout(const LandmarkMap& map, const ContextRegions& regions,
-                                 const Vocabulary& vocabulary);
+EmbeddingLayout embedding_layout(const LandmarkMap& map, const ContextRegions& regions, const Vocabulary& vocabulary);
 
 // Each keypoint's visual word (nearest vocabulary word), keypoints.size() entries. Throws
 // lmb::Error when the descriptor lengths differ.
-std::vector<uint8_t> keypoint_words(const LandmarkMap& map, const Vocabulary& vocabulary,
-                                    int num_threads = 1);
+std::vector<uint8_t> keypoint_words(const LandmarkMap& map, const Vocabulary& vocabulary, int num_threads = 1);
 
 // The gravity-aligned keypoints of one map frame (see common/context_embedding.h for the geometry)
 // with the given per-keypoint words (all map keypoints). Throws lmb::Error naming the frame.
-FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t frame,
-                                   const std::vector<uint8_t>& words);
+FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t frame, const std::vector<uint8_t>& words);
 
 // Feature vectors of the given samples (global keypoint indices into map.keypoints, any frames,
 // any order, repeats allowed): sample i is row i of every column. The context of a keypoint is
@@ -47,8 +44,7 @@ FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t frame,
 // a row block of at most 256 samples. Throws lmb::Error for an index out of range, a descriptor
 // length mismatch, or a frame with invalid geometry (the message names the frame).
 FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegions& regions,
-                                      const Vocabulary& vocabulary,
-                                      const std::vector<int64_t>& sample_keypoints,
+                                      const Vocabulary& vocabulary, const std::vector<int64_t>& sample_keypoints,
                                       const FeatureBuildOptions& options);
 
 // The frame of every keypoint (map.keypoints.size() entries). Throws lmb::Error when the frames'

@@ -22,15 +22,11 @@ struct FeatureMatrix {
   std::vector<int32_t> dims;
   std::vector<uint8_t> data;
 
-  int32_t num_stored_columns() const {
-    return dims.empty() ? num_dims : static_cast<int32_t>(dims.size());
-  }
+  int32_t num_stored_columns() const { return dims.empty() ? num_dims : static_cast<int32_t>(dims.size()); }
   const uint8_t* column(int32_t stored_index) const {
     return data.data() + static_cast<int64_t>(stored_index) * num_samples;
   }
-  uint8_t* column(int32_t stored_index) {
-    return data.data() + static_cast<int64_t>(stored_index) * num_samples;
-  }
+  uint8_t* column(int32_t stored_index) { return data.data() + static_cast<int64_t>(stored_index) * num_samples; }
 };
 
 }  // namespace lmb

@@ -17,7 +17,8 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
   size_t with_gravity = 0;
   std::set<std::string> names;
   for (const CollectionImage& im : images) {
-    LMB_CHECK(names.insert(im.image.name).second, out_dir.string() << ": image name " << im.image.name << " used twice");
+    LMB_CHECK(names.insert(im.image.name).second, out_dir.string()
+                                                      << ": image name " << im.image.name << " used twice");
     check_image_name(im.image.name, out_dir.string());
     LMB_CHECK(im.image.name.find_first_of(" \t\n") == std::string::npos,
               im.image.name << ": image names must not contain white space (COLMAP text format)");

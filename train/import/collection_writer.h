@@ -20,8 +20,8 @@
 namespace lmb {
 
 struct CollectionImage {
-  ColmapImage image;                // name: the collection name, e.g. "map/0001.jpg"
-  std::filesystem::path source;     // the original file; linked by absolute path
+  ColmapImage image;                              // name: the collection name, e.g. "map/0001.jpg"
+  std::filesystem::path source;                   // the original file; linked by absolute path
   std::optional<Eigen::Vector3d> gravity_in_cam;  // unit, down; required for all or none
 };
 

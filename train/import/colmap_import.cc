@@ -41,7 +41,8 @@ UpEstimate estimate_up_from_cameras(const std::vector<Rigid3d>& cam_from_world) 
     sum += (pose.rotation.conjugate() * Eigen::Vector3d::UnitY()).normalized();  // camera +y in the world
   }
   const Eigen::Vector3d mean_down = sum / static_cast<double>(cam_from_world.size());
-  LMB_CHECK(mean_down.norm() > 1e-6, "--up auto: the " << cam_from_world.size()
+  LMB_CHECK(mean_down.norm() > 1e-6, "--up auto: the "
+                                         << cam_from_world.size()
                                          << " cameras' down directions cancel out; give --up AXIS or a gravity file");
   UpEstimate e;
   e.up = -mean_down.normalized();
@@ -93,8 +94,8 @@ void check_camera_sizes(const ColmapModel& model, const fs::path& sparse_dir, co
     if (!seen.insert(im.camera_id).second) continue;
     const fs::path path = image_dir / im.name;
     const cv::Mat image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-    LMB_CHECK(!image.empty(), "image " << im.image_id << " '" << im.name << "': " << path.string()
-                                       << ": cannot decode the image");
+    LMB_CHECK(!image.empty(),
+              "image " << im.image_id << " '" << im.name << "': " << path.string() << ": cannot decode the image");
     const Camera& camera = model.cameras.at(im.camera_id);
     LMB_CHECK(image.cols == camera.width && image.rows == camera.height,
               sparse_dir.string() << ": camera " << im.camera_id << " is " << camera.width << "x" << camera.height

@@ -54,7 +54,7 @@ UpEstimate estimate_up_from_cameras(const std::vector<Rigid3d>& cam_from_world);
 struct DepthStats {
   int64_t observations = 0;  // track elements in front of their camera
   double median = 0.0;
-  double p95 = 0.0;          // 95th percentile
+  double p95 = 0.0;  // 95th percentile
 };
 
 // Depth statistics over every track element of every point; nullopt when the model has no
@@ -65,7 +65,7 @@ struct ColmapImportStats {
   int images = 0;
   int map_frames = 0;
   int query_frames = 0;
-  bool binary = false;      // the model was read from .bin files
+  bool binary = false;  // the model was read from .bin files
   bool has_gravity = false;
   std::optional<UpEstimate> up_estimate;  // with --up auto
   std::optional<DepthStats> depths;       // when the model has points with tracks

@@ -4,9 +4,9 @@
 #include <map>
 #include <sstream>
 
-#include "common/text_parse.h"
 #include "common/error.h"
 #include "common/text_lines.h"
+#include "common/text_parse.h"
 
 namespace lmb {
 
@@ -25,8 +25,7 @@ SplitRule parse_split_rule(const std::string& text) {
   } else if (kind == "first") {
     rule.kind = SplitRule::Kind::kFirst;
     rule.first_fraction = parse_finite_number(arg, "--split '" + text + "'", "F");
-    LMB_CHECK(rule.first_fraction > 0 && rule.first_fraction <= 1,
-              "--split '" << text << "': F must be in (0, 1]");
+    LMB_CHECK(rule.first_fraction > 0 && rule.first_fraction <= 1, "--split '" << text << "': F must be in (0, 1]");
   } else if (kind == "time") {
     rule.kind = SplitRule::Kind::kTime;
     const size_t second = arg.find(':');
@@ -52,7 +51,7 @@ SplitRule parse_split_rule(const std::string& text) {
     LMB_CHECK(!rule.list.empty(), arg << ": the split list names no frame");
   } else {
     LMB_FAIL("--split '" << text << "': unknown rule '" << kind
-                          << "' (expected every, first, time, map-list, query-list or list)");
+                         << "' (expected every, first, time, map-list, query-list or list)");
   }
   return rule;
 }

@@ -26,7 +26,7 @@ struct SplitRule {
   double time_begin_s = 0.0;
   double time_end_s = 0.0;
   std::filesystem::path list_file;
-  std::vector<std::string> list;  // entries of list_file, in file order
+  std::vector<std::string> list;    // entries of list_file, in file order
   bool list_names_queries = false;  // query-list: the entries are the query frames
 };
 

@@ -9,11 +9,11 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
-#include "common/text_parse.h"
 #include "common/error.h"
 #include "common/io/colmap_model.h"
-#include "common/text_lines.h"
 #include "common/io/session_file.h"
+#include "common/text_lines.h"
+#include "common/text_parse.h"
 #include "train/import/collection_writer.h"
 #include "train/import/split_rule.h"
 
@@ -247,11 +247,9 @@ std::optional<GravityAgreement> gravity_agreement(const std::vector<Kept>& kept,
     std::vector<double> scan;
     for (const Kept& k : kept) {
       if (!k.accel || k.accel->norm() < 1e-6) continue;
-      const std::optional<Rigid3d> pose =
-          interpolate_pose(*k.trajectory, k.image->time_s + offset, options.max_gap_s);
+      const std::optional<Rigid3d> pose = interpolate_pose(*k.trajectory, k.image->time_s + offset, options.max_gap_s);
       if (!pose) continue;
-      scan.push_back(angle_deg(options.cam_from_accel * (-*k.accel).normalized(),
-                               pose->rotation.conjugate() * (-up)));
+      scan.push_back(angle_deg(options.cam_from_accel * (-*k.accel).normalized(), pose->rotation.conjugate() * (-up)));
     }
     const double m = median(scan);
     if (!scan.empty() && m < g.best_time_offset_median_deg) {
@@ -267,7 +265,8 @@ std::optional<GravityAgreement> gravity_agreement(const std::vector<Kept>& kept,
   g.fitted_rotation_offset_deg =
       Eigen::AngleAxisd(g.fitted_cam_from_accel * options.cam_from_accel.transpose()).angle() * kRadToDeg;
   std::vector<double> fitted;
-  for (const auto& [down_accel, truth] : pairs) fitted.push_back(angle_deg(g.fitted_cam_from_accel * down_accel, truth));
+  for (const auto& [down_accel, truth] : pairs)
+    fitted.push_back(angle_deg(g.fitted_cam_from_accel * down_accel, truth));
   g.fitted_median_deg = median(fitted);
   return g;
 }
@@ -342,8 +341,8 @@ TumImportStats import_tum(const TumImportOptions& options) {
     listed[seq] = read_tum_image_list(dir / "rgb.txt");
     trajectories[seq] = read_tum_trajectory(dir / "groundtruth.txt");
     const bool has_accel = fs::exists(dir / "accelerometer.txt");
-    LMB_CHECK(has_accel || options.gravity != "accelerometer",
-              (dir / "accelerometer.txt").string() << ": missing (needed by --gravity accelerometer)");
+    LMB_CHECK(has_accel || options.gravity != "accelerometer", (dir / "accelerometer.txt").string()
+                                                                   << ": missing (needed by --gravity accelerometer)");
     TumAccelerometer accel;
     if (has_accel) accel = read_tum_accelerometer(dir / "accelerometer.txt");
     any_accel = any_accel || has_accel;
@@ -368,9 +367,9 @@ TumImportStats import_tum(const TumImportOptions& options) {
       kept.push_back(Kept{&im, &trajectories[seq], *pose, a});
     }
     stats.skipped_no_pose += skipped_no_pose;
-    LMB_CHECK(kept.size() > first_kept, dir.string() << ": no frame has ground truth within "
-                                                      << options.max_gap_s * 1000 << " ms (" << skipped_no_pose
-                                                      << " skipped)");
+    LMB_CHECK(kept.size() > first_kept, dir.string()
+                                            << ": no frame has ground truth within " << options.max_gap_s * 1000
+                                            << " ms (" << skipped_no_pose << " skipped)");
 
     // The split: map sequences by the rule, query sequences all queries.
     std::vector<bool> is_map(kept.size() - first_kept, false);
@@ -388,7 +387,8 @@ TumImportStats import_tum(const TumImportOptions& options) {
       CollectionImage out;
       out.image.image_id = static_cast<int>(images.size()) + 1;
       out.image.camera_id = 1;
-      out.image.name = (m ? map_name : query_name) + "/" + k.image->timestamp + fs::path(k.image->file).extension().string();
+      out.image.name =
+          (m ? map_name : query_name) + "/" + k.image->timestamp + fs::path(k.image->file).extension().string();
       out.image.cam_from_world = k.world_from_cam.inverse();
       out.source = dir / k.image->file;
       if (options.gravity == "accelerometer") {
@@ -404,8 +404,8 @@ TumImportStats import_tum(const TumImportOptions& options) {
     auto add_session = [&](const std::string& name, SessionKind kind, int frames) {
       if (frames == 0) return;
       for (const MapSession& s : stats.sessions) {
-        LMB_CHECK(s.name != name, dir.string() << ": session name '" << name
-                                               << "' is already used by another sequence (set --names)");
+        LMB_CHECK(s.name != name,
+                  dir.string() << ": session name '" << name << "' is already used by another sequence (set --names)");
       }
       stats.sessions.push_back(MapSession{name, kind});
       stats.session_frames.push_back(frames);
@@ -415,8 +415,8 @@ TumImportStats import_tum(const TumImportOptions& options) {
   }
   if (rule.kind == SplitRule::Kind::kList && num_map > 1) {
     for (const std::string& e : rule.list) {
-      LMB_CHECK(list_entries_used.count(e), rule.list_file.string() << ": entry '" << e
-                                                                    << "' names no frame of the map sequences");
+      LMB_CHECK(list_entries_used.count(e), rule.list_file.string()
+                                                << ": entry '" << e << "' names no frame of the map sequences");
     }
   }
   stats.imported_frames = static_cast<int>(images.size());

@@ -33,8 +33,8 @@ struct TumTrajectory {
 };
 
 struct TumAccelerometer {
-  std::vector<double> time_s;              // non-decreasing
-  std::vector<Eigen::Vector3d> accel_mps2; // one per time, in the accelerometer's frame
+  std::vector<double> time_s;               // non-decreasing
+  std::vector<Eigen::Vector3d> accel_mps2;  // one per time, in the accelerometer's frame
 };
 
 // Readers; each throws lmb::Error naming the file, line and reason (field count, non-numbers,
@@ -82,8 +82,8 @@ struct TumImportOptions {
   std::vector<std::filesystem::path> data_dirs;   // map sequences (rgb.txt, groundtruth.txt, ...), >= 1
   std::vector<std::filesystem::path> query_dirs;  // query sequences
   std::vector<std::string> session_names;         // empty, or one per sequence
-  std::filesystem::path out_dir;   // the collection to write
-  std::string split = "every:3";   // see train/import/split_rule.h; applied to each map sequence
+  std::filesystem::path out_dir;                  // the collection to write
+  std::string split = "every:3";                  // see train/import/split_rule.h; applied to each map sequence
   // Gravity written to gravity.txt: "accelerometer" (per image, from accelerometer.txt),
   // "groundtruth-up" (R_cam_from_world * -world_up from the interpolated ground truth), "none".
   std::string gravity = "accelerometer";
@@ -117,15 +117,15 @@ struct GravityAgreement {
 };
 
 struct TumImportStats {
-  int listed_frames = 0;           // lines of the sequences' rgb.txt
+  int listed_frames = 0;  // lines of the sequences' rgb.txt
   int imported_frames = 0;
   int map_frames = 0;
   int query_frames = 0;
-  int skipped_no_pose = 0;         // no ground truth within max_gap_s
-  int skipped_no_accelerometer = 0;  // gravity = accelerometer and no reading within max_gap_s
+  int skipped_no_pose = 0;                            // no ground truth within max_gap_s
+  int skipped_no_accelerometer = 0;                   // gravity = accelerometer and no reading within max_gap_s
   std::optional<GravityAgreement> gravity_agreement;  // when accelerometer.txt exists
-  std::vector<MapSession> sessions;  // as written to sessions.txt (sessions with frames only)
-  std::vector<int> session_frames;   // frames of each session
+  std::vector<MapSession> sessions;                   // as written to sessions.txt (sessions with frames only)
+  std::vector<int> session_frames;                    // frames of each session
 };
 
 // Imports the sequences. Throws lmb::Error for unreadable inputs or output (see the readers and

@@ -13,8 +13,8 @@ namespace lmb {
 
 namespace fs = std::filesystem;
 
-std::vector<Eigen::Vector3d> back_project_keypoints(const LandmarkMap& map, frame_t frame,
-                                                    const uint16_t* depth_mm, int width, int height) {
+std::vector<Eigen::Vector3d> back_project_keypoints(const LandmarkMap& map, frame_t frame, const uint16_t* depth_mm,
+                                                    int width, int height) {
   const MapFrame& f = map.frames.at(frame);
   const Camera& camera = map.cameras.at(f.camera);
   const Rigid3d world_from_cam = f.cam_from_world.inverse();

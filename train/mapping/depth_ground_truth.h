@@ -17,21 +17,21 @@ namespace lmb {
 // Back-projects keypoints of `frame` with the depth image `depth_mm` (CV_16UC1 as read from the
 // depth PNG); points without depth are NaN. Keypoints use COLMAP pixel coordinates; the depth of
 // the pixel whose centre is nearest is used.
-std::vector<Eigen::Vector3d> back_project_keypoints(const LandmarkMap& map, frame_t frame,
-                                                    const uint16_t* depth_mm, int width, int height);
+std::vector<Eigen::Vector3d> back_project_keypoints(const LandmarkMap& map, frame_t frame, const uint16_t* depth_mm,
+                                                    int width, int height);
 
 struct DepthCheckOptions {
   double purity_radius_m = 0.05;  // an observation agrees with its track within this distance
 };
 
 struct MapAccuracy {
-  int64_t landmarks_checked = 0;           // landmarks with >= 2 observations that have depth
+  int64_t landmarks_checked = 0;  // landmarks with >= 2 observations that have depth
   int64_t observations_checked = 0;
   int64_t observations_without_depth = 0;
-  double mean_track_purity = 0;            // mean over landmarks of the agreeing share
-  double observation_purity = 0;           // agreeing observations / all checked observations
-  double pure_track_share = 0;             // landmarks whose every observation agrees
-  double median_position_error_m = 0;      // |landmark - majority point|
+  double mean_track_purity = 0;        // mean over landmarks of the agreeing share
+  double observation_purity = 0;       // agreeing observations / all checked observations
+  double pure_track_share = 0;         // landmarks whose every observation agrees
+  double median_position_error_m = 0;  // |landmark - majority point|
   double mean_position_error_m = 0;
   double p90_position_error_m = 0;
 };

@@ -40,8 +40,7 @@ void nn_range(const uint8_t* database, int64_t num_database, const uint8_t* quer
 }  // namespace
 
 void hamming_nearest_neighbors(const uint8_t* database, int64_t num_database, const uint8_t* queries,
-                               int64_t num_queries, int bytes, int threads, int64_t* nn_index,
-                               int32_t* nn_distance) {
+                               int64_t num_queries, int bytes, int threads, int64_t* nn_index, int32_t* nn_distance) {
   LMB_CHECK(bytes > 0, "hamming_nearest_neighbors: descriptor bytes must be positive");
   threads = std::max(1, threads);
   auto run = [&](int64_t begin, int64_t end) {
@@ -79,8 +78,8 @@ HammingNnStats evaluate_hamming_nn(const LandmarkMap& map, int threads) {
   if (stats.num_queries == 0 || stats.num_database == 0 || bytes == 0) return stats;
   std::vector<int64_t> nn(stats.num_queries);
   std::vector<int32_t> dist(stats.num_queries);
-  hamming_nearest_neighbors(database.data(), stats.num_database, queries.data(), stats.num_queries, bytes,
-                            threads, nn.data(), dist.data());
+  hamming_nearest_neighbors(database.data(), stats.num_database, queries.data(), stats.num_queries, bytes, threads,
+                            nn.data(), dist.data());
   double dist_sum = 0, true_sum = 0;
   int64_t true_count = 0;
   // Nearest observation of the true landmark (for the mean distance figure).

@@ -47,8 +47,7 @@ double automatic_pair_distance(const std::vector<PairFrame>& frames) {
   return 8.0 * nearest[nearest.size() / 2];
 }
 
-std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>& frames,
-                                                    const PairOptions& options) {
+std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>& frames, const PairOptions& options) {
   options.check();
   const int n = static_cast<int>(frames.size());
   double max_distance = options.max_center_distance;
@@ -77,15 +76,14 @@ std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>
       if (distance > max_distance) continue;
       const double angle = axis_angle_deg(axes[i], axes[j]);
       if (angle > options.max_view_angle_deg) continue;
-      const double cost = (std::isfinite(max_distance) ? distance / max_distance : 0.0) +
-                          angle / options.max_view_angle_deg;
+      const double cost =
+          (std::isfinite(max_distance) ? distance / max_distance : 0.0) + angle / options.max_view_angle_deg;
       candidates.push_back({cost, j});
     }
     const size_t keep = std::min(candidates.size(), static_cast<size_t>(options.max_pairs_per_frame));
-    std::partial_sort(candidates.begin(), candidates.begin() + keep, candidates.end(),
-                      [](const Candidate& a, const Candidate& b) {
-                        return a.cost != b.cost ? a.cost < b.cost : a.index < b.index;
-                      });
+    std::partial_sort(
+        candidates.begin(), candidates.begin() + keep, candidates.end(),
+        [](const Candidate& a, const Candidate& b) { return a.cost != b.cost ? a.cost < b.cost : a.index < b.index; });
     for (size_t c = 0; c < keep; ++c) add(i, candidates[c].index);
   }
   // Sequence neighbours within each map session.

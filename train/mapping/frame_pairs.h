@@ -31,8 +31,7 @@ struct PairFrame {
 };
 
 // Returns pairs (i, j), i < j, sorted and unique. Deterministic.
-std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>& frames,
-                                                    const PairOptions& options);
+std::vector<std::pair<int, int>> select_frame_pairs(const std::vector<PairFrame>& frames, const PairOptions& options);
 
 // The distance used when max_center_distance <= 0 (see PairOptions); 0 with fewer than 2 map frames.
 double automatic_pair_distance(const std::vector<PairFrame>& frames);

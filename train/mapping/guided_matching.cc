@@ -23,8 +23,7 @@ void MatchingOptions::check() const {
 }
 
 MatchingFrame::MatchingFrame(const Camera& camera, const Rigid3d& cam_from_world,
-                             const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
-                             int descriptor_bytes)
+                             const std::vector<Keypoint>& keypoints, const uint8_t* descriptors, int descriptor_bytes)
     : camera_(&camera),
       cam_from_world_(cam_from_world),
       focal_(camera.mean_focal_length()),

@@ -18,13 +18,13 @@ namespace lmb {
 
 struct MatchingOptions {
   double epipolar_threshold_px = 2.5;  // max distance to the epipolar segment, pixels of the other image
-  double min_depth = 0.2;               // world units, along the optical axis of either camera
+  double min_depth = 0.2;              // world units, along the optical axis of either camera
   double max_depth = 40.0;
-  double max_hamming_fraction = 0.3;    // accepted distance <= fraction * descriptor bits
-  double ratio = 0.9;                   // best distance < ratio * second best among the candidates
-  double max_scale_change = 3.0;        // observed size ratio within [1/x, x] of the depth-predicted one; <= 0 off
-  bool exhaustive_search = false;       // for tests: test every keypoint instead of walking the grid
-  void check() const;                   // throws lmb::Error naming the field
+  double max_hamming_fraction = 0.3;  // accepted distance <= fraction * descriptor bits
+  double ratio = 0.9;                 // best distance < ratio * second best among the candidates
+  double max_scale_change = 3.0;      // observed size ratio within [1/x, x] of the depth-predicted one; <= 0 off
+  bool exhaustive_search = false;     // for tests: test every keypoint instead of walking the grid
+  void check() const;                 // throws lmb::Error naming the field
 };
 
 // One frame prepared for matching: undistorted keypoints and a grid over them. The descriptors

@@ -52,8 +52,8 @@ MapGravityChoice choose_map_gravity(const MapGravityRequest& request) {
   }
   if (!request.up_given) {
     choice.gravity_file = found;
-    choice.description = "per image from " + found.string() +
-                         " (found in the collection; --gravity none uses --up instead)";
+    choice.description =
+        "per image from " + found.string() + " (found in the collection; --gravity none uses --up instead)";
     return choice;
   }
 

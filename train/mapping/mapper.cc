@@ -29,8 +29,8 @@ void MapperOptions::check() const {
   pairs.check();
   matching.check();
   triangulation.check();
-  LMB_CHECK(min_map_observations >= 2, "mapper options: min_map_observations must be >= 2, got "
-                                           << min_map_observations);
+  LMB_CHECK(min_map_observations >= 2,
+            "mapper options: min_map_observations must be >= 2, got " << min_map_observations);
   LMB_CHECK(up.allFinite() && std::abs(up.norm() - 1.0) < 1e-9, "mapper options: up must be a unit vector");
   LMB_CHECK(threads >= 1 && threads <= 256, "mapper options: threads must be in 1..256, got " << threads);
 }
@@ -48,8 +48,7 @@ Eigen::Vector3d parse_up_axis(const std::string& text) {
   LMB_FAIL("--up: '" << text << "' is not an axis (expected +x, -x, +y, -y, +z or -z)");
 }
 
-float landmark_quality(int num_map_observations, double mean_reprojection_error_px,
-                       double triangulation_angle_deg) {
+float landmark_quality(int num_map_observations, double mean_reprojection_error_px, double triangulation_angle_deg) {
   return static_cast<float>(std::log1p(static_cast<double>(num_map_observations)) *
                             std::exp(-mean_reprojection_error_px / 2.0) *
                             (1.0 - std::exp(-triangulation_angle_deg / 10.0)));
@@ -59,9 +58,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // Runs body(i) for i in [0, n) on `threads` threads with dynamic scheduling. Results must be written
 // by index, so they do not depend on the schedule. The exception of the smallest failing index is
@@ -123,8 +120,8 @@ std::vector<frame_t> add_frames(const std::vector<MapperFrame>& frames, const Ma
     out.camera = in.camera;
     out.session = in.session;
     out.cam_from_world = in.cam_from_world;
-    out.gravity_in_cam = in.gravity_in_cam ? in.gravity_in_cam->normalized()
-                                         : (in.cam_from_world.rotation * (-options.up)).normalized();
+    out.gravity_in_cam =
+        in.gravity_in_cam ? in.gravity_in_cam->normalized() : (in.cam_from_world.rotation * (-options.up)).normalized();
     out.is_query = in.is_query;
     out.first_keypoint = static_cast<int64_t>(map->keypoints.size());
     out.num_keypoints = static_cast<int32_t>(in.keypoints.size());
@@ -141,8 +138,8 @@ std::vector<frame_t> add_frames(const std::vector<MapperFrame>& frames, const Ma
 // Pairs the frames, matches each pair (guided by the known poses) and joins the matches into
 // tracks of map keypoints; counts them in *stats.
 std::vector<std::vector<int64_t>> match_tracks(const std::vector<MapperFrame>& frames, const LandmarkMap& map,
-                                               const std::vector<frame_t>& keypoint_frame,
-                                               const MapperOptions& options, MapperStats* stats) {
+                                               const std::vector<frame_t>& keypoint_frame, const MapperOptions& options,
+                                               MapperStats* stats) {
   const std::vector<Camera>& cameras = map.cameras;
   const std::vector<MapSession>& sessions = map.sessions;
   const int num_frames = static_cast<int>(frames.size());
@@ -156,9 +153,9 @@ std::vector<std::vector<int64_t>> match_tracks(const std::vector<MapperFrame>& f
   stats->num_pairs = static_cast<int64_t>(pairs.size());
   std::vector<std::unique_ptr<MatchingFrame>> matching_frames(num_frames);
   parallel_for(num_frames, options.threads, [&](int64_t f, int) {
-    matching_frames[f] = std::make_unique<MatchingFrame>(cameras[frames[f].camera], frames[f].cam_from_world,
-                                                         frames[f].keypoints, frames[f].descriptors.data(),
-                                                         descriptor_bytes);
+    matching_frames[f] =
+        std::make_unique<MatchingFrame>(cameras[frames[f].camera], frames[f].cam_from_world, frames[f].keypoints,
+                                        frames[f].descriptors.data(), descriptor_bytes);
   });
   std::vector<std::vector<Match>> pair_matches(pairs.size());
   {
@@ -178,7 +175,6 @@ std::vector<std::vector<int64_t>> match_tracks(const std::vector<MapperFrame>& f
   auto tracks = build_tracks(keypoint_frame, std::move(matches));
   stats->num_tracks = static_cast<int64_t>(tracks.size());
   return tracks;
-
 }
 
 }  // namespace
@@ -195,8 +191,7 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
   assign_sessions_from_query_flags(&by_flag);
   std::vector<MapperFrame> with_sessions = frames;
   for (size_t f = 0; f < frames.size(); ++f) with_sessions[f].session = by_flag.frames[f].session;
-  return build_landmark_map(cameras, by_flag.sessions, with_sessions, detector, descriptor_bytes, options,
-                            stats_out);
+  return build_landmark_map(cameras, by_flag.sessions, with_sessions, detector, descriptor_bytes, options, stats_out);
 }
 
 LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::vector<MapSession>& sessions,
@@ -368,7 +363,8 @@ LandmarkMap map_collections(const std::vector<CollectionInput>& collections, con
   for (const CollectionInput& in : collections) {
     std::string label = in.label;
     if (label.empty()) label = fs::path(in.dir).lexically_normal().filename().string();
-    if (label.empty() || label == ".") label = fs::absolute(in.dir).lexically_normal().parent_path().filename().string();
+    if (label.empty() || label == ".")
+      label = fs::absolute(in.dir).lexically_normal().parent_path().filename().string();
     if (joined) {
       check_session_name(label, "mapper: collection " + in.dir.string() + ": label");
       for (size_t k = 0; k < labels.size(); ++k) {

@@ -29,7 +29,7 @@ struct MapperOptions {
   PairOptions pairs;
   MatchingOptions matching;
   TriangulationOptions triangulation;
-  int min_map_observations = 3;           // landmarks need this many inlier map-frame observations
+  int min_map_observations = 3;  // landmarks need this many inlier map-frame observations
   // For a collection without sessions.txt: image names starting with it are the query session
   // "query", the others the map session "map" ("" = all map).
   std::string query_prefix = "query/";
@@ -48,7 +48,7 @@ struct MapperFrame {
   camera_t camera = 0;  // index into the cameras passed along
   int32_t session = 0;  // index into the sessions passed along
   Rigid3d cam_from_world;
-  bool is_query = false;  // must equal (its session's kind != map)
+  bool is_query = false;                          // must equal (its session's kind != map)
   std::optional<Eigen::Vector3d> gravity_in_cam;  // unit, down; unset: from MapperOptions::up
   std::vector<Keypoint> keypoints;
   std::vector<uint8_t> descriptors;  // keypoints.size() * descriptor_bytes
@@ -62,11 +62,11 @@ struct MapperStats {
   int64_t num_keypoints = 0;
   int64_t num_pairs = 0;
   int64_t num_matches = 0;
-  int64_t num_tracks = 0;             // tracks of >= 2 keypoints before triangulation
+  int64_t num_tracks = 0;  // tracks of >= 2 keypoints before triangulation
   int64_t num_landmarks = 0;
-  int64_t num_map_observations = 0;   // map keypoints with a landmark
-  int64_t num_query_observations = 0; // query keypoints with a landmark
-  double mean_map_observations = 0;   // per landmark
+  int64_t num_map_observations = 0;    // map keypoints with a landmark
+  int64_t num_query_observations = 0;  // query keypoints with a landmark
+  double mean_map_observations = 0;    // per landmark
   double mean_reprojection_error_px = 0;
   double detect_seconds = 0, match_seconds = 0, triangulate_seconds = 0, total_seconds = 0;
 };
@@ -94,7 +94,7 @@ LandmarkMap build_landmark_map(const std::vector<Camera>& cameras, const std::ve
 
 // One collection to map, for map_collections.
 struct CollectionInput {
-  std::filesystem::path dir;           // holds sparse/ and images/ (and sessions.txt, optional)
+  std::filesystem::path dir;  // holds sparse/ and images/ (and sessions.txt, optional)
   // With several collections, frame and session names in the map become "LABEL/NAME" (default:
   // the folder's name); ignored when mapping one collection.
   std::string label;

@@ -30,9 +30,9 @@ double reprojection_error_px(const TrackObservation& observation, const Eigen::V
 namespace {
 
 struct Ray {
-  Eigen::Vector3d center;     // world
-  Eigen::Vector3d direction;  // world, unit
-  Eigen::Vector2d normalized; // undistorted normalized observation
+  Eigen::Vector3d center;      // world
+  Eigen::Vector3d direction;   // world, unit
+  Eigen::Vector2d normalized;  // undistorted normalized observation
   double focal;
 };
 
@@ -88,9 +88,9 @@ TriangulatedPoint triangulate_track(const std::vector<TrackObservation>& observa
     const TrackObservation& o = observations[i];
     rays[i].center = o.cam_from_world.center();
     rays[i].normalized = o.camera->cam_from_img(o.pixel);
-    rays[i].direction = (o.cam_from_world.rotation.conjugate() *
-                         Eigen::Vector3d(rays[i].normalized.x(), rays[i].normalized.y(), 1.0))
-                            .normalized();
+    rays[i].direction =
+        (o.cam_from_world.rotation.conjugate() * Eigen::Vector3d(rays[i].normalized.x(), rays[i].normalized.y(), 1.0))
+            .normalized();
     rays[i].focal = o.camera->mean_focal_length();
   }
   // Candidate pairs for two-view hypotheses, widest ray angle first.
@@ -146,7 +146,8 @@ TriangulatedPoint triangulate_track(const std::vector<TrackObservation>& observa
   // Refine on inliers; re-select inliers; repeat until stable.
   Eigen::Vector3d x = best_point;
   std::vector<bool> inlier(n, false);
-  for (size_t k = 0; k < n; ++k) inlier[k] = reprojection_error_px(observations[k], x) < options.max_reprojection_error_px;
+  for (size_t k = 0; k < n; ++k)
+    inlier[k] = reprojection_error_px(observations[k], x) < options.max_reprojection_error_px;
   for (int round = 0; round < 4; ++round) {
     const Eigen::Vector3d refined = refine(observations, rays, inlier, x, options.refine_iterations);
     std::vector<bool> next(n, false);
@@ -178,8 +179,7 @@ TriangulatedPoint triangulate_track(const std::vector<TrackObservation>& observa
   result.num_inliers = count;
   result.mean_reprojection_error_px = count > 0 ? error_sum / count : 0.0;
   result.triangulation_angle_deg = count >= 2 ? max_ray_angle_deg(rays, inlier, x) : 0.0;
-  result.success = count >= 2 && x.allFinite() &&
-                   result.triangulation_angle_deg >= options.min_triangulation_angle_deg;
+  result.success = count >= 2 && x.allFinite() && result.triangulation_angle_deg >= options.min_triangulation_angle_deg;
   return result;
 }
 

@@ -14,7 +14,7 @@
 namespace lmb {
 
 struct TriangulationOptions {
-  double max_reprojection_error_px = 3.0;  // an observation is an inlier below this
+  double max_reprojection_error_px = 3.0;    // an observation is an inlier below this
   double min_triangulation_angle_deg = 2.0;  // largest angle between two inlier rays at the point
   int max_pair_hypotheses = 40;              // OpenGV two-view hypotheses tried per track
   int refine_iterations = 10;                // Gauss-Newton steps per refinement
@@ -32,8 +32,8 @@ struct TriangulatedPoint {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // world frame
   std::vector<bool> inlier;                            // per observation
   int num_inliers = 0;
-  double mean_reprojection_error_px = 0;               // over the inliers
-  double triangulation_angle_deg = 0;                  // largest angle between two inlier rays
+  double mean_reprojection_error_px = 0;  // over the inliers
+  double triangulation_angle_deg = 0;     // largest angle between two inlier rays
 };
 
 // Triangulates `observations` (>= 2). success means >= 2 inliers in front of their cameras with

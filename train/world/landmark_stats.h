@@ -13,11 +13,11 @@ struct LandmarkStats {
   int map_frames = 0;
   int query_frames = 0;
   int64_t map_keypoints = 0;
-  int64_t points = 0;                 // distinct 3D points (clusters) of map keypoints
-  int64_t landmarks_3 = 0;            // points seen in >= 3 map frames
-  int64_t landmarks_10 = 0;           // points seen in >= 10 map frames
+  int64_t points = 0;        // distinct 3D points (clusters) of map keypoints
+  int64_t landmarks_3 = 0;   // points seen in >= 3 map frames
+  int64_t landmarks_10 = 0;  // points seen in >= 10 map frames
   int64_t query_keypoints = 0;
-  int64_t query_on_landmark = 0;      // query keypoints within the radius of a >= 3-frame landmark
+  int64_t query_on_landmark = 0;  // query keypoints within the radius of a >= 3-frame landmark
   double seconds = 0.0;
 };
 

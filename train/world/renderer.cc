@@ -27,13 +27,14 @@ RayTable::RayTable(const Camera& camera, int supersampling) : camera_(camera), s
       for (int sy = 0; sy < ss_; ++sy) {
         for (int sx = 0; sx < ss_; ++sx) {
           const Eigen::Vector2d q(c + (sx + 0.5) / ss_, r + (sy + 0.5) / ss_);
-          samples_[(static_cast<size_t>(r) * w + c) * ss_ * ss_ + sy * ss_ + sx] = camera_.cam_from_img(q).cast<float>();
+          samples_[(static_cast<size_t>(r) * w + c) * ss_ * ss_ + sy * ss_ + sx] =
+              camera_.cam_from_img(q).cast<float>();
         }
       }
     }
   }
-  LMB_CHECK(worst < 1e-3, "world camera: undistortion does not round-trip (error " << worst
-                                                                                     << " px); distortion too strong");
+  LMB_CHECK(worst < 1e-3,
+            "world camera: undistortion does not round-trip (error " << worst << " px); distortion too strong");
   for (int r = 0; r < h; ++r) {
     for (int c = 0; c < w; ++c) {
       const int c2 = c + 1 < w ? c + 1 : c - 1, r2 = r + 1 < h ? r + 1 : r - 1;
@@ -57,10 +58,18 @@ bool cast_ray(const World& world, const Eigen::Vector3d& o, const Eigen::Vector3
   for (int a = 0; a < 3; ++a) {
     if (d[a] > 1e-12) {
       const double t = (hi[a] - o[a]) / d[a];
-      if (t < best) { best = t; best_axis = a; best_hi = true; }
+      if (t < best) {
+        best = t;
+        best_axis = a;
+        best_hi = true;
+      }
     } else if (d[a] < -1e-12) {
       const double t = (lo[a] - o[a]) / d[a];
-      if (t < best) { best = t; best_axis = a; best_hi = false; }
+      if (t < best) {
+        best = t;
+        best_axis = a;
+        best_hi = false;
+      }
     }
   }
   if (best_axis < 0 || !(best > 0.0)) return false;
@@ -73,8 +82,7 @@ bool cast_ray(const World& world, const Eigen::Vector3d& o, const Eigen::Vector3
   const double x_end = o.x() + best * d.x();
   const double xmin = std::min(o.x(), x_end), xmax = std::max(o.x(), x_end);
   const auto& boxes = world.boxes;
-  auto it = std::upper_bound(boxes.begin(), boxes.end(), xmax,
-                             [](double x, const Box& b) { return x < b.lo.x(); });
+  auto it = std::upper_bound(boxes.begin(), boxes.end(), xmax, [](double x, const Box& b) { return x < b.lo.x(); });
   while (it != boxes.begin()) {
     --it;
     const Box& b = *it;
@@ -121,8 +129,8 @@ float lod_sample(const Texture& tex, double u, double v, double footprint_m) {
 
 }  // namespace
 
-float surface_albedo(const World& world, const SurfaceHit& hit, const Eigen::Vector3d& direction,
-                     double footprint_m, bool* emissive) {
+float surface_albedo(const World& world, const SurfaceHit& hit, const Eigen::Vector3d& direction, double footprint_m,
+                     bool* emissive) {
   *emissive = false;
   const Eigen::Vector3d& p = hit.point;
   // Footprint on the surface: the geometric mean of the two axes of the elongated footprint.
@@ -167,9 +175,9 @@ float surface_albedo(const World& world, const SurfaceHit& hit, const Eigen::Vec
       a = p.x();
       bcoord = p.z();
       flip_u = s == Surface::kWallRight;
-      albedo = static_cast<float>(p.z() < world.skirting_top ? world.skirting_albedo
+      albedo = static_cast<float>(p.z() < world.skirting_top                          ? world.skirting_albedo
                                   : (p.z() >= world.rail_z0 && p.z() < world.rail_z1) ? world.rail_albedo
-                                                                                       : world.wall_albedo);
+                                                                                      : world.wall_albedo);
       break;
     case Surface::kEndNear:
     case Surface::kEndFar:
@@ -191,12 +199,8 @@ float surface_albedo(const World& world, const SurfaceHit& hit, const Eigen::Vec
     const double v = vertical ? (d.b1 - bcoord) / (d.b1 - d.b0) : (bcoord - d.b0) / (d.b1 - d.b0);
     const float value = lod_sample(world.textures[d.texture], u, v, fp);
     switch (d.mode) {
-      case DecalMode::kOpaque:
-        albedo = value;
-        break;
-      case DecalMode::kMultiply:
-        albedo *= value;
-        break;
+      case DecalMode::kOpaque: albedo = value; break;
+      case DecalMode::kMultiply: albedo *= value; break;
       case DecalMode::kEmissive:
         albedo = value;
         *emissive = true;
@@ -300,9 +304,9 @@ void render_rows(const World& world, const RayTable& rays, const Rigid3d& cam_fr
 RenderedFrame render_frame(const World& world, const RayTable& rays, const Rigid3d& cam_from_world,
                            const Lighting& lighting, uint64_t frame_key, int threads) {
   LMB_CHECK(threads >= 1, "world: render threads must be >= 1");
-  LMB_CHECK(lighting.lamp_scale.empty() || lighting.lamp_scale.size() == world.lamps.size(),
-            "world: lighting has " << lighting.lamp_scale.size() << " lamp scales for " << world.lamps.size()
-                                   << " lamps");
+  LMB_CHECK(
+      lighting.lamp_scale.empty() || lighting.lamp_scale.size() == world.lamps.size(),
+      "world: lighting has " << lighting.lamp_scale.size() << " lamp scales for " << world.lamps.size() << " lamps");
   const Camera& cam = rays.camera();
   RenderedFrame out;
   out.image.create(cam.height, cam.width, CV_8UC1);

@@ -43,16 +43,16 @@ class RayTable {
 
 // Lighting and exposure of a session.
 struct Lighting {
-  double ambient = 0.45;            // irradiance everywhere
-  double lamp_power = 1.0;          // irradiance of a lamp at distance 0 (cosine-weighted)
-  double lamp_range_m = 2.0;        // falloff 1 / (1 + (r / range)^2), cut off smoothly at 6 m
-  std::vector<double> lamp_scale;   // per lamp of the world (empty: all 1; 0 = lamp off)
-  double emissive = 1.5;            // radiance of lit lamp panels per unit albedo
-  double gain = 1.0;                // grey = 255 * gain * radiance^exponent
+  double ambient = 0.45;           // irradiance everywhere
+  double lamp_power = 1.0;         // irradiance of a lamp at distance 0 (cosine-weighted)
+  double lamp_range_m = 2.0;       // falloff 1 / (1 + (r / range)^2), cut off smoothly at 6 m
+  std::vector<double> lamp_scale;  // per lamp of the world (empty: all 1; 0 = lamp off)
+  double emissive = 1.5;           // radiance of lit lamp panels per unit albedo
+  double gain = 1.0;               // grey = 255 * gain * radiance^exponent
   double exponent = 1.0;
-  double noise_sigma = 1.5;         // Gaussian sensor noise in grey levels
+  double noise_sigma = 1.5;  // Gaussian sensor noise in grey levels
   uint64_t noise_seed = 0;
-  bool flat = false;                // tests: radiance = albedo, no lamps, no noise
+  bool flat = false;  // tests: radiance = albedo, no lamps, no noise
 };
 
 struct RenderedFrame {
@@ -76,12 +76,11 @@ struct SurfaceHit {
   Surface surface = Surface::kFloor;
   int axis = 0;  // axis of the normal (0 = x, 1 = y, 2 = z)
 };
-bool cast_ray(const World& world, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
-              SurfaceHit* hit);
+bool cast_ray(const World& world, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, SurfaceHit* hit);
 
 // Albedo in [0, 1] of a hit point; `footprint_m` is the sample's width on the surface seen head-on
 // (for mip-level selection). Sets *emissive when the point is on a lamp panel.
-float surface_albedo(const World& world, const SurfaceHit& hit, const Eigen::Vector3d& direction,
-                     double footprint_m, bool* emissive);
+float surface_albedo(const World& world, const SurfaceHit& hit, const Eigen::Vector3d& direction, double footprint_m,
+                     bool* emissive);
 
 }  // namespace lmb

@@ -10,18 +10,17 @@
 
 namespace lmb {
 
-Texture::Texture(const cv::Mat& albedo, double width_m, double height_m)
-    : width_m_(width_m), height_m_(height_m) {
+Texture::Texture(const cv::Mat& albedo, double width_m, double height_m) : width_m_(width_m), height_m_(height_m) {
   LMB_CHECK(!albedo.empty() && albedo.type() == CV_8UC1, "texture: expected a non-empty 8-bit image");
-  LMB_CHECK(width_m > 0.0 && height_m > 0.0, "texture: size must be positive, got " << width_m << " x "
-                                                                                    << height_m << " m");
+  LMB_CHECK(width_m > 0.0 && height_m > 0.0,
+            "texture: size must be positive, got " << width_m << " x " << height_m << " m");
   texels_per_metre_ = std::max(albedo.cols / width_m, albedo.rows / height_m);
   levels_.push_back(albedo.clone());
   while (levels_.back().cols > 1 || levels_.back().rows > 1) {
     const cv::Mat& prev = levels_.back();
     cv::Mat next;
-    cv::resize(prev, next, cv::Size(std::max(1, (prev.cols + 1) / 2), std::max(1, (prev.rows + 1) / 2)), 0,
-               0, cv::INTER_AREA);
+    cv::resize(prev, next, cv::Size(std::max(1, (prev.cols + 1) / 2), std::max(1, (prev.rows + 1) / 2)), 0, 0,
+               cv::INTER_AREA);
     levels_.push_back(next);
   }
 }
@@ -93,7 +92,7 @@ void soft_blob(cv::Mat& m, cv::Point centre, cv::Size axes, double angle, int va
 }
 
 std::string random_word(Rng& rng, int min_len, int max_len) {
-  static const char* kSyllables[] = {"LA", "BO", "RE", "MI", "TO", "KA", "NE", "SU", "DI", "VO",
+  static const char* kSyllables[] = {"LA",  "BO",  "RE",  "MI", "TO", "KA", "NE", "SU", "DI", "VO",
                                      "PRO", "LAB", "TEC", "ON", "AR", "EX", "IN", "UM", "ST", "OR"};
   std::string w;
   const int n = rand_int(rng, min_len, max_len);
@@ -105,8 +104,8 @@ std::string random_word(Rng& rng, int min_len, int max_len) {
 void draw_text_fit(cv::Mat& m, const std::string& text, cv::Rect box, int font, int thickness, int value) {
   int baseline = 0;
   const cv::Size s = cv::getTextSize(text, font, 1.0, thickness, &baseline);
-  const double scale = std::min(box.width / static_cast<double>(s.width),
-                                box.height / static_cast<double>(s.height + baseline));
+  const double scale =
+      std::min(box.width / static_cast<double>(s.width), box.height / static_cast<double>(s.height + baseline));
   const cv::Size t = cv::getTextSize(text, font, scale, thickness, &baseline);
   const cv::Point org(box.x + (box.width - t.width) / 2, box.y + (box.height + t.height) / 2);
   cv::putText(m, text, org, font, scale, cv::Scalar(value), thickness, cv::LINE_AA);
@@ -128,9 +127,7 @@ void random_shapes(cv::Mat& m, Rng& rng, int count, int background) {
     const cv::Point c(rand_int(rng, 0, m.cols - 1), rand_int(rng, 0, m.rows - 1));
     const int size = rand_int(rng, m.cols / 14 + 2, m.cols / 4 + 3);
     switch (rng.below(4)) {
-      case 0:
-        cv::circle(m, c, size / 2, cv::Scalar(value), cv::FILLED, cv::LINE_AA);
-        break;
+      case 0: cv::circle(m, c, size / 2, cv::Scalar(value), cv::FILLED, cv::LINE_AA); break;
       case 1:
         cv::rectangle(m, cv::Rect(c.x, c.y, size, size * rand_int(rng, 1, 3) / 2), cv::Scalar(value), cv::FILLED);
         break;
@@ -219,13 +216,14 @@ Texture make_poster_texture(uint64_t seed, double width_m, double height_m) {
     const cv::Rect box(m.cols / 10, m.rows * (6 + 2 * i) / 12 - m.rows / 24, m.cols * 8 / 10, m.rows / 12);
     const std::string text = random_word(rng, 3, 6) + " " + random_word(rng, 2, 5);
     cv::rectangle(m, box, cv::Scalar(background), cv::FILLED);
-    draw_text_fit(m, text, box, rng.below(2) ? cv::FONT_HERSHEY_DUPLEX : cv::FONT_HERSHEY_SIMPLEX,
-                  rand_int(rng, 2, 4), text_value);
+    draw_text_fit(m, text, box, rng.below(2) ? cv::FONT_HERSHEY_DUPLEX : cv::FONT_HERSHEY_SIMPLEX, rand_int(rng, 2, 4),
+                  text_value);
   }
   // A title band and a frame.
   const cv::Rect title(0, m.rows / 25, m.cols, m.rows / 7);
   cv::rectangle(m, title, cv::Scalar(text_value), cv::FILLED);
-  draw_text_fit(m, random_word(rng, 4, 8), cv::Rect(title.x + m.cols / 12, title.y + 4, title.width * 5 / 6, title.height - 8),
+  draw_text_fit(m, random_word(rng, 4, 8),
+                cv::Rect(title.x + m.cols / 12, title.y + 4, title.width * 5 / 6, title.height - 8),
                 cv::FONT_HERSHEY_TRIPLEX, 4, background);
   cv::rectangle(m, cv::Rect(0, 0, m.cols, m.rows), cv::Scalar(20), px(0.015));
   return Texture(m, width_m, height_m);

@@ -26,8 +26,8 @@ Rigid3d cam_from_world_pose(const Eigen::Vector3d& centre, double yaw, double pi
   base.col(1) = Eigen::Vector3d(0, 0, -1);
   base.col(2) = Eigen::Vector3d(1, 0, 0);
   const Eigen::Matrix3d world_from_cam = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                                         Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-                                         base * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+                                         Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitY()).toRotationMatrix() * base *
+                                         Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const Eigen::Quaterniond q_cw(world_from_cam.transpose());
   Rigid3d pose(q_cw.normalized(), Eigen::Vector3d::Zero());
   pose.translation = -(pose.rotation * centre);
@@ -74,8 +74,8 @@ struct SessionStyle {
 
 PassParams pass(double heading, double lateral, double height, double yaw_amp, double yaw_period, double pitch_mean,
                 double pitch_amp, double pitch_period, double roll_amp, double phase) {
-  return PassParams{heading, lateral, height, yaw_amp, yaw_period, pitch_mean, pitch_amp, pitch_period, roll_amp,
-                    phase};
+  return PassParams{heading,    lateral,   height,       yaw_amp,  yaw_period,
+                    pitch_mean, pitch_amp, pitch_period, roll_amp, phase};
 }
 
 // Map session styles; row 0 is the world's original map session. Lanes, heights and lighting are
@@ -84,17 +84,41 @@ PassParams pass(double heading, double lateral, double height, double yaw_amp, d
 SessionStyle map_style(int index) {
   switch (index) {
     case 0:
-      return {"day, lamps on", pass(0, -0.3, 1.5, 50, 3.2, -4, 4, 2.3, 2, 0.0), pass(M_PI, 0.3, 1.5, 50, 3.2, -4, 4, 2.3, 2, 0.0),
-              0.55, 1.0, 1.05, 0.9, 0};
+      return {"day, lamps on",
+              pass(0, -0.3, 1.5, 50, 3.2, -4, 4, 2.3, 2, 0.0),
+              pass(M_PI, 0.3, 1.5, 50, 3.2, -4, 4, 2.3, 2, 0.0),
+              0.55,
+              1.0,
+              1.05,
+              0.9,
+              0};
     case 1:
-      return {"evening, every 4th lamp off", pass(0, 0.35, 1.36, 44, 3.7, -1, 4, 2.6, 2.5, 0.25),
-              pass(M_PI, -0.35, 1.38, 44, 3.7, -2, 4, 2.6, 2.5, 0.5), 0.36, 1.35, 1.0, 0.8, 1};
+      return {"evening, every 4th lamp off",
+              pass(0, 0.35, 1.36, 44, 3.7, -1, 4, 2.6, 2.5, 0.25),
+              pass(M_PI, -0.35, 1.38, 44, 3.7, -2, 4, 2.6, 2.5, 0.5),
+              0.36,
+              1.35,
+              1.0,
+              0.8,
+              1};
     case 2:
-      return {"bright day, lamps dim", pass(0, -0.5, 1.74, 56, 2.9, -9, 5, 2.0, 1.5, 0.6),
-              pass(M_PI, -0.05, 1.70, 56, 2.9, -7, 5, 2.0, 1.5, 0.15), 0.70, 0.7, 0.92, 1.05, 0};
+      return {"bright day, lamps dim",
+              pass(0, -0.5, 1.74, 56, 2.9, -9, 5, 2.0, 1.5, 0.6),
+              pass(M_PI, -0.05, 1.70, 56, 2.9, -7, 5, 2.0, 1.5, 0.15),
+              0.70,
+              0.7,
+              0.92,
+              1.05,
+              0};
     default:
-      return {"night, alternate lamps dimmed", pass(0, 0.05, 1.44, 47, 3.5, -3, 3, 2.9, 3, 0.8),
-              pass(M_PI, 0.5, 1.46, 47, 3.5, -3, 3, 2.9, 3, 0.35), 0.28, 1.55, 1.15, 0.7, 2};
+      return {"night, alternate lamps dimmed",
+              pass(0, 0.05, 1.44, 47, 3.5, -3, 3, 2.9, 3, 0.8),
+              pass(M_PI, 0.5, 1.46, 47, 3.5, -3, 3, 2.9, 3, 0.35),
+              0.28,
+              1.55,
+              1.15,
+              0.7,
+              2};
   }
 }
 
@@ -102,14 +126,32 @@ SessionStyle map_style(int index) {
 SessionStyle query_style(int index) {
   switch (index) {
     case 0:
-      return {"dim, every 3rd lamp low", pass(0, 0.1, 1.62, 38, 4.1, -7, 3, 3.1, 3, 0.37),
-              pass(M_PI, -0.12, 1.58, 38, 4.1, -2, 3, 3.1, 3, 0.61), 0.42, 1.25, 0.95, 0.75, 3};
+      return {"dim, every 3rd lamp low",
+              pass(0, 0.1, 1.62, 38, 4.1, -7, 3, 3.1, 3, 0.37),
+              pass(M_PI, -0.12, 1.58, 38, 4.1, -2, 3, 3.1, 3, 0.61),
+              0.42,
+              1.25,
+              0.95,
+              0.75,
+              3};
     case 1:
-      return {"dusk, two of three lamps low", pass(0, -0.6, 1.28, 32, 4.8, 1, 3, 3.4, 3.5, 0.13),
-              pass(M_PI, 0.6, 1.25, 32, 4.8, 0, 3, 3.4, 3.5, 0.79), 0.33, 1.1, 1.08, 0.85, 4};
+      return {"dusk, two of three lamps low",
+              pass(0, -0.6, 1.28, 32, 4.8, 1, 3, 3.4, 3.5, 0.13),
+              pass(M_PI, 0.6, 1.25, 32, 4.8, 0, 3, 3.4, 3.5, 0.79),
+              0.33,
+              1.1,
+              1.08,
+              0.85,
+              4};
     default:
-      return {"sunny, lamps dim", pass(0, -0.02, 1.82, 60, 2.5, -10, 4, 2.2, 2, 0.45),
-              pass(M_PI, 0.22, 1.80, 60, 2.5, -10, 4, 2.2, 2, 0.05), 0.78, 0.6, 0.88, 1.1, 5};
+      return {"sunny, lamps dim",
+              pass(0, -0.02, 1.82, 60, 2.5, -10, 4, 2.2, 2, 0.45),
+              pass(M_PI, 0.22, 1.80, 60, 2.5, -10, 4, 2.2, 2, 0.05),
+              0.78,
+              0.6,
+              0.88,
+              1.1,
+              5};
   }
 }
 

@@ -38,17 +38,17 @@ struct PassParams {
   double yaw_period_m = 3;
   double pitch_mean_deg = 0, pitch_amplitude_deg = 0, pitch_period_m = 2;
   double roll_amplitude_deg = 0;
-  double sample_phase = 0;       // fraction of a frame step by which the samples are shifted
+  double sample_phase = 0;  // fraction of a frame step by which the samples are shifted
 };
 
 struct Session {
-  std::string name;                      // the image folder: "map", "map-2", ..., "query", "query-2", ...
+  std::string name;  // the image folder: "map", "map-2", ..., "query", "query-2", ...
   SessionKind kind = SessionKind::kMap;
-  std::string time_of_day;               // a label of the lighting, for world.json
-  std::vector<Rigid3d> cam_from_world;   // one per frame
+  std::string time_of_day;              // a label of the lighting, for world.json
+  std::vector<Rigid3d> cam_from_world;  // one per frame
   Lighting lighting;
-  uint64_t frame_key_base = 0;           // frame i is rendered with noise key frame_key_base | i
-  PassParams passes[2];                  // forward, backward (world.json)
+  uint64_t frame_key_base = 0;  // frame i is rendered with noise key frame_key_base | i
+  PassParams passes[2];         // forward, backward (world.json)
 };
 
 // `frames` frames each (the first ceil(frames / 2) walk forward); deterministic in the world's

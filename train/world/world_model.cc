@@ -20,30 +20,28 @@ void WorldOptions::check() const {
   LMB_CHECK(std::isfinite(height_m) && height_m >= 2.3 && height_m <= 5.0,
             "world: ceiling height must be in [2.3, 5] m, got " << height_m);
   LMB_CHECK(map_frames >= 1 && map_frames <= 1000000, "world: --map-frames must be >= 1, got " << map_frames);
-  LMB_CHECK(query_frames >= 1 && query_frames <= 1000000,
-            "world: --query-frames must be >= 1, got " << query_frames);
+  LMB_CHECK(query_frames >= 1 && query_frames <= 1000000, "world: --query-frames must be >= 1, got " << query_frames);
   LMB_CHECK(map_sessions >= 1 && map_sessions <= kMaxMapSessions,
             "world: --map-sessions must be in [1, " << kMaxMapSessions << "], got " << map_sessions);
   LMB_CHECK(query_sessions >= 1 && query_sessions <= kMaxQuerySessions,
             "world: --query-sessions must be in [1, " << kMaxQuerySessions << "], got " << query_sessions);
-  LMB_CHECK(map_frames >= map_sessions, "world: --map-frames " << map_frames << " cannot be shared by "
-                                                               << map_sessions << " map sessions");
+  LMB_CHECK(map_frames >= map_sessions,
+            "world: --map-frames " << map_frames << " cannot be shared by " << map_sessions << " map sessions");
   LMB_CHECK(poster_designs >= 1 && poster_designs <= 64,
             "world: poster designs must be in [1, 64], got " << poster_designs);
   LMB_CHECK(std::isfinite(pillar_bay_m) && pillar_bay_m >= 1.5 && pillar_bay_m <= 100.0,
             "world: pillar bay must be in [1.5, 100] m, got " << pillar_bay_m);
-  LMB_CHECK(door_share >= 0.0 && poster_share >= 0.0 && sign_share >= 0.0 &&
-                door_share + poster_share + sign_share <= 1.0,
-            "world: door, poster and sign shares must be >= 0 with a sum <= 1, got " << door_share << ", "
-                                                                                     << poster_share << ", " << sign_share);
+  LMB_CHECK(
+      door_share >= 0.0 && poster_share >= 0.0 && sign_share >= 0.0 && door_share + poster_share + sign_share <= 1.0,
+      "world: door, poster and sign shares must be >= 0 with a sum <= 1, got " << door_share << ", " << poster_share
+                                                                               << ", " << sign_share);
   LMB_CHECK(std::isfinite(wall_stains_per_m) && wall_stains_per_m >= 0.0 && wall_stains_per_m <= 10.0 &&
                 std::isfinite(floor_stains_per_m) && floor_stains_per_m >= 0.0 && floor_stains_per_m <= 10.0,
             "world: stains per metre must be in [0, 10], got " << wall_stains_per_m << " (walls), "
-                                                             << floor_stains_per_m << " (floor)");
+                                                               << floor_stains_per_m << " (floor)");
   LMB_CHECK(std::isfinite(image_scale) && image_scale >= 0.25 && image_scale <= 2.0,
             "world: image scale must be in [0.25, 2], got " << image_scale);
-  LMB_CHECK(supersampling >= 1 && supersampling <= 4,
-            "world: supersampling must be in [1, 4], got " << supersampling);
+  LMB_CHECK(supersampling >= 1 && supersampling <= 4, "world: supersampling must be in [1, 4], got " << supersampling);
   LMB_CHECK(threads >= 1 && threads <= 64, "world: --threads must be in [1, 64], got " << threads);
   LMB_CHECK(std::isfinite(noise_sigma) && noise_sigma >= 0.0 && noise_sigma <= 50.0,
             "world: noise sigma must be in [0, 50] grey levels, got " << noise_sigma);
@@ -57,10 +55,10 @@ WorldOptions world_preset(const std::string& name) {
     o.map_frames = 30;
     o.query_frames = 10;
   } else if (name == "default") {
-    // Strong aliasing at a small size (docs/evaluation.md, "The rendered worlds and their aliasing"): dense half-resolution frames, many
-    // repeats of one door, two poster designs and pillars every 3 m, few unique stains and signs.
-    // 200 map frames (9 cm apart) give the classifier's top 1,000 landmarks about 5 training
-    // observations each; 100 gave 3-4, too few to learn from.
+    // Strong aliasing at a small size (docs/evaluation.md, "The rendered worlds and their aliasing"): dense
+    // half-resolution frames, many repeats of one door, two poster designs and pillars every 3 m, few unique stains and
+    // signs. 200 map frames (9 cm apart) give the classifier's top 1,000 landmarks about 5 training observations each;
+    // 100 gave 3-4, too few to learn from.
     o.length_m = 18.0;
     o.map_frames = 200;
     o.query_frames = 16;
@@ -88,7 +86,18 @@ namespace {
 
 // Texture kinds, the first key of a texture's seed.
 enum : uint64_t {
-  kDoor = 1, kPoster, kTile, kPanel, kLamp, kPillarFront, kPillarSide, kPlate, kSign, kStain, kObject, kEndWall
+  kDoor = 1,
+  kPoster,
+  kTile,
+  kPanel,
+  kLamp,
+  kPillarFront,
+  kPillarSide,
+  kPlate,
+  kSign,
+  kStain,
+  kObject,
+  kEndWall
 };
 
 class WorldBuilder {
@@ -111,8 +120,7 @@ class WorldBuilder {
     w_.decals = opaque_;
     w_.decals.insert(w_.decals.end(), multiply_.begin(), multiply_.end());
     w_.decals.insert(w_.decals.end(), emissive_.begin(), emissive_.end());
-    std::sort(w_.boxes.begin(), w_.boxes.end(),
-              [](const Box& a, const Box& b) { return a.lo.x() < b.lo.x(); });
+    std::sort(w_.boxes.begin(), w_.boxes.end(), [](const Box& a, const Box& b) { return a.lo.x() < b.lo.x(); });
     for (const Box& b : w_.boxes) w_.max_box_extent_x = std::max(w_.max_box_extent_x, b.hi.x() - b.lo.x());
     make_bins();
     w_.summary.textures = static_cast<int>(w_.textures.size());
@@ -227,10 +235,10 @@ class WorldBuilder {
           c += 0.6 + layout_.uniform(0.15, 0.6);
         } else if (r < o_.door_share + o_.poster_share + o_.sign_share) {  // a small unique sign
           if (c + 0.32 > end) break;
-          static const char* kWords[] = {"EXIT", "LAB", "FIRE", "STAIRS", "WC", "PRINT", "KITCHEN", "SERVER",
-                                         "OFFICE", "STORE", "LIFT", "MEETING"};
-          const std::string text = std::string(kWords[layout_.below(std::size(kWords))]) + " " +
-                                   std::to_string(1 + layout_.below(99));
+          static const char* kWords[] = {"EXIT",    "LAB",    "FIRE",   "STAIRS", "WC",   "PRINT",
+                                         "KITCHEN", "SERVER", "OFFICE", "STORE",  "LIFT", "MEETING"};
+          const std::string text =
+              std::string(kWords[layout_.below(std::size(kWords))]) + " " + std::to_string(1 + layout_.below(99));
           const bool dark = layout_.below(2) == 0;
           const double z0 = layout_.uniform(1.55, 1.95);
           const uint64_t s = texture_seed(kSign, 0, w_.summary.signs++, true);
@@ -341,7 +349,8 @@ class WorldBuilder {
       const double origin = end_wall ? -w_.width / 2 : 0.0;
       auto& bins = w_.decal_bins[s];
       const int lo = std::max(0, static_cast<int>(std::floor((d.a0 - origin) / w_.bin_size)));
-      const int hi = std::min(static_cast<int>(bins.size()) - 1, static_cast<int>(std::floor((d.a1 - origin) / w_.bin_size)));
+      const int hi =
+          std::min(static_cast<int>(bins.size()) - 1, static_cast<int>(std::floor((d.a1 - origin) / w_.bin_size)));
       for (int b = lo; b <= hi; ++b) bins[b].push_back(static_cast<int>(i));
     }
   }

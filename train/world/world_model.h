@@ -28,24 +28,24 @@ struct WorldOptions {
   std::string preset = "default";
   uint64_t seed = 1;
   bool non_aliased = false;
-  double length_m = 16.0;         // corridor length
-  double width_m = 2.4;           // corridor width
-  double height_m = 2.7;          // ceiling height
-  int map_frames = 40;            // over all map sessions (split evenly)
-  int query_frames = 16;          // per query session
-  int map_sessions = 1;           // 1..kMaxMapSessions (train/world/trajectory.h)
-  int query_sessions = 1;         // 1..kMaxQuerySessions
-  int poster_designs = 4;         // distinct poster designs of the aliased world
-  double pillar_bay_m = 4.0;      // pillar spacing along the corridor
-  double door_share = 0.45;       // share of wall slots that get a door (+ room plate)
-  double poster_share = 0.35;     // share of wall slots that get a poster
-  double sign_share = 0.12;       // share of wall slots that get a unique sign (the rest stay plain)
-  double wall_stains_per_m = 0.7; // unique stains per metre on each side wall
+  double length_m = 16.0;          // corridor length
+  double width_m = 2.4;            // corridor width
+  double height_m = 2.7;           // ceiling height
+  int map_frames = 40;             // over all map sessions (split evenly)
+  int query_frames = 16;           // per query session
+  int map_sessions = 1;            // 1..kMaxMapSessions (train/world/trajectory.h)
+  int query_sessions = 1;          // 1..kMaxQuerySessions
+  int poster_designs = 4;          // distinct poster designs of the aliased world
+  double pillar_bay_m = 4.0;       // pillar spacing along the corridor
+  double door_share = 0.45;        // share of wall slots that get a door (+ room plate)
+  double poster_share = 0.35;      // share of wall slots that get a poster
+  double sign_share = 0.12;        // share of wall slots that get a unique sign (the rest stay plain)
+  double wall_stains_per_m = 0.7;  // unique stains per metre on each side wall
   double floor_stains_per_m = 0.5;
-  double image_scale = 1.0;       // image size relative to 640 x 480 (the focal length scales along)
-  int supersampling = 2;          // samples per pixel along each axis (anti-aliasing)
-  int threads = 2;                // render threads
-  double noise_sigma = 1.5;       // sensor noise, grey levels
+  double image_scale = 1.0;  // image size relative to 640 x 480 (the focal length scales along)
+  int supersampling = 2;     // samples per pixel along each axis (anti-aliasing)
+  int threads = 2;           // render threads
+  double noise_sigma = 1.5;  // sensor noise, grey levels
   // Throws lmb::Error naming the field for out-of-range values.
   void check() const;
 };
@@ -87,17 +87,17 @@ struct Box {
 
 // Element counts for world.json and tests.
 struct WorldSummary {
-  int doors = 0, posters = 0, poster_textures = 0, pillars = 0, plates = 0, signs = 0, stains = 0,
-      objects = 0, lamps = 0, floor_tiles = 0, ceiling_panels = 0, textures = 0;
+  int doors = 0, posters = 0, poster_textures = 0, pillars = 0, plates = 0, signs = 0, stains = 0, objects = 0,
+      lamps = 0, floor_tiles = 0, ceiling_panels = 0, textures = 0;
 };
 
 struct World {
   WorldOptions options;
   double length = 0, width = 0, height = 0;
   std::vector<Texture> textures;
-  std::vector<Decal> decals;   // opaque first, then multiply overlays, then emissive lamps
-  std::vector<Box> boxes;      // sorted by lo.x
-  double max_box_extent_x = 0; // largest hi.x - lo.x
+  std::vector<Decal> decals;    // opaque first, then multiply overlays, then emissive lamps
+  std::vector<Box> boxes;       // sorted by lo.x
+  double max_box_extent_x = 0;  // largest hi.x - lo.x
   // Floor tiles and ceiling panels: square grids from (0, -width/2), texture per cell (row-major
   // over x index then y index).
   double tile_size = 0.5, panel_size = 0.6;

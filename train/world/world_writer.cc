@@ -42,9 +42,9 @@ void write_png(const fs::path& path, const cv::Mat& image) {
 }
 
 nlohmann::json lighting_json(const Lighting& l) {
-  return {{"ambient", l.ambient},   {"lamp_power", l.lamp_power}, {"lamp_range_m", l.lamp_range_m},
-          {"lamp_scale", l.lamp_scale}, {"emissive", l.emissive}, {"gain", l.gain},
-          {"exponent", l.exponent}, {"noise_sigma", l.noise_sigma}};
+  return {{"ambient", l.ambient},       {"lamp_power", l.lamp_power},  {"lamp_range_m", l.lamp_range_m},
+          {"lamp_scale", l.lamp_scale}, {"emissive", l.emissive},      {"gain", l.gain},
+          {"exponent", l.exponent},     {"noise_sigma", l.noise_sigma}};
 }
 
 // Prepares the output: checks that out_dir may be replaced and creates the temporary folder.
@@ -102,14 +102,22 @@ nlohmann::json world_json(const WorldOptions& options, const World& world, const
   j["units"] = "m";
   j["up_axis"] = {0, 0, 1};
   j["gravity"] = {0, 0, -1};
-  j["counts"] = {{"map_frames", stats.map_frames},   {"query_frames", stats.query_frames},
-                 {"map_sessions", options.map_sessions}, {"query_sessions", options.query_sessions},
-                 {"doors", s.doors},                 {"posters", s.posters},
-                 {"poster_textures", s.poster_textures}, {"pillars", s.pillars},
-                 {"room_plates", s.plates},          {"signs", s.signs},
-                 {"stains", s.stains},               {"objects", s.objects},
-                 {"lamps", s.lamps},                 {"floor_tiles", s.floor_tiles},
-                 {"ceiling_panels", s.ceiling_panels}, {"textures", s.textures}};
+  j["counts"] = {{"map_frames", stats.map_frames},
+                 {"query_frames", stats.query_frames},
+                 {"map_sessions", options.map_sessions},
+                 {"query_sessions", options.query_sessions},
+                 {"doors", s.doors},
+                 {"posters", s.posters},
+                 {"poster_textures", s.poster_textures},
+                 {"pillars", s.pillars},
+                 {"room_plates", s.plates},
+                 {"signs", s.signs},
+                 {"stains", s.stains},
+                 {"objects", s.objects},
+                 {"lamps", s.lamps},
+                 {"floor_tiles", s.floor_tiles},
+                 {"ceiling_panels", s.ceiling_panels},
+                 {"textures", s.textures}};
   j["camera"] = {{"camera_id", 1},
                  {"model", camera_model_name(camera.model)},
                  {"width", camera.width},
@@ -127,12 +135,9 @@ nlohmann::json world_json(const WorldOptions& options, const World& world, const
                    {"lamp_spacing_m", world.lamp_spacing},
                    {"pillar_bay_m", options.pillar_bay_m},
                    {"boxes", world.boxes.size()}};
-  j["layout"] = {{"poster_designs", options.poster_designs},
-                 {"door_share", options.door_share},
-                 {"poster_share", options.poster_share},
-                 {"sign_share", options.sign_share},
-                 {"wall_stains_per_m", options.wall_stains_per_m},
-                 {"floor_stains_per_m", options.floor_stains_per_m}};
+  j["layout"] = {{"poster_designs", options.poster_designs},       {"door_share", options.door_share},
+                 {"poster_share", options.poster_share},           {"sign_share", options.sign_share},
+                 {"wall_stains_per_m", options.wall_stains_per_m}, {"floor_stains_per_m", options.floor_stains_per_m}};
   for (const Session& session : sessions) {
     nlohmann::json passes = nlohmann::json::array();
     for (const PassParams& p : session.passes) {
@@ -145,17 +150,15 @@ nlohmann::json world_json(const WorldOptions& options, const World& world, const
                         {"pitch_amplitude_deg", p.pitch_amplitude_deg},
                         {"roll_amplitude_deg", p.roll_amplitude_deg}});
     }
-    j["sessions"][session.name] = {{"kind", session_kind_name(session.kind)},
-                                   {"frames", session.cam_from_world.size()},
-                                   {"image_dir", "images/" + session.name},
-                                   {"depth_dir", "depth/" + session.name},
-                                   {"time_of_day", session.time_of_day},
-                                   {"passes", passes},
-                                   {"lighting", lighting_json(session.lighting)}};
+    j["sessions"][session.name] = {
+        {"kind", session_kind_name(session.kind)},    {"frames", session.cam_from_world.size()},
+        {"image_dir", "images/" + session.name},      {"depth_dir", "depth/" + session.name},
+        {"time_of_day", session.time_of_day},         {"passes", passes},
+        {"lighting", lighting_json(session.lighting)}};
   }
   j["images"] = {{"format", "png"}, {"channels", 1}, {"bit_depth", 8}};
-  j["depth"] = {{"format", "png"}, {"bit_depth", 16}, {"kind", "z-depth of the pixel centre"},
-                {"units", "mm"}, {"invalid", 0}};
+  j["depth"] = {
+      {"format", "png"}, {"bit_depth", 16}, {"kind", "z-depth of the pixel centre"}, {"units", "mm"}, {"invalid", 0}};
   return j;
 }
 

@@ -24,8 +24,8 @@
 namespace lmb {
 
 struct WorldWriteStats {
-  int map_frames = 0;    // over all map sessions
-  int query_frames = 0;  // over all query sessions
+  int map_frames = 0;           // over all map sessions
+  int query_frames = 0;         // over all query sessions
   double build_seconds = 0.0;   // textures and layout
   double render_seconds = 0.0;  // rendering and PNG writing
   WorldSummary summary;

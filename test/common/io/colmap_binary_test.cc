@@ -248,7 +248,8 @@ TEST_F(ColmapBinaryTest, TruncationAtEveryOffsetFailsNamingFileAndRecord) {
   std::vector<char> cameras = read_bytes(dir_ / "cameras.bin");
   cameras.resize(cameras.size() - 3);
   write_bytes(dir_ / "cameras.bin", cameras);
-  expect_error("cameras.bin: camera record 5 (id 15): truncated file: cannot read camera parameter (8 bytes needed, 5 left)");
+  expect_error(
+      "cameras.bin: camera record 5 (id 15): truncated file: cannot read camera parameter (8 bytes needed, 5 left)");
   write_colmap_binary(m, dir_);
   std::vector<char> images = read_bytes(dir_ / "images.bin");
   images.resize(images.size() - 8 - 3);  // the last image (id 100) has no 2D points: count, NUL, 2 chars
@@ -288,7 +289,8 @@ TEST_F(ColmapBinaryTest, UnsupportedAndUnknownCameraModelIds) {
   write_colmap_binary(m, dir_);
   const std::vector<char> cameras = read_bytes(dir_ / "cameras.bin");
   const std::vector<std::pair<int32_t, std::string>> cases = {
-      {5, "unsupported camera model id 5 (OPENCV_FISHEYE)"},  {7, "unsupported camera model id 7 (FOV)"},
+      {5, "unsupported camera model id 5 (OPENCV_FISHEYE)"},
+      {7, "unsupported camera model id 7 (FOV)"},
       {8, "unsupported camera model id 8 (SIMPLE_RADIAL_FISHEYE)"},
       {9, "unsupported camera model id 9 (RADIAL_FISHEYE)"},
       {10, "unsupported camera model id 10 (THIN_PRISM_FISHEYE)"},

@@ -16,9 +16,8 @@ namespace fs = std::filesystem;
 class ColmapTextTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("lmb_colmap_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() / ("lmb_colmap_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -45,9 +44,7 @@ class ColmapTextTest : public ::testing::Test {
     return m;
   }
 
-  void write(const std::string& file, const std::string& text) {
-    std::ofstream(dir_ / file) << text;
-  }
+  void write(const std::string& file, const std::string& text) { std::ofstream(dir_ / file) << text; }
   // Reading the model fails with a message containing `needle`.
   void expect_error(const std::string& needle) {
     try {
@@ -183,8 +180,7 @@ TEST_F(ColmapTextTest, ReadModelDetectsTheFormat) {
   EXPECT_EQ(read_colmap_model(dir_, &format).images.size(), 3u);
   EXPECT_EQ(format, ColmapFormat::kBinary);
   fs::remove(dir_ / "images.bin");
-  EXPECT_NE(error_of(dir_).find("incomplete binary model: images.bin is missing"), std::string::npos)
-      << error_of(dir_);
+  EXPECT_NE(error_of(dir_).find("incomplete binary model: images.bin is missing"), std::string::npos) << error_of(dir_);
 }
 
 TEST_F(ColmapTextTest, CheckCollectionImagesNamesTheFirstBadFile) {

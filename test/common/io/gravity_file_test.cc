@@ -59,8 +59,9 @@ TEST_F(GravityFileTest, ReadsAndNormalizes) {
 // Regression (found by test/fuzz/fuzz_gravity, its input below): components near the largest
 // double overflowed the norm to inf and "normalized" the vector to zero.
 TEST_F(GravityFileTest, HugeComponentsStillGiveUnitVectors) {
-  write("# Gravity hIMAGE_/2.png 0 1 0\nmap/2.png 0.100000000000000011e308 0.9000000000000011e308 "
-        "0.900000000000000000000000000000001\nquery/3.qng 0.001 2.5 1000\nbig.png 1.7e308 -1.7e308 0\n");
+  write(
+      "# Gravity hIMAGE_/2.png 0 1 0\nmap/2.png 0.100000000000000011e308 0.9000000000000011e308 "
+      "0.900000000000000000000000000000001\nquery/3.qng 0.001 2.5 1000\nbig.png 1.7e308 -1.7e308 0\n");
   const auto g = read_gravity_file(path_);
   ASSERT_EQ(g.size(), 3u);
   for (const auto& [name, v] : g) EXPECT_NEAR(v.norm(), 1.0, 1e-12) << name;
@@ -79,8 +80,8 @@ TEST_F(GravityFileTest, WriteReadRoundTrip) {
 
 TEST_F(GravityFileTest, MalformedLinesFailNamingFileAndLine) {
   write("a.jpg 0 1\n");
-  EXPECT_NE(error().find(path_.string() + " line 1: expected 4 fields (IMAGE_NAME GX GY GZ), got 3"),
-            std::string::npos) << error();
+  EXPECT_NE(error().find(path_.string() + " line 1: expected 4 fields (IMAGE_NAME GX GY GZ), got 3"), std::string::npos)
+      << error();
   write("# x\na.jpg 0 nan 1\n");
   EXPECT_NE(error().find("line 2: GY is not finite"), std::string::npos) << error();
   write("a.jpg 0 1x 1\n");

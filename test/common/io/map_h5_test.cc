@@ -24,9 +24,8 @@ using test::random_map;
 class MapH5Test : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("lmb_map_h5_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() / ("lmb_map_h5_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     H5::Exception::dontPrint();
@@ -290,7 +289,10 @@ TEST_F(MapH5Test, OtherFormat) {
 
 TEST_F(MapH5Test, HdfFileWithoutAttributes) {
   const fs::path path = dir_ / "plain.h5";
-  { H5::H5File file(path.string(), H5F_ACC_TRUNC); file.createGroup("/data"); }
+  {
+    H5::H5File file(path.string(), H5F_ACC_TRUNC);
+    file.createGroup("/data");
+  }
   const std::string msg = read_error(path);
   EXPECT_NE(msg.find("attribute 'format'"), std::string::npos) << msg;
   EXPECT_NE(msg.find("missing"), std::string::npos) << msg;

@@ -37,9 +37,10 @@ class SessionFileTest : public ::testing::Test {
 };
 
 TEST_F(SessionFileTest, RoundTripKeepsOrderAndKinds) {
-  const std::vector<MapSession> sessions = {
-      {"map", SessionKind::kMap}, {"run_2.b", SessionKind::kMap}, {"query", SessionKind::kQuery},
-      {"elsewhere", SessionKind::kOutside}};
+  const std::vector<MapSession> sessions = {{"map", SessionKind::kMap},
+                                            {"run_2.b", SessionKind::kMap},
+                                            {"query", SessionKind::kQuery},
+                                            {"elsewhere", SessionKind::kOutside}};
   write_session_file(sessions, dir_ / "sessions.txt");
   const std::vector<MapSession> read = read_session_file(dir_ / "sessions.txt");
   ASSERT_EQ(read.size(), sessions.size());

@@ -38,8 +38,8 @@ inline LandmarkMap random_map(uint64_t seed) {
     frame.session = f < 2 ? 0 : f < 3 ? 1 : 2;
     frame.name = map.sessions[frame.session].name + "/" + std::to_string(f) + ".png";
     frame.camera = f % 2;
-    frame.cam_from_world.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(
-        rng.uniform(-3, 3), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized()));
+    frame.cam_from_world.rotation = Eigen::Quaterniond(
+        Eigen::AngleAxisd(rng.uniform(-3, 3), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized()));
     frame.cam_from_world.translation = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
     frame.gravity_in_cam = frame.cam_from_world.rotation * Eigen::Vector3d(0, 0, -1);
     frame.is_query = f >= 3;
@@ -47,8 +47,7 @@ inline LandmarkMap random_map(uint64_t seed) {
     frame.num_keypoints = 8;
     first += 8;
     for (int k = 0; k < 8; ++k) {
-      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 640)),
-                                       static_cast<float>(rng.uniform(0, 480)),
+      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 640)), static_cast<float>(rng.uniform(0, 480)),
                                        static_cast<float>(rng.uniform(5, 40)),
                                        k == 0 ? -1.f : static_cast<float>(rng.uniform(0, 360))});
       for (int b2 = 0; b2 < 64; ++b2) map.descriptors.push_back(static_cast<uint8_t>(rng.below(256)));

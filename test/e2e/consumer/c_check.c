@@ -3,8 +3,8 @@
 
 #include "infer/c_api.h"
 
-int lmb_consumer_c_localize(const char* model_path, const lmb_camera* camera, const lmb_keypoint* keypoints,
-                            int n, const uint8_t* descriptors, const double gravity[3], lmb_pose* pose) {
+int lmb_consumer_c_localize(const char* model_path, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
+                            const uint8_t* descriptors, const double gravity[3], lmb_pose* pose) {
   lmb_model* model = NULL;
   lmb_localize_options options;
   lmb_match matches[512];
@@ -15,8 +15,8 @@ int lmb_consumer_c_localize(const char* model_path, const lmb_camera* camera, co
     return 1;
   }
   lmb_localize_options_init(&options);
-  status = lmb_localize(model, camera, keypoints, n, descriptors, lmb_model_descriptor_bytes(model), gravity,
-                        &options, pose, matches, 512, &num_matches);
+  status = lmb_localize(model, camera, keypoints, n, descriptors, lmb_model_descriptor_bytes(model), gravity, &options,
+                        pose, matches, 512, &num_matches);
   if (status != LMB_OK) {
     printf("      C: lmb_localize failed (%d): %s\n", (int)status, lmb_last_error());
     lmb_model_free(model);

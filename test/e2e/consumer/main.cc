@@ -17,9 +17,8 @@
 #include "infer/pose_estimator.h"
 
 // c_check.c: the same localization through the C API, from C.
-extern "C" int lmb_consumer_c_localize(const char* model_path, const lmb_camera* camera,
-                                       const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
-                                       const double gravity[3], lmb_pose* pose);
+extern "C" int lmb_consumer_c_localize(const char* model_path, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                                       int n, const uint8_t* descriptors, const double gravity[3], lmb_pose* pose);
 
 namespace {
 
@@ -44,17 +43,14 @@ lmb::Camera make_camera() {
 lmb::Rigid3d make_problem(const lmb::Camera& camera, std::vector<Eigen::Vector2d>* pixels,
                           std::vector<Eigen::Vector3d>* points_world) {
   lmb::Rng rng(2024);
-  const lmb::Rigid3d cam_from_world(
-      Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized())),
-      Eigen::Vector3d(0.5, -1.0, 2.0));
+  const lmb::Rigid3d cam_from_world(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized())),
+                                    Eigen::Vector3d(0.5, -1.0, 2.0));
   const lmb::Rigid3d world_from_cam = cam_from_world.inverse();
   for (int i = 0; i < 100; ++i) {
     const Eigen::Vector2d pixel(rng.uniform(0, camera.width), rng.uniform(0, camera.height));
     const double depth = rng.uniform(2.0, 10.0);
     points_world->push_back(world_from_cam * (depth * camera.cam_from_img(pixel).homogeneous()));
-    pixels->push_back(i < 30 ? Eigen::Vector2d(rng.uniform(0, camera.width),
-                                               rng.uniform(0, camera.height))
-                             : pixel);
+    pixels->push_back(i < 30 ? Eigen::Vector2d(rng.uniform(0, camera.width), rng.uniform(0, camera.height)) : pixel);
   }
   return cam_from_world;
 }
@@ -73,8 +69,7 @@ void check_pose_api() {
   expect(lmb::rotation_error_deg(result.cam_from_world, truth) < 0.01, "rotation within 0.01 deg");
   expect(result.num_inliers >= 70 && result.num_inliers <= 72, "70 inliers (+ chance outliers)");
   std::printf("      position error %.2e m, %d inliers, %d iterations\n",
-              lmb::position_error(result.cam_from_world, truth), result.num_inliers,
-              result.stats.iterations);
+              lmb::position_error(result.cam_from_world, truth), result.num_inliers, result.stats.iterations);
 
   // An lmb::Error thrown inside liblmb_infer.so is caught here by type.
   bool caught = false;
@@ -105,8 +100,9 @@ uint32_t code_of(int c) { return (static_cast<uint32_t>(c) * 40503u + 777u) & 0x
 ModelAndFrame make_model_and_frame(const lmb::Camera& camera) {
   ModelAndFrame r;
   lmb::Rng rng(77);
-  r.cam_from_world = lmb::Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(-0.2, Eigen::Vector3d(0.3, 1, 0.1).normalized())),
-                                  Eigen::Vector3d(-0.4, 0.1, 1.0));
+  r.cam_from_world =
+      lmb::Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(-0.2, Eigen::Vector3d(0.3, 1, 0.1).normalized())),
+                   Eigen::Vector3d(-0.4, 0.1, 1.0));
   r.gravity_in_cam = r.cam_from_world.rotation * Eigen::Vector3d(0, 0, -1);
   lmb::ModelData& d = r.data;
   d.detector = "BRISK";
@@ -171,9 +167,7 @@ ModelAndFrame make_model_and_frame(const lmb::Camera& camera) {
   return r;
 }
 
-std::string model_path() {
-  return (std::filesystem::temp_directory_path() / "lmb_consumer_model.lbm").string();
-}
+std::string model_path() { return (std::filesystem::temp_directory_path() / "lmb_consumer_model.lbm").string(); }
 
 void check_localizer_api() {
   const lmb::Camera camera = make_camera();

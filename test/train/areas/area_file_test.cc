@@ -92,7 +92,7 @@ TEST(AreaFile, RejectsMalformedFilesNamingTheLine) {
   expect_rejected("overlap 0.5", "overlap nan", "overlap is not");
   expect_rejected("area 1 ", "area 2 ", "line 12: area id 2 is outside [1, 1]");
   expect_rejected(" bounds ", " bound ", "expected 'bounds'");
-  expect_rejected("members 0 ", "members 0 1 ", "landmarks");  // one more id than its count
+  expect_rejected("members 0 ", "members 0 1 ", "landmarks");                // one more id than its count
   expect_rejected(" core ", " core 7 ", "expected 'area' and 21 value(s)");  // wrong field count
   // Out-of-order and out-of-range landmark ids.
   const AreaFile file = corridor_areas();

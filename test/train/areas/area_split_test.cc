@@ -185,7 +185,8 @@ TEST(AreaSplit, PriorSelectsTheAreasHoldingWhatTheCameraSees) {
   const AreaSplit wide = split_map_into_areas(map, options);
   options.overlap = 0.0;
   const AreaSplit wide_no_overlap = split_map_into_areas(map, options);
-  EXPECT_GT(query_coverage(map, wide, 0.0).num_covered_best, query_coverage(map, wide_no_overlap, 0.0).num_covered_best);
+  EXPECT_GT(query_coverage(map, wide, 0.0).num_covered_best,
+            query_coverage(map, wide_no_overlap, 0.0).num_covered_best);
   EXPECT_EQ(no_overlap.num_covered_any, eligible_query);
 }
 

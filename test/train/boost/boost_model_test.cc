@@ -57,7 +57,8 @@ TEST(BoostModel, RoundTripsAndRejectsCorruption) {
 
 TEST(BoostModel, TrainedModelFileRecordsTheFeatureSpace) {
   const BoostModel m = two_stump_model();
-  const auto path = std::filesystem::temp_directory_path() / ("lmb_boost_model_test_" + std::to_string(::getpid()) + ".bin");
+  const auto path =
+      std::filesystem::temp_directory_path() / ("lmb_boost_model_test_" + std::to_string(::getpid()) + ".bin");
   EXPECT_THROW(save_trained_model(path, m, synthetic_feature_space("synthetic:x", 4)), Error);  // 3 dims
   EXPECT_FALSE(std::filesystem::exists(path));
   save_trained_model(path, m, synthetic_feature_space("synthetic:x", 3));
@@ -73,9 +74,10 @@ TEST(BoostModel, TrainedModelFileRecordsTheFeatureSpace) {
     FAIL() << "a version-1 model.bin was accepted";
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()),
-              path.string() + ": a model.bin of an older lboost (format version 1), which does not record the context "
-                              "regions, vocabulary and map it was trained with, so export cannot prove they match; "
-                              "retrain it (or export it with the lboost that trained it)");
+              path.string() +
+                  ": a model.bin of an older lboost (format version 1), which does not record the context "
+                  "regions, vocabulary and map it was trained with, so export cannot prove they match; "
+                  "retrain it (or export it with the lboost that trained it)");
   }
   std::filesystem::remove(path);
 }

@@ -47,7 +47,8 @@ inline std::unique_ptr<Parts> make_parts(int32_t max_thresholds, bool blocked = 
 }
 
 // Per class: positive and negative fixed-point weight above theta, from the entries one by one.
-inline void brute_force_above(const Parts& p, int32_t dim, int theta, std::vector<int64_t>* pos, std::vector<int64_t>* neg) {
+inline void brute_force_above(const Parts& p, int32_t dim, int theta, std::vector<int64_t>* pos,
+                              std::vector<int64_t>* neg) {
   const EntryStore& e = *p.entries;
   pos->assign(static_cast<size_t>(e.num_classes()), 0);
   neg->assign(static_cast<size_t>(e.num_classes()), 0);

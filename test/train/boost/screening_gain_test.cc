@@ -80,7 +80,8 @@ double reference_screening_gain(const Classes& k, bool step) {
     reference_point(k, *group, &alpha, &beta);
     std::vector<bool> gains(m);
     for (size_t c = 0; c < m; ++c) {
-      const double g = 2 * alpha * k.yp[c] - alpha * alpha * k.wp[c] + 2 * beta * k.ym[c] - beta * beta * k.wm[c] - k.q[c];
+      const double g =
+          2 * alpha * k.yp[c] - alpha * alpha * k.wp[c] + 2 * beta * k.ym[c] - beta * beta * k.wm[c] - k.q[c];
       gains[c] = g > 0;
     }
     best = std::max(best, reference_set_gain(k, gains));

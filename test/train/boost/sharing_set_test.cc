@@ -92,8 +92,8 @@ TEST(SharingSet, MatchesExhaustiveSearchOnSmallProblems) {
     // Screening never claims more than the full search.
     EXPECT_LE(screen_sharing_gain(p.input()), ref * (1 + 1e-12) + 1e-9);
   }
-  std::printf("sharing search: exhaustive optimum reached on %d/%d random problems, worst ratio %.6f\n",
-              exact, trials, worst);
+  std::printf("sharing search: exhaustive optimum reached on %d/%d random problems, worst ratio %.6f\n", exact, trials,
+              worst);
   EXPECT_EQ(exact, trials);
 }
 

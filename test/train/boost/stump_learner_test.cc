@@ -83,7 +83,8 @@ std::vector<int> distinct_thresholds(const FeatureMatrix& f, int32_t dim) {
 }
 
 // The best gain over `dims`, all thresholds and all 2^C1 - 1 sharing sets.
-double exhaustive_best_gain(const Entries& entries, const FeatureMatrix& f, const std::vector<int32_t>& dims, int32_t C1) {
+double exhaustive_best_gain(const Entries& entries, const FeatureMatrix& f, const std::vector<int32_t>& dims,
+                            int32_t C1) {
   const ClassTotals t = class_totals(entries, C1);
   std::vector<double> q(C1);
   for (int32_t c = 0; c < C1; ++c) q[c] = t.w[c] > 0 ? t.y[c] * t.y[c] / t.w[c] : 0.0;
@@ -167,7 +168,7 @@ TEST(StumpLearner, ChosenStumpEqualsExhaustiveSearch) {
     o.num_rounds = 12;
     o.dims_per_round = p.features.num_dims;
     o.screening.max_thresholds = 0;  // all thresholds
-    o.screening.refine_top = 0;              // full search everywhere
+    o.screening.refine_top = 0;      // full search everywhere
     o.negatives.per_class = 8;
     o.mining.interval = 4;
     o.learning_rate = 1.0;  // the model then stores the fitted a, b themselves (shrinkage scales them)
@@ -240,9 +241,10 @@ TEST(StumpLearner, FastSharingReachesGreedyCostReduction) {
       greedy_total += greedy;
     }
     const double mean_ratio = ratio_sum / o.num_rounds;
-    std::printf("64 classes, refine_top %d (%d thresholds/dim max): fast / greedy cost reduction = %.4f "
-                "(mean of per-round ratios), %.4f (totals)\n",
-                refine_top, o.screening.max_thresholds, mean_ratio, fast_total / greedy_total);
+    std::printf(
+        "64 classes, refine_top %d (%d thresholds/dim max): fast / greedy cost reduction = %.4f "
+        "(mean of per-round ratios), %.4f (totals)\n",
+        refine_top, o.screening.max_thresholds, mean_ratio, fast_total / greedy_total);
     // The learner's default (8 candidate thresholds) must reach 99% of the greedy search over
     // every threshold; with 4 thresholds the threshold set, not the sharing search, costs ~4%.
     if (max_thresholds >= 8) {
@@ -313,9 +315,10 @@ TEST(StumpLearner, LearnsContextSeparableClassesAndCostDecreases) {
   EXPECT_GT(mined, 0);
   const double boost_p1 = run.rounds.back().validation_p1;
   const double hamming_p1 = hamming_nn_precision(p);
-  std::printf("synthetic (40 classes in alias groups of 4): validation P@1 boost %.3f (round 1: %.3f) vs "
-              "Hamming NN %.3f\n",
-              boost_p1, run.rounds.front().validation_p1, hamming_p1);
+  std::printf(
+      "synthetic (40 classes in alias groups of 4): validation P@1 boost %.3f (round 1: %.3f) vs "
+      "Hamming NN %.3f\n",
+      boost_p1, run.rounds.front().validation_p1, hamming_p1);
   EXPECT_GT(boost_p1, hamming_p1 + 0.3);
   EXPECT_GE(run.rounds.back().validation_p1_landmarks, boost_p1);  // rejection can only cost
   EXPECT_GT(boost_p1, 0.7);

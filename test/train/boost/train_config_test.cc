@@ -1,8 +1,8 @@
 #include "train/boost/train_config.h"
 
+#include <unistd.h>
 #include <cmath>
 #include <set>
-#include <unistd.h>
 
 #include <filesystem>
 #include <string>

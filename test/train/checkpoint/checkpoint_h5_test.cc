@@ -3,16 +3,16 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <filesystem>
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 
 #include <H5Cpp.h>
 #include <gtest/gtest.h>
 
 #include "common/error.h"
-#include "train/boost/stump_learner.h"
 #include "common/feature_space.h"
+#include "train/boost/stump_learner.h"
 #include "train/boost/synthetic_problem.h"
 #include "train/boost/train_config.h"
 
@@ -108,7 +108,8 @@ TEST_F(CheckpointTest, TornOrCorruptNewestFallsBackToThePreviousOne) {
   const fs::path newest = dir.path_for(9);
   fs::resize_file(newest, fs::file_size(newest) / 2);
   std::vector<std::string> skipped;
-  auto ck = dir.newest_valid([&](const fs::path& p, const std::string& why) { skipped.push_back(p.filename().string() + ": " + why); });
+  auto ck = dir.newest_valid(
+      [&](const fs::path& p, const std::string& why) { skipped.push_back(p.filename().string() + ": " + why); });
   ASSERT_TRUE(ck.has_value());
   EXPECT_EQ(ck->rounds, 6);
   ASSERT_EQ(skipped.size(), 1u);
@@ -230,9 +231,10 @@ TEST_F(CheckpointTest, OldFormatVersionIsRefusedNotSkipped) {
     FAIL() << "a version-1 checkpoint was skipped";
   } catch (const CheckpointVersionError& e) {
     EXPECT_EQ(std::string(e.what()),
-              newest.string() + ": written by an older lboost (checkpoint format version 1), which does not record "
-                                "the context regions, vocabulary and map it was trained with; finish the run with "
-                                "the lboost that started it, or train into a new --out folder");
+              newest.string() +
+                  ": written by an older lboost (checkpoint format version 1), which does not record "
+                  "the context regions, vocabulary and map it was trained with; finish the run with "
+                  "the lboost that started it, or train into a new --out folder");
   }
 }
 

@@ -19,13 +19,13 @@
 
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
-#include "train/areas/area_file.h"
-#include "train/areas/area_split.h"
 #include "infer/area_bundle.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
-#include "train/boost/boost_model.h"
 #include "test/support/lboost_run.h"
+#include "train/areas/area_file.h"
+#include "train/areas/area_split.h"
+#include "train/boost/boost_model.h"
 
 namespace lmb {
 namespace {
@@ -65,10 +65,10 @@ class AreasCliTest : public ::testing::Test {
     const std::vector<int32_t> counts = map_observation_counts(m);
     eligible_ = std::count_if(counts.begin(), counts.end(), [](int32_t c) { return c >= 3; });
     max_classes_ = static_cast<int32_t>(eligible_ / 3);
-    const RunResult a = run("areas --map " + map_.string() + " --out " + (dir_ / "areas.txt").string() +
-                                " --min-observations 3 --overlap 0.2 --prior-noise 0.5 --max-classes " +
-                                std::to_string(max_classes_),
-                            dir_);
+    const RunResult a =
+        run("areas --map " + map_.string() + " --out " + (dir_ / "areas.txt").string() +
+                " --min-observations 3 --overlap 0.2 --prior-noise 0.5 --max-classes " + std::to_string(max_classes_),
+            dir_);
     areas_out_ = a.out;
     ok_ = ok_ && a.exit_code == 0;
     if (!ok_) std::fprintf(stderr, "setup failed: %s\n", a.err.c_str());
@@ -138,7 +138,8 @@ TEST_F(AreasCliTest, AnAreaTrainsExactlyItsLandmarksOnAnyRankCount) {
   EXPECT_NE(config.find("landmarks = " + std::to_string(want.size())), std::string::npos) << config;
   for (int ranks : {2, 3}) {
     const fs::path dir = dir_ / ("area1_ranks" + std::to_string(ranks));
-    const RunResult m = run(train_args(area, dir), dir_, std::string(LMB_MPIEXEC) + " -n " + std::to_string(ranks) + " ");
+    const RunResult m =
+        run(train_args(area, dir), dir_, std::string(LMB_MPIEXEC) + " -n " + std::to_string(ranks) + " ");
     ASSERT_EQ(m.exit_code, 0) << m.err;
     EXPECT_EQ(slurp(dir / "model.bin"), slurp(serial / "model.bin")) << ranks << " ranks";
   }
@@ -197,8 +198,8 @@ TEST_F(AreasCliTest, ABundleOfOneAreaLocalizesAsItsModel) {
     if (!f.is_query) continue;
     const std::vector<Keypoint> keypoints(map.keypoints.begin() + f.first_keypoint,
                                           map.keypoints.begin() + f.first_keypoint + f.num_keypoints);
-    const LocalizeResult want = single.localize(map.cameras[f.camera], keypoints, map.descriptor(f.first_keypoint),
-                                                f.gravity_in_cam);
+    const LocalizeResult want =
+        single.localize(map.cameras[f.camera], keypoints, map.descriptor(f.first_keypoint), f.gravity_in_cam);
     PositionPrior prior;
     prior.position = f.cam_from_world.center();
     prior.radius = 1.0;
@@ -242,10 +243,12 @@ TEST_F(AreasCliTest, BadAreaArgumentsFailWithOneLine) {
   expect_one_error(run(train_args((dir_ / "other_areas.txt").string() + ":0", out), dir_), "train",
                    "made from another map");
   EXPECT_FALSE(fs::exists(out / "config.toml"));
-  expect_one_error(run("areas --map " + map_.string() + " --out " + (dir_ / "x.txt").string() + " --max-classes 0", dir_),
-                   "areas", "--max-classes 0: must be >= 1");
-  expect_one_error(run("areas --map " + map_.string() + " --out " + (dir_ / "x.txt").string() + " --prior-noise -1", dir_),
-                   "areas", "--prior-noise -1: must be finite and >= 0");
+  expect_one_error(
+      run("areas --map " + map_.string() + " --out " + (dir_ / "x.txt").string() + " --max-classes 0", dir_), "areas",
+      "--max-classes 0: must be >= 1");
+  expect_one_error(
+      run("areas --map " + map_.string() + " --out " + (dir_ / "x.txt").string() + " --prior-noise -1", dir_), "areas",
+      "--prior-noise -1: must be finite and >= 0");
 }
 
 }  // namespace

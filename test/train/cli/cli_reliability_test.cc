@@ -108,7 +108,8 @@ class CliReliabilityTest : public ::testing::Test {
            " --rounds 8 --dims-per-round 64 --checkpoint-interval 4";
   }
   static std::string export_args(const std::string& vocab = "vocab.lbv", const std::string& run_dir = "run") {
-    return "export --run " + (dir_ / run_dir).string() + " --map " + map_.string() + " --vocab " + (dir_ / vocab).string();
+    return "export --run " + (dir_ / run_dir).string() + " --map " + map_.string() + " --vocab " +
+           (dir_ / vocab).string();
   }
   static fs::path dir_;
   static fs::path map_;
@@ -133,11 +134,13 @@ TEST_F(CliReliabilityTest, ExportRefusesOtherRegions) {
 
 TEST_F(CliReliabilityTest, ExportRefusesAnotherVocabularyOrMap) {
   const fs::path out = dir_ / "other.lbm";
-  expect_one_error(run(export_args("vocab2.lbv") + " --out " + out.string(), dir_), "export",
-                   "was not trained with the vocabulary " + (dir_ / "vocab2.lbv").string() + ": the vocabulary differs");
+  expect_one_error(
+      run(export_args("vocab2.lbv") + " --out " + out.string(), dir_), "export",
+      "was not trained with the vocabulary " + (dir_ / "vocab2.lbv").string() + ": the vocabulary differs");
   const std::string moved = (dir_ / "moved_map.h5").string();
   expect_one_error(run("export --run " + (dir_ / "run").string() + " --map " + moved + " --vocab " +
-                           (dir_ / "vocab.lbv").string() + " --out " + out.string(), dir_),
+                           (dir_ / "vocab.lbv").string() + " --out " + out.string(),
+                       dir_),
                    "export", "was not trained on the map " + moved + ": the map differs");
   EXPECT_FALSE(fs::exists(out));
 }
@@ -147,8 +150,9 @@ TEST_F(CliReliabilityTest, RefusedResumeLeavesTheRunFolderExactlyAsItWas) {
   const fs::path run_dir = dir_ / "run";
   const auto before = snapshot(run_dir);
   write_file_atomically(dir_ / "seed2.toml", "[regions]\nseed = 2\n");
-  expect_one_error(run(train_args() + " --config " + (dir_ / "seed2.toml").string() + " --out " + run_dir.string(), dir_),
-                   "train", "the config differs from the checkpoint's in regions.seed (checkpoint 1, now 2)");
+  expect_one_error(
+      run(train_args() + " --config " + (dir_ / "seed2.toml").string() + " --out " + run_dir.string(), dir_), "train",
+      "the config differs from the checkpoint's in regions.seed (checkpoint 1, now 2)");
   EXPECT_EQ(snapshot(run_dir), before);
   // Another vocabulary: the config agrees, the feature space does not (found after loading).
   expect_one_error(run(train_args("vocab2.lbv") + " --out " + run_dir.string(), dir_), "train",
@@ -165,13 +169,17 @@ TEST_F(CliReliabilityTest, FailedTrainLeavesNothingBehind) {
   write_file_atomically(dir_ / "not_a_map.h5", "plain text\n");
   const fs::path run_dir = dir_ / "failed_run";
   expect_one_error(run("train --map " + (dir_ / "not_a_map.h5").string() + " --vocab " + (dir_ / "vocab.lbv").string() +
-                           " --out " + run_dir.string(), dir_),
+                           " --out " + run_dir.string(),
+                       dir_),
                    "train", "not_a_map.h5: not an HDF5 file");
   EXPECT_FALSE(fs::exists(run_dir));
   // An existing empty folder stays empty.
   fs::create_directories(run_dir);
   EXPECT_EQ(run("train --map " + (dir_ / "not_a_map.h5").string() + " --vocab " + (dir_ / "vocab.lbv").string() +
-                    " --out " + run_dir.string(), dir_).exit_code, 1);
+                    " --out " + run_dir.string(),
+                dir_)
+                .exit_code,
+            1);
   EXPECT_TRUE(fs::is_empty(run_dir));
 }
 
@@ -186,8 +194,7 @@ TEST_F(CliReliabilityTest, SecondTrainerFailsAtOnce) {
   expect_one_error(r, "train", "another lboost train is using this run folder (pid " + std::to_string(::getpid()));
   EXPECT_EQ(snapshot(run_dir), before);
   // With MPI ranks: rank 0 holds the lock; every rank stops, one lboost line.
-  const RunResult m = run(train_args() + " --out " + run_dir.string(), dir_,
-                          std::string(LMB_MPIEXEC) + " -n 2 ");
+  const RunResult m = run(train_args() + " --out " + run_dir.string(), dir_, std::string(LMB_MPIEXEC) + " -n 2 ");
   EXPECT_NE(m.exit_code, 0);
   const auto lines = lboost_lines(m.err);
   ASSERT_EQ(lines.size(), 1u) << m.err;
@@ -218,10 +225,12 @@ TEST_F(CliReliabilityTest, BadOptionsFailWithOneLine) {
   expect_one_error(run("train --rounds abc --out x", dir_), "train", "--rounds");
   expect_one_error(run("train --synthetic small --no-such-option 3 --out x", dir_), "train", "--no-such-option");
   expect_one_error(run("export --map " + map_.string(), dir_), "export", "is required");
-  expect_one_error(run("inspect " + map_.string() + " --threads 0", dir_), "inspect", "--threads = 0 must be in 1..256");
-  expect_one_error(run("map --collection " + (dir_ / "none").string() + " --pair-distance -1 --out " +
-                           (dir_ / "m.h5").string(), dir_),
-                   "map", "max_center_distance must be finite and >= 0");
+  expect_one_error(run("inspect " + map_.string() + " --threads 0", dir_), "inspect",
+                   "--threads = 0 must be in 1..256");
+  expect_one_error(
+      run("map --collection " + (dir_ / "none").string() + " --pair-distance -1 --out " + (dir_ / "m.h5").string(),
+          dir_),
+      "map", "max_center_distance must be finite and >= 0");
   const RunResult help = run("train --help", dir_);
   EXPECT_EQ(help.exit_code, 0);
   EXPECT_NE(help.out.find("--out"), std::string::npos);
@@ -236,23 +245,28 @@ TEST_F(CliReliabilityTest, UnwritableOutputsFailBeforeTheWork) {
   expect_one_error(m, "map", bad);
   EXPECT_EQ(m.out.find("map:"), std::string::npos) << "mapped before failing: " << m.out;
   expect_one_error(run(export_args() + " --out " + bad, dir_), "export", bad);
-  expect_one_error(run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --out " + bad,
-                       dir_),
-                   "localize", bad);
+  expect_one_error(
+      run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --out " + bad, dir_),
+      "localize", bad);
   expect_one_error(run("train --synthetic small --out " + bad, dir_), "train", bad);
 }
 
 // Items 6 and 10: a folder as the model, and a model of another map.
 TEST_F(CliReliabilityTest, LocalizeRefusesAFolderOrAnotherMapsModel) {
   const fs::path out = dir_ / "poses.json";
-  expect_one_error(run("localize --model " + dir_.string() + " --map " + map_.string() + " --out " + out.string(), dir_),
-                   "localize", dir_.string() + ": is a folder, not a file");
-  expect_one_error(run("localize --model " + (dir_ / "model.lbm").string() + " --map " + (dir_ / "moved_map.h5").string() +
-                           " --out " + out.string(), dir_),
+  expect_one_error(
+      run("localize --model " + dir_.string() + " --map " + map_.string() + " --out " + out.string(), dir_), "localize",
+      dir_.string() + ": is a folder, not a file");
+  expect_one_error(run("localize --model " + (dir_ / "model.lbm").string() + " --map " +
+                           (dir_ / "moved_map.h5").string() + " --out " + out.string(),
+                       dir_),
                    "localize", "(the model was trained on another map)");
   EXPECT_FALSE(fs::exists(out));
-  ASSERT_EQ(run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --out " + out.string(),
-                dir_).exit_code, 0);
+  ASSERT_EQ(
+      run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --out " + out.string(),
+          dir_)
+          .exit_code,
+      0);
   EXPECT_TRUE(fs::file_size(out) > 0);
 }
 

@@ -162,8 +162,8 @@ TEST(TrainingJob, ResumeOnAnyRankCountIsBitIdentical) {
       FeatureParallelLearner learner(comm, mine, full.data.set, full.config.boost);
       const TrainingJobResult r = run_training_job(comm, learner, job, resume, {});
       EXPECT_EQ(r.resumed_from, stop_at);
-      EXPECT_TRUE(learner.model() == reference) << "resumed at " << stop_at << " on " << ranks << " of "
-                                                << world.size() << " ranks";
+      EXPECT_TRUE(learner.model() == reference)
+          << "resumed at " << stop_at << " on " << ranks << " of " << world.size() << " ranks";
       MPI_Comm_free(&sub);
     }
     world.barrier();

@@ -220,7 +220,8 @@ TEST(DescriptorMatcherTest, EdgeCasesAndOptions) {
   twins.landmark = {0, 1, 1};
   std::copy(twins.descriptor(0), twins.descriptor(0) + kBytes, twins.descriptors.begin() + kBytes);
   const HammingKnnIndex twin_index(twins, BruteforceHamming::Backend::kPopcount);
-  EXPECT_FALSE(passes_ratio_test(twin_index.search(twins.descriptor(0), 1, 2)[0], twins.descriptor(0), twin_index, opts));
+  EXPECT_FALSE(
+      passes_ratio_test(twin_index.search(twins.descriptor(0), 1, 2)[0], twins.descriptor(0), twin_index, opts));
   EXPECT_FALSE(passes_ratio_test({}, p.queries.data(), index, opts));
 
   DescriptorMatcherOptions bad;

@@ -22,9 +22,9 @@
 #include "common/hamming.h"
 #include "common/io/map_h5.h"
 #include "infer/model.h"
+#include "test/support/lboost_run.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
-#include "test/support/lboost_run.h"
 
 namespace lmb {
 namespace {
@@ -89,14 +89,14 @@ class EvalCliTest : public ::testing::Test {
     ok_ = step("vocab --images " + images.string() + " --out " + (dir_ / "vocab.lbv").string() +
                " --words 16 --seed 7") &&
           step("train" + m + " --vocab " + (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "run").string() +
-                  " --rounds 20 --dims-per-round 100 --threads 2") &&
-          step("export --run " + (dir_ / "run").string() + m + " --vocab " + (dir_ / "vocab.lbv").string() +
-                  " --out " + (dir_ / "model.lbm").string());
+               " --rounds 20 --dims-per-round 100 --threads 2") &&
+          step("export --run " + (dir_ / "run").string() + m + " --vocab " + (dir_ / "vocab.lbv").string() + " --out " +
+               (dir_ / "model.lbm").string());
     if (!ok_) return;
-    eval_ = run("eval --model " + (dir_ / "model.lbm").string() + m + " --run " + (dir_ / "run").string() +
-                    " --report " + (dir_ / "report.json").string() + " --keypoint-ranks " +
-                    (dir_ / "ranks.json").string(),
-                dir_);
+    eval_ =
+        run("eval --model " + (dir_ / "model.lbm").string() + m + " --run " + (dir_ / "run").string() + " --report " +
+                (dir_ / "report.json").string() + " --keypoint-ranks " + (dir_ / "ranks.json").string(),
+            dir_);
   }
   static void TearDownTestSuite() {
     if (!dir_.empty()) fs::remove_all(dir_);
@@ -302,8 +302,8 @@ TEST_F(EvalCliTest, HammingRatioMatchesAnIndependentRatioTest) {
 // match recall is its precision@1), written to the report as the string "-inf"; pose recall at
 // every --pose-thresholds pair, from the per-frame errors.
 TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
-  const RunResult r = run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
-                              " --report " + (dir_ / "report_inf.json").string() +
+  const RunResult r = run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --report " +
+                              (dir_ / "report_inf.json").string() +
                               " --methods landmarkboost,bruteforce_hamming --min-margin -inf"
                               " --pose-thresholds '0.2,5;1,2;0.05,1' --ransac-sweep-iterations 20,40"
                               " --ransac-sweep-seeds 2",
@@ -339,8 +339,8 @@ TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
   EXPECT_NE(r.out.find("pose recall at each --pose-thresholds pair"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("0.05 m, 1 deg"), std::string::npos) << r.out;
   EXPECT_EQ(eval_.out.find("pose recall at each --pose-thresholds pair"), std::string::npos) << eval_.out;
-  expect_one_error_line(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
-                                " --report " + (dir_ / "bad_report.json").string() + " --pose-thresholds 0.2",
+  expect_one_error_line(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --report " +
+                                (dir_ / "bad_report.json").string() + " --pose-thresholds 0.2",
                             dir_),
                         "--pose-thresholds '0.2': '0.2' is not METRES,DEGREES");
 }
@@ -349,8 +349,8 @@ TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
 // for the same model and options; localize no longer prints a "precision@1" of another definition.
 TEST_F(EvalCliTest, LocalizeAndEvalShareMetricNames) {
   ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
-  const RunResult r = run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
-                              " --out " + (dir_ / "poses.json").string() + " --top-k 20",
+  const RunResult r = run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --out " +
+                              (dir_ / "poses.json").string() + " --top-k 20",
                           dir_);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out.find("precision@1"), std::string::npos) << r.out;
@@ -519,9 +519,9 @@ TEST_F(EvalCliTest, HeldOutMapObservationsBesideTheQuerySession) {
     EXPECT_EQ(gap.at(name).at("held_out_map_observations"), h.at("methods").at(name).at("precision_at_1"));
     EXPECT_EQ(gap.at(name).at("sessions").at("query"), m.at("precision_at_1"));
   }
-  EXPECT_NE(eval_.out.find("generalization gap: held-out map observations (" + std::to_string(held.size()) +
-                           " keypoints"),
-            std::string::npos)
+  EXPECT_NE(
+      eval_.out.find("generalization gap: held-out map observations (" + std::to_string(held.size()) + " keypoints"),
+      std::string::npos)
       << eval_.out;
 }
 
@@ -639,9 +639,9 @@ TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
   expect_one_error_line(run("eval" + model + " --map " + (dir_ / "no_query.h5").string() + report, dir_),
                         "no query session");
   // An unknown method.
-  expect_one_error_line(run("eval" + model + " --map " + map_.string() + report + " --methods landmarkboost,faiss",
-                            dir_),
-                        "unknown method 'faiss'");
+  expect_one_error_line(
+      run("eval" + model + " --map " + map_.string() + report + " --methods landmarkboost,faiss", dir_),
+      "unknown method 'faiss'");
   EXPECT_FALSE(fs::exists(dir_ / "bad_report.json"));
 }
 

@@ -45,8 +45,8 @@ TEST(LandmarkBoostMatcherTest, PoseEqualsTheLocalizers) {
         o.classifier.min_margin = margin;
         o.max_correspondences = cap;
         o.pose.seed = 3;
-        const LocalizeResult expected = Localizer(fx.model, o).localize(*q.camera, q.keypoints, q.descriptors,
-                                                                         q.gravity_in_cam);
+        const LocalizeResult expected =
+            Localizer(fx.model, o).localize(*q.camera, q.keypoints, q.descriptors, q.gravity_in_cam);
         const LandmarkBoostMatcher matcher(fx.model, o.classifier);
         const FrameMatches m = matcher.match(q);
         const PoseInput input = select_correspondences(q, m.accepted, cap);

@@ -19,8 +19,8 @@ KeypointRanking ranking(landmark_t truth, std::vector<landmark_t> list) {
 
 // Four keypoints with truth (ranks 1, 2, absent, empty list) and two background keypoints.
 std::vector<KeypointRanking> hand_case() {
-  return {ranking(5, {5, 7}), ranking(3, {7, 3, 9}), ranking(4, {1, 2}), ranking(8, {}),
-          ranking(kInvalidLandmarkId, {}), ranking(kInvalidLandmarkId, {2})};
+  return {ranking(5, {5, 7}), ranking(3, {7, 3, 9}),           ranking(4, {1, 2}),
+          ranking(8, {}),     ranking(kInvalidLandmarkId, {}), ranking(kInvalidLandmarkId, {2})};
 }
 
 TEST(EvaluateRetrieval, PrecisionAndMrrOnHandCase) {
@@ -82,7 +82,10 @@ TEST(EvaluateRetrieval, NoKeypointWithTruth) {
 // Accepted matches: 3 keypoints with truth (right, wrong, rejected), 3 background (one accepted,
 // two rejected).
 TEST(EvaluateMatches, PrecisionRecallAndBackgroundRejection) {
-  const MatchMetrics m = evaluate_matches({{5, 5}, {7, 3}, {kInvalidLandmarkId, 4}, {2, kInvalidLandmarkId},
+  const MatchMetrics m = evaluate_matches({{5, 5},
+                                           {7, 3},
+                                           {kInvalidLandmarkId, 4},
+                                           {2, kInvalidLandmarkId},
                                            {kInvalidLandmarkId, kInvalidLandmarkId},
                                            {kInvalidLandmarkId, kInvalidLandmarkId}});
   EXPECT_EQ(m.num_keypoints, 6);
@@ -151,12 +154,12 @@ Rigid3d perturbed(double deg, const Eigen::Vector3d& offset) {
 
 std::vector<FrameOutcome> pose_case() {
   return {
-      frame(true, perturbed(1.0, {0.05, 0, 0}), 100, 200, 100),     // correct
-      frame(true, perturbed(0.0, {0, 0.2, 0}), 50, 20, 10),         // correct: exactly 20 cm
-      frame(true, perturbed(5.0, {0, 0, 0}), 80, 10, 5),            // correct: exactly 5 deg
-      frame(true, perturbed(0.0, {0, 0, 0.2000001}), 90, 10, 2),    // wrong: just over 20 cm
-      frame(true, perturbed(5.001, {0, 0, 0}), 50, 10, 0),          // wrong: just over 5 deg
-      frame(false, Rigid3d(), 1000, 30, 30),                        // not localized
+      frame(true, perturbed(1.0, {0.05, 0, 0}), 100, 200, 100),   // correct
+      frame(true, perturbed(0.0, {0, 0.2, 0}), 50, 20, 10),       // correct: exactly 20 cm
+      frame(true, perturbed(5.0, {0, 0, 0}), 80, 10, 5),          // correct: exactly 5 deg
+      frame(true, perturbed(0.0, {0, 0, 0.2000001}), 90, 10, 2),  // wrong: just over 20 cm
+      frame(true, perturbed(5.001, {0, 0, 0}), 50, 10, 0),        // wrong: just over 5 deg
+      frame(false, Rigid3d(), 1000, 30, 30),                      // not localized
   };
 }
 

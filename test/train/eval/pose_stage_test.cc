@@ -68,8 +68,8 @@ TEST(PoseStageTest, SweepCountsEachBudgetAndSeed) {
       pose.max_iterations = options.iterations[b];
       pose.seed = 7 + s;
       const FrameOutcome o = estimate_frame_pose(q, input, pose);
-      EXPECT_EQ(sweep.frames_correct[b][s], o.localized && pose_within(o.cam_from_world, o.true_cam_from_world,
-                                                                       PoseThresholds{}));
+      EXPECT_EQ(sweep.frames_correct[b][s],
+                o.localized && pose_within(o.cam_from_world, o.true_cam_from_world, PoseThresholds{}));
     }
   }
   // 60 of 200 correspondences are exact: 500 iterations find the pose with every seed.

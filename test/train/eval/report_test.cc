@@ -43,7 +43,8 @@ TEST(BuildReport, DesignFieldsAndCurves) {
   counts.landmarks = 100;
   counts.query_keypoints = 3;
   counts.query_keypoints_with_truth = 2;
-  const nlohmann::json report = build_report(counts, {sample_method("landmarkboost"), sample_method("bruteforce_hamming")});
+  const nlohmann::json report =
+      build_report(counts, {sample_method("landmarkboost"), sample_method("bruteforce_hamming")});
   EXPECT_EQ(report["dataset"]["query_keypoints_with_truth"], 2);
   const auto& m = report["methods"]["landmarkboost"];
   EXPECT_DOUBLE_EQ(m["precision_at_1"].get<double>(), 0.5);
@@ -104,8 +105,8 @@ TEST(GeneralizationGap, SideBySideFromTheReportsSessions) {
   MethodResult query = sample_method("a");  // P@1 0.5, pose recall 0.5
   nlohmann::json sessions = nlohmann::json::array();
   sessions.push_back({{"name", "query"}, {"methods", {{"a", session_method_report(query)}}}});
-  sessions.push_back({{"name", "night"},
-                      {"methods", {{"a", {{"precision_at_1", 0.25}, {"pose_recall_20cm_5deg", 0.125}}}}}});
+  sessions.push_back(
+      {{"name", "night"}, {"methods", {{"a", {{"precision_at_1", 0.25}, {"pose_recall_20cm_5deg", 0.125}}}}}});
   report["sessions"] = sessions;
   EXPECT_EQ(session_method_report(query).at("precision_at_1").get<double>(), 0.5);
   EXPECT_EQ(session_method_report(query).at("frames_correct").get<int64_t>(), query.pose.num_correct);

@@ -203,7 +203,8 @@ TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
       }
       hits += best_c == truth[j];
     }
-    EXPECT_EQ(stats.weight_p1[i], static_cast<double>(hits) / static_cast<double>(truth.size())) << "weight " << o.weights[i];
+    EXPECT_EQ(stats.weight_p1[i], static_cast<double>(hits) / static_cast<double>(truth.size()))
+        << "weight " << o.weights[i];
   }
   // The descriptors separate all but the twins: the fused ranking beats the stump sums alone.
   EXPECT_GT(stats.fit_p1_with, stats.fit_p1_without);

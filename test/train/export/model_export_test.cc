@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <limits>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -58,8 +58,7 @@ LandmarkMap synthetic_map(uint64_t seed) {
     frame.num_keypoints = 150;
     map.frames.push_back(frame);
     for (int k = 0; k < 150; ++k) {
-      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)),
-                                       static_cast<float>(rng.uniform(0, 479)),
+      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)), static_cast<float>(rng.uniform(0, 479)),
                                        static_cast<float>(rng.uniform(10, 40)), -1.f});
       std::vector<uint8_t> desc(kBytes);
       landmark_t id = kInvalidLandmarkId;
@@ -95,8 +94,7 @@ Trained train_small(uint64_t seed, int rounds) {
   t.map = synthetic_map(seed);
   VocabularyTrainOptions vo;
   vo.num_words = 8;
-  t.vocabulary = train_vocabulary(t.map.descriptors.data(), static_cast<int64_t>(t.map.keypoints.size()),
-                                  kBytes, vo);
+  t.vocabulary = train_vocabulary(t.map.descriptors.data(), static_cast<int64_t>(t.map.keypoints.size()), kBytes, vo);
   ContextRegionOptions ro;
   ro.num_regions = 40;
   ro.seed = seed;
@@ -122,8 +120,8 @@ Trained train_small(uint64_t seed, int rounds) {
 TEST(ModelExportTest, ExportedScoresEqualTheTrainersScores) {
   const Trained t = train_small(3, 60);
   ExportStats stats;
-  const auto model = std::make_shared<const Model>(
-      export_model_data(t.boost, t.map, t.vocabulary, t.regions, {}, &stats));
+  const auto model =
+      std::make_shared<const Model>(export_model_data(t.boost, t.map, t.vocabulary, t.regions, {}, &stats));
   EXPECT_EQ(stats.num_classes, t.boost.num_classes);
   EXPECT_GT(stats.num_stumps, 0);
   // Through the file, as an app gets it.
@@ -261,8 +259,7 @@ TEST(ModelExportTest, TinyWorldQueryFrameWithin5cm1deg) {
   bo.validation.interval = 0;
   SerialStumpLearner learner(features, set, bo);
   learner.train();
-  const auto model = std::make_shared<const Model>(
-      export_model_data(learner.model(), map, vocabulary, regions));
+  const auto model = std::make_shared<const Model>(export_model_data(learner.model(), map, vocabulary, regions));
 
   // The tiny model is trained briefly: few keypoints beat the background, so every keypoint's
   // best class is kept and RANSAC gets the max_correspondences with the largest margins.
@@ -284,8 +281,8 @@ TEST(ModelExportTest, TinyWorldQueryFrameWithin5cm1deg) {
       ++queries;
       const std::vector<Keypoint> kps(map.keypoints.begin() + f.first_keypoint,
                                       map.keypoints.begin() + f.first_keypoint + f.num_keypoints);
-      const LocalizeResult r = localizer.localize(map.cameras[f.camera], kps, map.descriptor(f.first_keypoint),
-                                                  f.gravity_in_cam);
+      const LocalizeResult r =
+          localizer.localize(map.cameras[f.camera], kps, map.descriptor(f.first_keypoint), f.gravity_in_cam);
       const double pe = position_error(r.pose.cam_from_world, f.cam_from_world);
       const double re = rotation_error_deg(r.pose.cam_from_world, f.cam_from_world);
       std::printf("%s, %s: success %d, %d/%zu inliers, %.3f m, %.2f deg\n", settings[setting], f.name.c_str(),

@@ -61,7 +61,8 @@ TEST(SyntheticModelTest, BenchInferRunsOnIt) {
       std::filesystem::temp_directory_path() / ("lmb_bench_infer_" + std::to_string(::getpid()) + ".json");
   const std::string command = std::string(LMB_LBOOST) +
                               " bench infer --synthetic-paper --classes 200 --stumps 100 --frames 2 "
-                              "--keypoints 150 --train-descriptors 2000 --repeats 1 --json " + json.string();
+                              "--keypoints 150 --train-descriptors 2000 --repeats 1 --json " +
+                              json.string();
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
   std::ifstream in(json);
   const nlohmann::json j = nlohmann::json::parse(in);

@@ -37,14 +37,13 @@ LandmarkMap random_map(uint64_t seed) {
     frame.name = "map/" + std::to_string(f) + ".png";
     frame.camera = f % 2;
     const double roll = rng.uniform(-1.0, 1.0);
-    frame.gravity_in_cam = f == 4 ? Eigen::Vector3d(0, 0, 1)
-                                  : Eigen::Vector3d(std::sin(roll), std::cos(roll), 0.3).normalized();
+    frame.gravity_in_cam =
+        f == 4 ? Eigen::Vector3d(0, 0, 1) : Eigen::Vector3d(std::sin(roll), std::cos(roll), 0.3).normalized();
     frame.first_keypoint = static_cast<int64_t>(map.keypoints.size());
     frame.num_keypoints = sizes[f];
     map.frames.push_back(frame);
     for (int k = 0; k < sizes[f]; ++k) {
-      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)),
-                                       static_cast<float>(rng.uniform(0, 479)),
+      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)), static_cast<float>(rng.uniform(0, 479)),
                                        static_cast<float>(rng.uniform(8, 40)), -1.f});
       map.keypoint_landmark.push_back(rng.uniform() < 0.3 ? 0 : kInvalidLandmarkId);
     }
@@ -99,8 +98,7 @@ TEST(BuildFeatures, EveryColumnEqualsTheBruteForceEmbeddingAndDescriptorBits) {
     const int64_t kp = samples[i];
     const frame_t f = frame_of[kp];
     const FrameKeypoints frame = map_frame_keypoints(map, f, words);
-    embed_context_brute_force(regions, 8, frame, static_cast<int32_t>(kp - map.frames[f].first_keypoint),
-                              row.data());
+    embed_context_brute_force(regions, 8, frame, static_cast<int32_t>(kp - map.frames[f].first_keypoint), row.data());
     for (int32_t d = 0; d < m.num_dims; ++d) {
       const uint8_t expected =
           layout.is_context(d) ? row[d] : static_cast<uint8_t>(descriptor_bit(map.descriptor(kp), layout.bit_of(d)));
@@ -134,8 +132,7 @@ TEST(BuildFeatures, IdenticalForAnyThreadCountAndDimSubsetsMatchFullColumns) {
   ASSERT_EQ(part.num_stored_columns(), static_cast<int32_t>(options.dims.size()));
   ASSERT_EQ(part.num_dims, one.num_dims);
   for (int32_t c = 0; c < part.num_stored_columns(); ++c) {
-    ASSERT_TRUE(std::equal(part.column(c), part.column(c) + part.num_samples,
-                           one.column(options.dims[c])))
+    ASSERT_TRUE(std::equal(part.column(c), part.column(c) + part.num_samples, one.column(options.dims[c])))
         << "dim " << options.dims[c];
   }
 }
@@ -156,13 +153,11 @@ TEST(BuildFeatures, BadInputThrowsNamingTheProblem) {
   const ContextRegions regions = small_regions();
   FeatureBuildOptions options;
   // Another descriptor length.
-  EXPECT_THROW(build_training_features(map, regions, random_vocabulary(8, 32, 1), {0}, options),
-               Error);
+  EXPECT_THROW(build_training_features(map, regions, random_vocabulary(8, 32, 1), {0}, options), Error);
   EXPECT_THROW(keypoint_words(map, random_vocabulary(8, 32, 1)), Error);
   // Samples out of range.
   EXPECT_THROW(build_training_features(map, regions, vocab, {-1}, options), Error);
-  EXPECT_THROW(build_training_features(map, regions, vocab,
-                                       {static_cast<int64_t>(map.keypoints.size())}, options),
+  EXPECT_THROW(build_training_features(map, regions, vocab, {static_cast<int64_t>(map.keypoints.size())}, options),
                Error);
   // Dims unsorted, repeated, out of range; thread count.
   options.dims = {5, 3};
@@ -189,13 +184,11 @@ TEST(BuildFeatures, BadInputThrowsNamingTheProblem) {
     EXPECT_NE(std::string(e.what()).find("frame 2"), std::string::npos) << e.what();
   }
   map.keypoints[map.frames[2].first_keypoint + 7].scale = NAN;
-  EXPECT_THROW(build_training_features(map, regions, vocab, {map.frames[2].first_keypoint}, options),
-               Error);
+  EXPECT_THROW(build_training_features(map, regions, vocab, {map.frames[2].first_keypoint}, options), Error);
   map.keypoints[map.frames[2].first_keypoint + 7].scale = 10.f;
   // Zero gravity is an error; gravity along the optical axis (frame 4) is the documented fallback.
   map.frames[2].gravity_in_cam = Eigen::Vector3d::Zero();
-  EXPECT_THROW(build_training_features(map, regions, vocab, {map.frames[2].first_keypoint}, options),
-               Error);
+  EXPECT_THROW(build_training_features(map, regions, vocab, {map.frames[2].first_keypoint}, options), Error);
 }
 
 }  // namespace

@@ -177,13 +177,11 @@ std::vector<Rigid3d> upright_cameras(const Eigen::Vector3d& up, int n, double pi
     const Eigen::Vector3d forward = std::cos(yaw) * a + std::sin(yaw) * b;
     Eigen::Matrix3d world_from_level;
     world_from_level << down.cross(forward), down, forward;  // columns: camera x, y, z
-    const Eigen::Matrix3d level_from_cam =
-        (Eigen::AngleAxisd(sign * pitch_deg * M_PI / 180, Eigen::Vector3d::UnitX()) *
-         Eigen::AngleAxisd(sign * roll_deg * M_PI / 180, Eigen::Vector3d::UnitZ()))
-            .toRotationMatrix();
+    const Eigen::Matrix3d level_from_cam = (Eigen::AngleAxisd(sign * pitch_deg * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                                            Eigen::AngleAxisd(sign * roll_deg * M_PI / 180, Eigen::Vector3d::UnitZ()))
+                                               .toRotationMatrix();
     const Eigen::Matrix3d world_from_cam = world_from_level * level_from_cam;
-    poses.emplace_back(Eigen::Quaterniond(world_from_cam.transpose()).normalized(),
-                       Eigen::Vector3d(0.1 * k, 0, 0));
+    poses.emplace_back(Eigen::Quaterniond(world_from_cam.transpose()).normalized(), Eigen::Vector3d(0.1 * k, 0, 0));
   }
   return poses;
 }
@@ -201,8 +199,7 @@ TEST(EstimateUpFromCameras, UprightCamerasGiveTheUpDirectionAndTheNearestAxis) {
   EXPECT_EQ(e.nearest_axis, "-y");
   EXPECT_NEAR(e.nearest_axis_deg, 4.0, 1e-6);
   // Tilted cameras: each down axis is 15.3 deg off -up, so the mean is shorter than 1.
-  EXPECT_NEAR(e.mean_resultant_length,
-              std::cos(15.0 * M_PI / 180) * std::cos(3.0 * M_PI / 180), 1e-9);
+  EXPECT_NEAR(e.mean_resultant_length, std::cos(15.0 * M_PI / 180) * std::cos(3.0 * M_PI / 180), 1e-9);
 
   const UpEstimate z = estimate_up_from_cameras(upright_cameras(Eigen::Vector3d(0, 0, 1), 6, 0.0, 0.0));
   EXPECT_EQ(z.nearest_axis, "+z");
@@ -341,7 +338,8 @@ TEST_F(ColmapImportTest, FullDiskFailsAndLeavesNoHalfCollection) {
       ::setrlimit(RLIMIT_FSIZE, &saved);
       ::signal(SIGXFSZ, old_handler);
     }
-    EXPECT_NE(message.find(": write failed: File too large"), std::string::npos) << "limit " << limit << ": " << message;
+    EXPECT_NE(message.find(": write failed: File too large"), std::string::npos)
+        << "limit " << limit << ": " << message;
     EXPECT_TRUE(message.rfind((root_ / "collection").string(), 0) == 0) << message;
     ASSERT_TRUE(fs::exists(o.out_dir));
     EXPECT_TRUE(fs::is_empty(o.out_dir)) << "limit " << limit;

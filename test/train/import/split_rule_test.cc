@@ -90,7 +90,9 @@ TEST(SplitRule, MapListAndQueryList) {
     EXPECT_NE(std::string(e.what()).find("leaves no map frame"), std::string::npos) << e.what();
   }
   fs::remove(list);
-  EXPECT_NE(error_of("query-list:" + list.string()).find(list.string() + ": cannot open file: No such file or directory"), std::string::npos);
+  EXPECT_NE(
+      error_of("query-list:" + list.string()).find(list.string() + ": cannot open file: No such file or directory"),
+      std::string::npos);
 }
 
 TEST(SplitRule, BadRulesFailClearly) {

@@ -65,8 +65,8 @@ class TumImportTest : public ::testing::Test {
     auto sample = [&](double t) {
       const Rigid3d p = true_world_from_cam(t);
       const Eigen::Quaterniond& q = p.rotation;
-      gt << t << ' ' << p.translation.x() << ' ' << p.translation.y() << ' ' << p.translation.z() << ' ' << q.x()
-         << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
+      gt << t << ' ' << p.translation.x() << ' ' << p.translation.y() << ' ' << p.translation.z() << ' ' << q.x() << ' '
+         << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
     };
     for (int k = 0; k <= 12; ++k) sample(100.0 + 0.01 * k);
     for (int k = 0; k <= 5; ++k) sample(100.4 + 0.01 * k);
@@ -90,8 +90,8 @@ class TumImportTest : public ::testing::Test {
   fs::path root_, data_;
   // Skipped without ground truth: 99.0 (before it), 100.2 (80 ms after the last sample before
   // the gap), 100.5 (50 ms after the end). 100.425 has ground truth but no accelerometer.
-  std::vector<double> image_times_ = {99.0,   100.0,   100.013, 100.033, 100.047, 100.066,
-                                      100.08, 100.1,   100.2,   100.425, 100.5};
+  std::vector<double> image_times_ = {99.0,   100.0, 100.013, 100.033, 100.047, 100.066,
+                                      100.08, 100.1, 100.2,   100.425, 100.5};
 };
 
 TEST_F(TumImportTest, InterpolationKnownValues) {
@@ -212,9 +212,9 @@ TEST_F(TumImportTest, ImportsCountsSplitsAndLinks) {
   EXPECT_EQ(m.cameras.at(1).model, CameraModel::kFullOpenCV);
   EXPECT_EQ(m.cameras.at(1).params[8], 1.1633);
   ASSERT_EQ(m.images.size(), 8u);
-  const std::vector<std::string> expected = {"map/100.000.png",   "query/100.013.png", "query/100.033.png",
-                                             "map/100.047.png",   "query/100.066.png", "query/100.080.png",
-                                             "map/100.100.png",   "query/100.425.png"};
+  const std::vector<std::string> expected = {"map/100.000.png", "query/100.013.png", "query/100.033.png",
+                                             "map/100.047.png", "query/100.066.png", "query/100.080.png",
+                                             "map/100.100.png", "query/100.425.png"};
   for (size_t i = 0; i < 8; ++i) {
     EXPECT_EQ(m.images[i].name, expected[i]);
     const fs::path link = o.out_dir / "images" / m.images[i].name;
@@ -316,8 +316,7 @@ TEST_F(TumImportTest, MalformedInputsFailWithFileAndLine) {
   EXPECT_NE(error(o).find("groundtruth.txt line 22: quaternion is not a rotation"), std::string::npos) << error(o);
   write_sequence();
   std::ofstream(data_ / "groundtruth.txt", std::ios::app) << "100.3 0 0 0 0 0 0 1\n";
-  EXPECT_NE(error(o).find("groundtruth.txt line 22: timestamp 100.3 is not after the previous one"),
-            std::string::npos)
+  EXPECT_NE(error(o).find("groundtruth.txt line 22: timestamp 100.3 is not after the previous one"), std::string::npos)
       << error(o);
   write_sequence();
   std::ofstream(data_ / "accelerometer.txt", std::ios::app) << "200 1 nan 2\n";
@@ -365,13 +364,14 @@ TEST(TumImportRealData, Freiburg1RpyImportsAndReadsBack) {
   // the best of the six axes.
   ASSERT_TRUE(s.gravity_agreement.has_value());
   const GravityAgreement& a = *s.gravity_agreement;
-  std::printf("accelerometer vs mocap gravity: median %.2f deg, mean %.2f, p90 %.2f; by axis +x %.1f -x %.1f "
-              "+y %.1f -y %.1f +z %.1f -z %.1f; best offset %+.3f s (%.2f deg); fitted rotation %.2f deg off "
-              "(median %.2f deg after)\n",
-              a.median_deg, a.mean_deg, a.p90_deg, a.median_deg_by_world_axis[0], a.median_deg_by_world_axis[1],
-              a.median_deg_by_world_axis[2], a.median_deg_by_world_axis[3], a.median_deg_by_world_axis[4],
-              a.median_deg_by_world_axis[5], a.best_time_offset_s, a.best_time_offset_median_deg,
-              a.fitted_rotation_offset_deg, a.fitted_median_deg);
+  std::printf(
+      "accelerometer vs mocap gravity: median %.2f deg, mean %.2f, p90 %.2f; by axis +x %.1f -x %.1f "
+      "+y %.1f -y %.1f +z %.1f -z %.1f; best offset %+.3f s (%.2f deg); fitted rotation %.2f deg off "
+      "(median %.2f deg after)\n",
+      a.median_deg, a.mean_deg, a.p90_deg, a.median_deg_by_world_axis[0], a.median_deg_by_world_axis[1],
+      a.median_deg_by_world_axis[2], a.median_deg_by_world_axis[3], a.median_deg_by_world_axis[4],
+      a.median_deg_by_world_axis[5], a.best_time_offset_s, a.best_time_offset_median_deg, a.fitted_rotation_offset_deg,
+      a.fitted_median_deg);
   EXPECT_LT(a.median_deg, 10.0);
   for (int k = 0; k < 6; ++k) {
     if (k != 4) {

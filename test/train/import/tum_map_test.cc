@@ -149,7 +149,8 @@ TEST(TumMapRealData, ThirdsOfTheSequenceJoinAsSessions) {
   for (size_t f = 0; f < map.frames.size(); ++f) {
     EXPECT_EQ(map.frames[f].session, static_cast<int32_t>(f / 8));
     EXPECT_EQ(map.frames[f].is_query, f >= 16);
-    for (int64_t k = map.frames[f].first_keypoint; k < map.frames[f].first_keypoint + map.frames[f].num_keypoints; ++k) {
+    for (int64_t k = map.frames[f].first_keypoint; k < map.frames[f].first_keypoint + map.frames[f].num_keypoints;
+         ++k) {
       if (map.keypoint_landmark[k] >= 0) ++seen[map.keypoint_landmark[k]][static_cast<size_t>(map.frames[f].session)];
     }
   }
@@ -158,10 +159,11 @@ TEST(TumMapRealData, ThirdsOfTheSequenceJoinAsSessions) {
     both_map += c[0] > 0 && c[1] > 0;
     with_query += c[2] > 0;
   }
-  std::printf("fr1_rpy thirds: %zu landmarks, %lld seen in both map thirds, %lld seen by the query third, "
-              "%lld query keypoints with a landmark, mean reprojection error %.3f px\n",
-              map.landmarks.size(), static_cast<long long>(both_map), static_cast<long long>(with_query),
-              static_cast<long long>(stats.num_query_observations), stats.mean_reprojection_error_px);
+  std::printf(
+      "fr1_rpy thirds: %zu landmarks, %lld seen in both map thirds, %lld seen by the query third, "
+      "%lld query keypoints with a landmark, mean reprojection error %.3f px\n",
+      map.landmarks.size(), static_cast<long long>(both_map), static_cast<long long>(with_query),
+      static_cast<long long>(stats.num_query_observations), stats.mean_reprojection_error_px);
   EXPECT_GE(map.landmarks.size(), 200u);
   EXPECT_GT(both_map, 50);
   EXPECT_GT(stats.num_query_observations, 100);

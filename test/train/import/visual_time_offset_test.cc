@@ -110,8 +110,7 @@ TEST(VisualTimeOffset, FailsWithoutUsablePairs) {
                Error);
   fs::remove(dir / images[1].file);
   try {
-    scan_time_offset_visual(dir, images, trajectory, parse_camera_line("PINHOLE 80 60 50 50 40 30"), 0.01, 0.005,
-                            0.02);
+    scan_time_offset_visual(dir, images, trajectory, parse_camera_line("PINHOLE 80 60 50 50 40 30"), 0.01, 0.005, 0.02);
     ADD_FAILURE() << "missing image accepted";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("1.png: cannot read image"), std::string::npos) << e.what();

@@ -75,9 +75,9 @@ TEST_F(GravityCliTest, MapUsesTheCollectionsGravityFileAndSaysSo) {
   const fs::path file = dir_ / "coll" / "gravity.txt";
   write_gravity_file(gravity, file);
   const fs::path out = dir_ / "map.h5";
-  const RunResult r = run("map --collection " + (dir_ / "coll").string() + " --out " + out.string() +
-                              " --threads 2 --min-observations 2",
-                          dir_);
+  const RunResult r = run(
+      "map --collection " + (dir_ / "coll").string() + " --out " + out.string() + " --threads 2 --min-observations 2",
+      dir_);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("map: gravity: per image from " + file.string() + " (found in the collection"),
             std::string::npos)
@@ -90,7 +90,8 @@ TEST_F(GravityCliTest, MapUsesTheCollectionsGravityFileAndSaysSo) {
 
   // An explicit --up that contradicts the file: one error line, nothing written.
   const fs::path out2 = dir_ / "map2.h5";
-  const RunResult e = run("map --collection " + (dir_ / "coll").string() + " --out " + out2.string() + " --up +z", dir_);
+  const RunResult e =
+      run("map --collection " + (dir_ / "coll").string() + " --out " + out2.string() + " --up +z", dir_);
   EXPECT_NE(e.exit_code, 0);
   EXPECT_EQ(e.err, "lboost map: error: --up +z disagrees with " + file.string() +
                        " by a median 180.0 deg over 10 images: drop --up to use the file, or pass --gravity none "

@@ -39,8 +39,8 @@ TEST(GuidedMatching, FindsTrueMatchesDespiteAliasing) {
     const MatchingFrame a = frame_of(s, fa), b = frame_of(s, fb);
     const auto matches = matcher.match(a, b);
     const Quality q = judge(s, fa, fb, matches);
-    SCOPED_TRACE(testing::Message() << fa << "-" << fb << ": " << q.correct << " correct, " << q.wrong
-                                    << " wrong, " << q.common << " common");
+    SCOPED_TRACE(testing::Message() << fa << "-" << fb << ": " << q.correct << " correct, " << q.wrong << " wrong, "
+                                    << q.common << " common");
     EXPECT_GT(q.common, 50);
     EXPECT_LE(q.wrong, 0.02 * (q.correct + q.wrong));
     EXPECT_GE(q.correct, 0.6 * q.common);

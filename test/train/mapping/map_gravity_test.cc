@@ -94,8 +94,9 @@ TEST_F(MapGravityTest, TheCollectionsGravityFileIsUsedByDefault) {
 TEST_F(MapGravityTest, AnExplicitUpThatDisagreesWithTheFileIsAnError) {
   write_gravity(Eigen::Vector3d(0, 0, -1));
   const std::string e = error(request("", "+z", true));
-  EXPECT_NE(e.find("--up +z disagrees with " + (dir_ / "gravity.txt").string() + " by a median 180.0 deg over 5 images"),
-            std::string::npos)
+  EXPECT_NE(
+      e.find("--up +z disagrees with " + (dir_ / "gravity.txt").string() + " by a median 180.0 deg over 5 images"),
+      std::string::npos)
       << e;
   EXPECT_NE(e.find("--gravity none"), std::string::npos) << e;
 }
@@ -127,8 +128,9 @@ TEST_F(MapGravityTest, GravityNoneAndAnExplicitFile) {
   EXPECT_EQ(file.gravity_file, other);
   EXPECT_EQ(file.description, "per image from " + other.string() + " (--gravity)");
 
-  EXPECT_NE(error(request(other.string(), "+z", true)).find("--gravity " + other.string() + " and --up +z are exclusive"),
-            std::string::npos);
+  EXPECT_NE(
+      error(request(other.string(), "+z", true)).find("--gravity " + other.string() + " and --up +z are exclusive"),
+      std::string::npos);
   EXPECT_NE(error(request((dir_ / "missing.txt").string(), "+z", false)).find("missing.txt: no such file"),
             std::string::npos);
   EXPECT_NE(error(request("", "up", true)).find("--up: 'up' is not an axis"), std::string::npos);

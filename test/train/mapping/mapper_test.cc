@@ -22,9 +22,9 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Accuracy {
-  double mean_purity = 0;          // per landmark: share of observations of its majority point
+  double mean_purity = 0;  // per landmark: share of observations of its majority point
   double median_position_error = 0;
-  double query_label_accuracy = 0; // query keypoints with a landmark whose majority point is theirs
+  double query_label_accuracy = 0;  // query keypoints with a landmark whose majority point is theirs
   int64_t landmarks = 0;
 };
 
@@ -82,10 +82,11 @@ TEST(BuildLandmarkMap, RecoversSyntheticGroundTruth) {
   const LandmarkMap map = build_landmark_map({s.camera}, s.frames, "BRISK", 64, options, &stats);
   validate_landmark_map(map, "mapped");
   const Accuracy a = evaluate(s, map);
-  std::printf("synthetic: %lld landmarks, purity %.4f, median position error %.4f m, query labels %.4f, "
-              "%.2f obs/landmark\n",
-              static_cast<long long>(a.landmarks), a.mean_purity, a.median_position_error, a.query_label_accuracy,
-              stats.mean_map_observations);
+  std::printf(
+      "synthetic: %lld landmarks, purity %.4f, median position error %.4f m, query labels %.4f, "
+      "%.2f obs/landmark\n",
+      static_cast<long long>(a.landmarks), a.mean_purity, a.median_position_error, a.query_label_accuracy,
+      stats.mean_map_observations);
   EXPECT_GT(a.landmarks, 800);
   EXPECT_GT(a.mean_purity, 0.99);
   EXPECT_LT(a.median_position_error, 0.02);
@@ -152,8 +153,10 @@ TEST(BuildLandmarkMap, TracksJoinMapSessionsAndOutsideFramesStayBackground) {
   test::SyntheticSceneOptions o;
   o.num_points = 1200;
   const test::SyntheticScene s = test::make_synthetic_scene(o);
-  const std::vector<MapSession> sessions = {{"walk-a", SessionKind::kMap}, {"walk-b", SessionKind::kMap},
-                                            {"query", SessionKind::kQuery}, {"elsewhere", SessionKind::kOutside}};
+  const std::vector<MapSession> sessions = {{"walk-a", SessionKind::kMap},
+                                            {"walk-b", SessionKind::kMap},
+                                            {"query", SessionKind::kQuery},
+                                            {"elsewhere", SessionKind::kOutside}};
   std::vector<MapperFrame> frames;
   int map_index = 0;
   for (const MapperFrame& f : s.frames) {

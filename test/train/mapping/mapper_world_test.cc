@@ -38,13 +38,14 @@ TEST(MapperOnRenderedWorld, TinyWorldMatchesDepthGroundTruth) {
 
   const MapAccuracy a = check_map_against_depth(reread, dir / "world");
   const HammingNnStats nn = evaluate_hamming_nn(reread, 2);
-  std::printf("tiny world: %lld landmarks, %.2f map obs/landmark, %lld query keypoints with a landmark; "
-              "purity %.4f (observations %.4f, pure tracks %.4f); position error median %.4f m, "
-              "mean %.4f m, p90 %.4f m; hamming NN precision@1 %.4f; mapping %.1f s\n",
-              static_cast<long long>(stats.num_landmarks), stats.mean_map_observations,
-              static_cast<long long>(stats.num_query_observations), a.mean_track_purity, a.observation_purity,
-              a.pure_track_share, a.median_position_error_m, a.mean_position_error_m, a.p90_position_error_m,
-              nn.precision_at_1, stats.total_seconds);
+  std::printf(
+      "tiny world: %lld landmarks, %.2f map obs/landmark, %lld query keypoints with a landmark; "
+      "purity %.4f (observations %.4f, pure tracks %.4f); position error median %.4f m, "
+      "mean %.4f m, p90 %.4f m; hamming NN precision@1 %.4f; mapping %.1f s\n",
+      static_cast<long long>(stats.num_landmarks), stats.mean_map_observations,
+      static_cast<long long>(stats.num_query_observations), a.mean_track_purity, a.observation_purity,
+      a.pure_track_share, a.median_position_error_m, a.mean_position_error_m, a.p90_position_error_m, nn.precision_at_1,
+      stats.total_seconds);
   EXPECT_EQ(stats.num_map_frames, world.map_frames);
   EXPECT_EQ(stats.num_query_frames, world.query_frames);
   EXPECT_GT(stats.num_landmarks, 1000);
@@ -98,13 +99,14 @@ TEST(MapperOnRenderedWorld, TwoMapSessionsJoinAndCollectionsJoinTheSame) {
   int64_t both = 0;
   for (const auto& c : seen) both += c[0] > 0 && c[1] > 0;
   const MapAccuracy a = check_map_against_depth(reread, dir / "world");
-  std::printf("tiny world, 2 map sessions: %lld landmarks, %lld (%.1f%%) observed in both map sessions, %.2f map "
-              "obs/landmark, %lld query keypoints with a landmark; purity %.4f, position error median %.4f m, "
-              "p90 %.4f m\n",
-              static_cast<long long>(stats.num_landmarks), static_cast<long long>(both),
-              100.0 * static_cast<double>(both) / std::max<double>(1.0, static_cast<double>(stats.num_landmarks)),
-              stats.mean_map_observations, static_cast<long long>(stats.num_query_observations), a.mean_track_purity,
-              a.median_position_error_m, a.p90_position_error_m);
+  std::printf(
+      "tiny world, 2 map sessions: %lld landmarks, %lld (%.1f%%) observed in both map sessions, %.2f map "
+      "obs/landmark, %lld query keypoints with a landmark; purity %.4f, position error median %.4f m, "
+      "p90 %.4f m\n",
+      static_cast<long long>(stats.num_landmarks), static_cast<long long>(both),
+      100.0 * static_cast<double>(both) / std::max<double>(1.0, static_cast<double>(stats.num_landmarks)),
+      stats.mean_map_observations, static_cast<long long>(stats.num_query_observations), a.mean_track_purity,
+      a.median_position_error_m, a.p90_position_error_m);
   EXPECT_GT(stats.num_landmarks, 600);
   EXPECT_GT(both, 0.4 * static_cast<double>(stats.num_landmarks));
   EXPECT_GT(stats.num_query_observations, 300);

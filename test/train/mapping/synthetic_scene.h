@@ -66,7 +66,8 @@ inline SyntheticScene make_synthetic_scene(const SyntheticSceneOptions& o) {
   for (auto& b : pattern) b = static_cast<uint8_t>(rng.below(256));
   std::vector<uint8_t> point_desc(static_cast<size_t>(o.num_points) * bytes);
   for (int p = 0; p < o.num_points; ++p) {
-    std::copy_n(pattern.begin() + static_cast<size_t>(p % patterns) * bytes, bytes, point_desc.begin() + static_cast<size_t>(p) * bytes);
+    std::copy_n(pattern.begin() + static_cast<size_t>(p % patterns) * bytes, bytes,
+                point_desc.begin() + static_cast<size_t>(p) * bytes);
     for (int u = 0; u < o.unique_bits; ++u) {
       const int bit = static_cast<int>(rng.below(8 * bytes));
       point_desc[static_cast<size_t>(p) * bytes + bit / 8] ^= static_cast<uint8_t>(1 << (bit % 8));
@@ -112,8 +113,9 @@ inline SyntheticScene make_synthetic_scene(const SyntheticSceneOptions& o) {
   }
   for (int i = 0; i < o.num_query_frames; ++i) {
     const double x = 0.5 + 1.3 * i;
-    add_frame(look_along(Eigen::Vector3d(x, rng.uniform(-0.6, 0.6), 1.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.1)),
-              true, i);
+    add_frame(
+        look_along(Eigen::Vector3d(x, rng.uniform(-0.6, 0.6), 1.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.1)),
+        true, i);
   }
   return s;
 }

@@ -76,17 +76,21 @@ TEST(BuildTracks, IndependentOfMatchOrderAndAgreesWithBruteForce) {
     if (frame[m.a] == frame[m.b] || (track_of[m.a] >= 0 && track_of[m.a] == track_of[m.b])) continue;
     // Not joined: a conflict must exist between the final tracks (or singletons).
     std::vector<frame_t> fa, fb;
-    if (track_of[m.a] >= 0) for (int64_t k : reference[track_of[m.a]]) fa.push_back(frame[k]); else fa.push_back(frame[m.a]);
-    if (track_of[m.b] >= 0) for (int64_t k : reference[track_of[m.b]]) fb.push_back(frame[k]); else fb.push_back(frame[m.b]);
+    if (track_of[m.a] >= 0)
+      for (int64_t k : reference[track_of[m.a]]) fa.push_back(frame[k]);
+    else
+      fa.push_back(frame[m.a]);
+    if (track_of[m.b] >= 0)
+      for (int64_t k : reference[track_of[m.b]]) fb.push_back(frame[k]);
+    else
+      fb.push_back(frame[m.b]);
     bool conflict = false;
     for (frame_t x : fa) conflict |= std::find(fb.begin(), fb.end(), x) != fb.end();
     EXPECT_TRUE(conflict) << "match " << m.a << "-" << m.b << " was dropped without a conflict";
   }
 }
 
-TEST(BuildTracks, RejectsOutOfRangeIndices) {
-  EXPECT_THROW(build_tracks({0, 1}, {{0, 2, 1}}), Error);
-}
+TEST(BuildTracks, RejectsOutOfRangeIndices) { EXPECT_THROW(build_tracks({0, 1}, {{0, 2, 1}}), Error); }
 
 }  // namespace
 }  // namespace lmb

@@ -17,8 +17,8 @@ Camera test_camera() {
   return c;
 }
 
-std::vector<TrackObservation> observe(const Camera& camera, const Eigen::Vector3d& point, int n, double noise,
-                                      Rng& rng, double spacing = 0.3) {
+std::vector<TrackObservation> observe(const Camera& camera, const Eigen::Vector3d& point, int n, double noise, Rng& rng,
+                                      double spacing = 0.3) {
   std::vector<TrackObservation> obs;
   for (int i = 0; i < n; ++i) {
     const Rigid3d pose = test::look_along(Eigen::Vector3d(spacing * i, 0.1 * i, 1.5), 0.05 * i);

@@ -62,7 +62,8 @@ TEST(WorldModelTest, LayoutKnobsShapeTheWorld) {
 }
 
 // The default preset aliases more than tiny: more repeats of each door, pillar and poster design
-// per unique cue (docs/evaluation.md "The rendered worlds and their aliasing": Hamming-NN precision@1 well below the control world's).
+// per unique cue (docs/evaluation.md "The rendered worlds and their aliasing": Hamming-NN precision@1 well below the
+// control world's).
 TEST(WorldModelTest, DefaultPresetRepeatsElementsMoreThanTiny) {
   const WorldOptions d = world_preset("default");
   const World w = build_world(d);

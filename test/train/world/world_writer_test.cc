@@ -5,9 +5,9 @@
 #include <map>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <unistd.h>
 
 #include "common/error.h"
 #include "common/io/colmap_model.h"
@@ -142,11 +142,10 @@ TEST_F(WorldWriterTest, MultiSessionWorldWritesEverySessionAndKeepsTheFirst) {
   const ColmapModel m = read_colmap_text(root_ / "multi" / "sparse");
   std::vector<std::string> image_names;
   for (const ColmapImage& im : m.images) image_names.push_back(im.name);
-  EXPECT_EQ(image_names, (std::vector<std::string>{"map/000000.png", "map/000001.png", "map/000002.png",
-                                                    "map-2/000000.png", "map-2/000001.png", "query/000000.png",
-                                                    "query-2/000000.png"}));
-  EXPECT_EQ(image_sessions(sessions, m, root_ / "multi" / "sessions.txt"),
-            (std::vector<int32_t>{0, 0, 0, 1, 1, 2, 3}));
+  EXPECT_EQ(image_names,
+            (std::vector<std::string>{"map/000000.png", "map/000001.png", "map/000002.png", "map-2/000000.png",
+                                      "map-2/000001.png", "query/000000.png", "query-2/000000.png"}));
+  EXPECT_EQ(image_sessions(sessions, m, root_ / "multi" / "sessions.txt"), (std::vector<int32_t>{0, 0, 0, 1, 1, 2, 3}));
   std::ifstream f(root_ / "multi" / "world.json");
   const nlohmann::json j = nlohmann::json::parse(f);
   EXPECT_EQ(j["counts"]["map_sessions"], 2);
@@ -161,8 +160,8 @@ TEST_F(WorldWriterTest, MultiSessionWorldWritesEverySessionAndKeepsTheFirst) {
   one.query_frames = 1;
   write_world(one, root_ / "one");
   const auto multi_files = read_tree(root_ / "multi"), one_files = read_tree(root_ / "one");
-  for (const char* name : {"images/map/000000.png", "images/map/000002.png", "depth/map/000001.png",
-                           "images/query/000000.png"}) {
+  for (const char* name :
+       {"images/map/000000.png", "images/map/000002.png", "depth/map/000001.png", "images/query/000000.png"}) {
     ASSERT_TRUE(multi_files.count(name)) << name;
     EXPECT_EQ(multi_files.at(name), one_files.at(name)) << name;
   }
