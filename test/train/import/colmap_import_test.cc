@@ -320,8 +320,8 @@ TEST_F(ColmapImportTest, FullDiskFailsAndLeavesNoHalfCollection) {
   // Each written file in turn is the first one too large: the limits just below their sizes.
   import_colmap(o);
   std::vector<rlim_t> limits = {0};
-  for (const fs::path f : {o.out_dir / "sparse" / "cameras.txt", o.out_dir / "sparse" / "images.txt",
-                           o.out_dir / "sparse" / "points3D.txt", o.out_dir / "gravity.txt"}) {
+  for (const fs::path& f : {o.out_dir / "sparse" / "cameras.txt", o.out_dir / "sparse" / "images.txt",
+                            o.out_dir / "sparse" / "points3D.txt", o.out_dir / "gravity.txt"}) {
     limits.push_back(static_cast<rlim_t>(fs::file_size(f)) - 1);
   }
   fs::remove_all(o.out_dir);
