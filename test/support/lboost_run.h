@@ -4,11 +4,14 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+
+#include <gtest/gtest.h>
 
 namespace lmb::test {
 
@@ -41,6 +44,15 @@ inline RunResult run_lboost(const std::string& args, const std::filesystem::path
   std::filesystem::remove(out);
   std::filesystem::remove(err);
   return r;
+}
+
+// The run failed with exit code 1 and one line on stderr, "lboost COMMAND: error: ...", holding
+// `needle` (the project's rule for every error: docs/input_validation.md).
+inline void expect_one_error(const RunResult& r, const std::string& command, const std::string& needle) {
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(r.err.rfind("lboost " + command + ": error: ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.err;
 }
 
 }  // namespace lmb::test

@@ -32,18 +32,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
+using test::expect_one_error;
 using test::RunResult;
 using test::slurp;
 
 RunResult run(const std::string& args, const fs::path& dir, const std::string& prefix = "") {
   return test::run_lboost(args, dir, prefix);
-}
-
-void expect_one_error(const RunResult& r, const std::string& command, const std::string& needle) {
-  EXPECT_EQ(r.exit_code, 1) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_EQ(r.err.rfind("lboost " + command + ": error: ", 0), 0u) << r.err;
-  EXPECT_NE(r.err.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.err;
 }
 
 class AreasCliTest : public ::testing::Test {

@@ -28,6 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
+using test::expect_one_error;
 using test::RunResult;
 using test::slurp;
 
@@ -43,13 +44,6 @@ std::vector<std::string> lboost_lines(const std::string& err) {
     if (line.rfind("lboost", 0) == 0) lines.push_back(line);
   }
   return lines;
-}
-
-void expect_one_error(const RunResult& r, const std::string& command, const std::string& needle) {
-  EXPECT_EQ(r.exit_code, 1) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_EQ(r.err.rfind("lboost " + command + ": error: ", 0), 0u) << r.err;
-  EXPECT_NE(r.err.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.err;
 }
 
 // Every file of a folder tree with its bytes: "the folder is exactly as it was".

@@ -62,12 +62,7 @@ void report_paths(const nlohmann::json& j, const std::string& path, std::set<std
   }
 }
 
-void expect_one_error_line(const RunResult& r, const std::string& needle) {
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(r.err.rfind("lboost eval: error: ", 0), 0u) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
-}
+void expect_eval_error(const RunResult& r, const std::string& needle) { test::expect_one_error(r, "eval", needle); }
 
 class EvalCliTest : public ::testing::Test {
  protected:
@@ -339,10 +334,10 @@ TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
   EXPECT_NE(r.out.find("pose recall at each --pose-thresholds pair"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("0.05 m, 1 deg"), std::string::npos) << r.out;
   EXPECT_EQ(eval_.out.find("pose recall at each --pose-thresholds pair"), std::string::npos) << eval_.out;
-  expect_one_error_line(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --report " +
-                                (dir_ / "bad_report.json").string() + " --pose-thresholds 0.2",
-                            dir_),
-                        "--pose-thresholds '0.2': '0.2' is not METRES,DEGREES");
+  expect_eval_error(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --report " +
+                            (dir_ / "bad_report.json").string() + " --pose-thresholds 0.2",
+                        dir_),
+                    "--pose-thresholds '0.2': '0.2' is not METRES,DEGREES");
 }
 
 // `lboost localize` and `lboost eval` name the accepted matches' metrics alike and agree on them
@@ -606,10 +601,10 @@ TEST_F(EvalCliTest, QuerySessionsAreReportedAndSelectedByName) {
   }
 
   const std::string bad = common + (dir_ / "bad_report.json").string() + " --query-session ";
-  expect_one_error_line(run(bad + "map", dir_), "'map': a map session");
-  expect_one_error_line(run(bad + "elsewhere", dir_), "'elsewhere': an outside session");
-  expect_one_error_line(run(bad + "nowhere", dir_), "'nowhere': " + split.string() + " has no such session");
-  expect_one_error_line(run(bad + "query,query", dir_), "'query' given twice");
+  expect_eval_error(run(bad + "map", dir_), "'map': a map session");
+  expect_eval_error(run(bad + "elsewhere", dir_), "'elsewhere': an outside session");
+  expect_eval_error(run(bad + "nowhere", dir_), "'nowhere': " + split.string() + " has no such session");
+  expect_eval_error(run(bad + "query,query", dir_), "'query' given twice");
   EXPECT_FALSE(fs::exists(dir_ / "bad_report.json"));
 }
 
@@ -621,8 +616,8 @@ TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
   LandmarkMap moved = map;
   for (Landmark& l : moved.landmarks) l.position.x() += 1.0;
   write_map_h5(moved, dir_ / "moved.h5");
-  expect_one_error_line(run("eval" + model + " --map " + (dir_ / "moved.h5").string() + report, dir_),
-                        "trained on another map");
+  expect_eval_error(run("eval" + model + " --map " + (dir_ / "moved.h5").string() + report, dir_),
+                    "trained on another map");
   // A map without query frames.
   LandmarkMap no_query = map;
   ASSERT_EQ(no_query.sessions.front().kind, SessionKind::kMap);
@@ -636,12 +631,11 @@ TEST_F(EvalCliTest, MismatchedInputsGiveOneLineErrors) {
     l.num_query_observations = 0;
   }
   write_map_h5(no_query, dir_ / "no_query.h5");
-  expect_one_error_line(run("eval" + model + " --map " + (dir_ / "no_query.h5").string() + report, dir_),
-                        "no query session");
+  expect_eval_error(run("eval" + model + " --map " + (dir_ / "no_query.h5").string() + report, dir_),
+                    "no query session");
   // An unknown method.
-  expect_one_error_line(
-      run("eval" + model + " --map " + map_.string() + report + " --methods landmarkboost,faiss", dir_),
-      "unknown method 'faiss'");
+  expect_eval_error(run("eval" + model + " --map " + map_.string() + report + " --methods landmarkboost,faiss", dir_),
+                    "unknown method 'faiss'");
   EXPECT_FALSE(fs::exists(dir_ / "bad_report.json"));
 }
 

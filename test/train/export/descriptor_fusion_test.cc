@@ -15,6 +15,7 @@
 #include "common/hamming.h"
 #include "common/random.h"
 #include "infer/classifier.h"
+#include "test/support/synthetic_map.h"
 #include "train/boost/stump_learner.h"
 #include "train/export/model_export.h"
 #include "train/features/build_features.h"
@@ -28,55 +29,16 @@ constexpr int kBytes = 16;
 // observation), observed in most frames; landmarks 0..5 share two base descriptors (twins, which
 // only the stumps can tell apart); the rest background. Frame 11 is a query frame.
 LandmarkMap synthetic_map(uint64_t seed) {
-  Rng rng(seed);
-  LandmarkMap map;
-  map.descriptor_bytes = kBytes;
-  Camera cam;
-  cam.model = CameraModel::kPinhole;
-  cam.width = 640;
-  cam.height = 480;
-  cam.params = {500, 500, 320, 240};
-  map.cameras = {cam};
-  const int num_landmarks = 36;
-  std::vector<std::vector<uint8_t>> base(num_landmarks, std::vector<uint8_t>(kBytes));
-  for (auto& d : base) {
-    for (auto& b : d) b = static_cast<uint8_t>(rng.below(256));
-  }
-  for (int l = 1; l < 6; ++l) base[l] = base[l % 2];
-  map.landmarks.resize(num_landmarks);
-  for (auto& l : map.landmarks) {
-    l.position = Eigen::Vector3d(rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(3, 6));
-    l.quality = 1.f;
-  }
-  for (int f = 0; f < 12; ++f) {
-    MapFrame frame;
-    frame.name = (f == 11 ? "query/" : "map/") + std::to_string(f);
-    frame.is_query = f == 11;
-    frame.gravity_in_cam = Eigen::Vector3d(0.1 * (f % 3), 1.0, 0.2).normalized();
-    frame.first_keypoint = static_cast<int64_t>(map.keypoints.size());
-    frame.num_keypoints = 120;
-    map.frames.push_back(frame);
-    for (int k = 0; k < 120; ++k) {
-      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)), static_cast<float>(rng.uniform(0, 479)),
-                                       static_cast<float>(rng.uniform(10, 40)), -1.f});
-      std::vector<uint8_t> desc(kBytes);
-      landmark_t id = kInvalidLandmarkId;
-      if (k < num_landmarks && rng.uniform() < 0.8) {
-        id = k;
-        desc = base[k];
-        for (int flip = 0; flip < 10; ++flip) {
-          const int bit = static_cast<int>(rng.below(8 * kBytes));
-          desc[bit / 8] ^= static_cast<uint8_t>(1 << (bit % 8));
-        }
-        (f == 11 ? map.landmarks[id].num_query_observations : map.landmarks[id].num_map_observations)++;
-      } else {
-        for (auto& b : desc) b = static_cast<uint8_t>(rng.below(256));
-      }
-      map.keypoint_landmark.push_back(id);
-      map.descriptors.insert(map.descriptors.end(), desc.begin(), desc.end());
-    }
-  }
-  return map;
+  test::SyntheticMapSpec spec;
+  spec.descriptor_bytes = kBytes;
+  spec.num_landmarks = 36;
+  spec.num_frames = 12;
+  spec.keypoints_per_frame = 120;
+  spec.track_probability = 0.8;
+  spec.bit_flips = 10;
+  spec.twins = 6;
+  spec.random_roll = false;
+  return test::synthetic_map(seed, spec);
 }
 
 struct Fixture {

@@ -17,6 +17,7 @@
 #include "common/random.h"
 #include "infer/classifier.h"
 #include "infer/localizer.h"
+#include "test/support/synthetic_map.h"
 #include "train/boost/stump_learner.h"
 #include "train/boost/training_set.h"
 #include "train/features/build_features.h"
@@ -29,55 +30,9 @@ constexpr int kBytes = 16;
 // A map of 8 frames x 150 keypoints; 40 landmarks, each observed in 4..7 frames with its own base
 // descriptor (a few bits flipped per observation); the rest background. Frame 7 is a query frame.
 LandmarkMap synthetic_map(uint64_t seed) {
-  Rng rng(seed);
-  LandmarkMap map;
-  map.descriptor_bytes = kBytes;
-  Camera cam;
-  cam.model = CameraModel::kPinhole;
-  cam.width = 640;
-  cam.height = 480;
-  cam.params = {500, 500, 320, 240};
-  map.cameras = {cam};
-  const int num_landmarks = 40;
-  std::vector<std::vector<uint8_t>> base(num_landmarks, std::vector<uint8_t>(kBytes));
-  for (auto& d : base) {
-    for (auto& b : d) b = static_cast<uint8_t>(rng.below(256));
-  }
-  map.landmarks.resize(num_landmarks);
-  for (auto& l : map.landmarks) {
-    l.position = Eigen::Vector3d(rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(3, 6));
-    l.quality = 1.f;
-  }
-  for (int f = 0; f < 8; ++f) {
-    MapFrame frame;
-    frame.name = (f == 7 ? "query/" : "map/") + std::to_string(f);
-    frame.is_query = f == 7;
-    const double roll = rng.uniform(-0.5, 0.5);
-    frame.gravity_in_cam = Eigen::Vector3d(std::sin(roll), std::cos(roll), 0.2).normalized();
-    frame.first_keypoint = static_cast<int64_t>(map.keypoints.size());
-    frame.num_keypoints = 150;
-    map.frames.push_back(frame);
-    for (int k = 0; k < 150; ++k) {
-      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 639)), static_cast<float>(rng.uniform(0, 479)),
-                                       static_cast<float>(rng.uniform(10, 40)), -1.f});
-      std::vector<uint8_t> desc(kBytes);
-      landmark_t id = kInvalidLandmarkId;
-      if (k < num_landmarks && rng.uniform() < 0.7) {
-        id = k;
-        desc = base[k];
-        for (int flip = 0; flip < 6; ++flip) {
-          const int bit = static_cast<int>(rng.below(8 * kBytes));
-          desc[bit / 8] ^= static_cast<uint8_t>(1 << (bit % 8));
-        }
-        (f == 7 ? map.landmarks[id].num_query_observations : map.landmarks[id].num_map_observations)++;
-      } else {
-        for (auto& b : desc) b = static_cast<uint8_t>(rng.below(256));
-      }
-      map.keypoint_landmark.push_back(id);
-      map.descriptors.insert(map.descriptors.end(), desc.begin(), desc.end());
-    }
-  }
-  return map;
+  test::SyntheticMapSpec spec;
+  spec.descriptor_bytes = kBytes;
+  return test::synthetic_map(seed, spec);
 }
 
 struct Trained {

@@ -26,13 +26,6 @@ RunResult run(const std::string& args, const fs::path& dir, const std::string& p
   return test::run_lboost(args, dir, prefix);
 }
 
-void expect_one_error_line(const RunResult& r, const std::string& command, const std::string& needle) {
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(r.err.rfind("lboost " + command + ": error: ", 0), 0u) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
-}
-
 class MapCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -66,7 +59,7 @@ TEST_F(MapCliTest, MissingImage) {
   fs::remove(dir_ / "coll" / "images" / "map" / "1.png");
   const fs::path out = dir_ / "map.h5";
   const RunResult r = run("map --collection " + (dir_ / "coll").string() + " --out " + out.string(), dir_);
-  expect_one_error_line(r, "map", "map/1.png");
+  test::expect_one_error(r, "map", "map/1.png");
   EXPECT_FALSE(fs::exists(out));
 }
 
@@ -80,22 +73,22 @@ TEST_F(MapCliTest, NonRotationPose) {
   std::ofstream(dir_ / "coll" / "sparse" / "images.txt") << text.substr(0, start) << '7' << text.substr(end);
   const fs::path out = dir_ / "map.h5";
   const RunResult r = run("map --collection " + (dir_ / "coll").string() + " --out " + out.string(), dir_);
-  expect_one_error_line(r, "map", "not a rotation");
+  test::expect_one_error(r, "map", "not a rotation");
   EXPECT_FALSE(fs::exists(out));
 }
 
 TEST_F(MapCliTest, NoLandmarksWritesNothing) {
   const fs::path out = dir_ / "map.h5";
   const RunResult r = run("map --collection " + (dir_ / "coll").string() + " --out " + out.string(), dir_);
-  expect_one_error_line(r, "map", "no landmark");
+  test::expect_one_error(r, "map", "no landmark");
   EXPECT_FALSE(fs::exists(out));
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);  // coll
 }
 
 TEST_F(MapCliTest, InspectRejectsBadFiles) {
   std::ofstream(dir_ / "text.h5") << "hello, this is not HDF5\n";
-  expect_one_error_line(run("inspect " + (dir_ / "text.h5").string(), dir_), "inspect", "not an HDF5 file");
-  expect_one_error_line(run("inspect " + (dir_ / "none.h5").string(), dir_), "inspect", "no such file");
+  test::expect_one_error(run("inspect " + (dir_ / "text.h5").string(), dir_), "inspect", "not an HDF5 file");
+  test::expect_one_error(run("inspect " + (dir_ / "none.h5").string(), dir_), "inspect", "no such file");
 }
 
 }  // namespace
