@@ -79,6 +79,11 @@ int lmb_model_descriptor_bytes(const lmb_model* model) { return model ? model->m
 
 int lmb_model_num_classes(const lmb_model* model) { return model ? model->model->num_classes() : -1; }
 
+int lmb_model_is_calibrated(const lmb_model* model) {
+  if (model == nullptr) return -1;
+  return model->model->calibrated() ? 1 : 0;
+}
+
 void lmb_localize_options_init(lmb_localize_options* options) {
   if (options == nullptr) return;
   const lmb::LocalizerOptions d;
@@ -97,9 +102,19 @@ lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera, const 
                         const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
                         const lmb_localize_options* options, lmb_pose* out_pose, lmb_match* out_matches,
                         int max_matches, int* num_matches) {
+  return lmb_localize_with_confidence(model, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
+                                      options, out_pose, nullptr, out_matches, max_matches, num_matches);
+}
+
+lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                                        int n, const uint8_t* descriptors, int descriptor_bytes,
+                                        const double gravity_in_cam[3], const lmb_localize_options* options,
+                                        lmb_pose* out_pose, lmb_pose_confidence* out_confidence, lmb_match* out_matches,
+                                        int max_matches, int* num_matches) {
   const char* fn = "lmb_localize";
   if (num_matches != nullptr) *num_matches = 0;
   if (out_pose != nullptr) *out_pose = lmb_pose{};
+  if (out_confidence != nullptr) *out_confidence = lmb_pose_confidence{0, -1.0, -1.0, 0, 0};
   if (model == nullptr || camera == nullptr || gravity_in_cam == nullptr || out_pose == nullptr) {
     return fail(LMB_ERROR_INVALID_ARGUMENT,
                 "lmb_localize: model, camera, gravity_in_cam and out_pose must not be NULL");
@@ -150,7 +165,14 @@ lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera, const 
     const lmb::Localizer localizer(model->model, lo);
     const lmb::LocalizeResult r = localizer.localize(cam, kps, descriptors, gravity);
 
-    out_pose->success = r.pose.success ? 1 : 0;
+    out_pose->success = r.localized ? 1 : 0;
+    if (out_confidence != nullptr) {
+      out_confidence->calibrated = r.calibrated ? 1 : 0;
+      out_confidence->probability = r.confidence;
+      out_confidence->threshold = r.confidence_threshold;
+      out_confidence->pose_found = r.pose.success ? 1 : 0;
+      out_confidence->localized = r.localized ? 1 : 0;
+    }
     const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
     out_pose->rotation[0] = q.w();
     out_pose->rotation[1] = q.x();

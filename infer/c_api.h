@@ -83,12 +83,24 @@ typedef struct lmb_localize_options {
 } lmb_localize_options;
 
 typedef struct lmb_pose {
-  int success;           /* 1 when a pose was found */
+  int success;           /* 1 when the frame is localized: a pose was found (at least min_inliers
+                            inliers) and, when the model is calibrated, its confidence reaches the
+                            model's operating point (lmb_pose_confidence) */
   double rotation[4];    /* cam_from_world rotation, unit quaternion w, x, y, z */
   double translation[3]; /* cam_from_world translation, map units */
   int num_inliers;
   int num_correspondences; /* matches given to RANSAC */
 } lmb_pose;
+
+/* The confidence of a pose (lmb_localize_with_confidence; infer/pose_confidence.h). */
+typedef struct lmb_pose_confidence {
+  int calibrated;     /* 1 when the model holds a pose calibration (lmb_model_is_calibrated) */
+  double probability; /* P(the pose is within 20 cm / 5 deg of the truth), in [0, 1) when
+                         calibrated (0 without a pose); -1 when not calibrated */
+  double threshold;   /* the model's operating point when calibrated; -1 otherwise */
+  int pose_found;     /* 1 when RANSAC found a pose of at least min_inliers inliers */
+  int localized;      /* the same as lmb_pose.success */
+} lmb_pose_confidence;
 
 typedef struct lmb_match {
   int32_t keypoint; /* index into the input keypoints */
@@ -114,6 +126,9 @@ LMB_INFER_EXPORT void lmb_model_free(lmb_model* model);
 /* Model facts; -1 for a NULL model. */
 LMB_INFER_EXPORT int lmb_model_descriptor_bytes(const lmb_model* model);
 LMB_INFER_EXPORT int lmb_model_num_classes(const lmb_model* model);
+/* 1 when the model holds a pose calibration (written by `lboost export`, model format 3), 0 when
+ * not (older models: a pose is trusted by its inlier count alone), -1 for a NULL model. */
+LMB_INFER_EXPORT int lmb_model_is_calibrated(const lmb_model* model);
 
 /* Defaults of every option. */
 LMB_INFER_EXPORT void lmb_localize_options_init(lmb_localize_options* options);
@@ -128,6 +143,11 @@ LMB_INFER_EXPORT lmb_status lmb_localize(const lmb_model* model, const lmb_camer
                                          int descriptor_bytes, const double gravity_in_cam[3],
                                          const lmb_localize_options* options, lmb_pose* out_pose,
                                          lmb_match* out_matches, int max_matches, int* num_matches);
+/* lmb_localize, and the pose's confidence into *out_confidence (may be NULL). */
+LMB_INFER_EXPORT lmb_status lmb_localize_with_confidence(
+    const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
+    int descriptor_bytes, const double gravity_in_cam[3], const lmb_localize_options* options, lmb_pose* out_pose,
+    lmb_pose_confidence* out_confidence, lmb_match* out_matches, int max_matches, int* num_matches);
 
 #ifdef __cplusplus
 }

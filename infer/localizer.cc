@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
+#include <cmath>
 
 #include "common/context_embedding.h"
 #include "common/error.h"
@@ -17,6 +18,8 @@ void LocalizerOptions::check() const {
             "localizer options: pose_top_k = " << pose_top_k << " must be in 1..classifier.top_k (" << classifier.top_k
                                                << ")");
   pose.check();
+  LMB_CHECK(!std::isnan(min_confidence) && min_confidence <= 1.0,
+            "localizer options: min_confidence = " << min_confidence << " must be <= 1 (negative: the model's)");
 }
 
 Localizer::Localizer(std::shared_ptr<const Model> model, const LocalizerOptions& options)
@@ -99,6 +102,14 @@ LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypo
     margins.push_back(c.score - c.background_score);
   }
   result.pose = estimate_absolute_pose(camera, pixels, points, options.pose, margins);
+  result.evidence = pose_evidence(camera, pixels, margins, result.pose, n);
+  result.localized = result.pose.success;
+  if (m.calibrated()) {
+    result.calibrated = true;
+    result.confidence = m.calibration().probability(result.evidence);
+    result.confidence_threshold = options.min_confidence >= 0.0 ? options.min_confidence : m.calibration().threshold;
+    result.localized = result.pose.success && result.confidence >= result.confidence_threshold;
+  }
   const Clock::time_point t_end = Clock::now();
   result.timings.pose_ms = ms(t_end - t_classified);
   result.timings.total_ms = ms(t_end - t_start);

@@ -2,7 +2,7 @@
 //
 //   Localizer localizer(Model::load("model.lbm"));
 //   LocalizeResult r = localizer.localize(camera, keypoints, descriptors, gravity_in_cam);
-//   if (r.pose.success) use(r.pose.cam_from_world);
+//   if (r.localized) use(r.pose.cam_from_world);   // r.confidence: P(pose right)
 //
 // Steps: quantize each descriptor to its visual word, place the keypoints in the gravity-aligned
 // normalized plane (common/context_embedding.h), classify them (infer/classifier.h), then feed the
@@ -14,6 +14,13 @@
 // top-left pixel at (0.5, 0.5); add 0.5 to an OpenCV KeyPoint::pt), scale = detector diameter in pixels
 // (lmb::Keypoint); descriptors: keypoints.size() rows of model.descriptor_bytes() bytes; gravity_in_cam: the direction
 // of gravity (down) in the camera frame (x right, y down, z forward), any non-zero length.
+//
+// Confidence: the pose's evidence (infer/pose_confidence.h) and, when the model holds a pose
+// calibration (Model::calibrated(), fitted by `lboost export`), the probability that the pose is
+// within 20 cm / 5 deg of the truth. `localized` is the answer to act on: the estimator found a
+// pose (pose.success: at least min_inliers inliers) and, with a calibrated model, its probability
+// reaches the model's operating point (or options.min_confidence). With an uncalibrated model
+// (files before version 3) `localized` is pose.success, confidence is -1 and calibrated false.
 //
 // Errors: invalid input (null descriptors, invalid camera, non-finite or non-positive keypoint
 // sizes, zero gravity) throws lmb::Error. Failing to localize is not an error: pose.success false.
@@ -33,6 +40,7 @@
 #include "infer/classifier.h"
 #include "infer/export.h"
 #include "infer/model.h"
+#include "infer/pose_confidence.h"
 #include "infer/pose_estimator.h"
 
 namespace lmb {
@@ -45,6 +53,10 @@ struct LMB_INFER_EXPORT LocalizerOptions {
   // (score - background score; ties: keypoint order); 0 = all.
   int max_correspondences = 0;
   PoseEstimatorOptions pose;  // RANSAC samples, inlier threshold (px), seed, PROSAC, refinement
+  // The probability a calibrated model's pose must reach to count as localized, in [0, 1];
+  // negative = the model's own operating point (PoseCalibration::threshold). Ignored by an
+  // uncalibrated model.
+  double min_confidence = -1.0;
 
   // Throws lmb::Error naming the field.
   void check() const;
@@ -65,6 +77,11 @@ struct LocalizeResult {
   // One entry per correspondence given to the pose estimator (pose.inlier_mask is aligned):
   std::vector<int32_t> correspondence_keypoint;  // keypoint index
   std::vector<int32_t> correspondence_match;     // index into matches.matches
+  PoseEvidence evidence;                         // what the pose's confidence is computed from
+  bool calibrated = false;                       // the model has a pose calibration
+  double confidence = -1.0;                      // P(pose right) in [0, 1) when calibrated (0 without a pose), else -1
+  double confidence_threshold = -1.0;            // the operating point applied when calibrated, else -1
+  bool localized = false;                        // pose.success and (uncalibrated or confidence >= threshold)
   LocalizeTimings timings;
 };
 

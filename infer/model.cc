@@ -138,10 +138,12 @@ void ModelData::check(const std::string& where) const {
       LMB_CHECK(std::isfinite(fusion.distance_score[d]), fw << ": distance_score[" << d << "] is not finite");
     }
   }
+  if (calibration) calibration->check(where + ": pose calibration");
 }
 
 uint32_t model_file_version(const ModelData& data) {
-  return data.fusion.enabled() ? kModelVersion : kModelVersionWithoutFusion;
+  if (data.calibration) return kModelVersion;
+  return data.fusion.enabled() ? kModelVersionWithFusion : kModelVersionWithoutFusion;
 }
 
 std::string serialize_model_data(const ModelData& data) {
@@ -170,6 +172,8 @@ std::string serialize_model_data(const ModelData& data) {
       ar(static_cast<uint32_t>(list.size()));
       write_byte_string(ar, detail::encode_ascending_ids(list));
     }
+    const uint32_t version = model_file_version(data);
+    if (version == kModelVersion) ar(static_cast<uint8_t>(data.fusion.enabled() ? 1 : 0));
     if (data.fusion.enabled()) {
       const DescriptorFusion& f = data.fusion;
       ar(static_cast<uint64_t>(f.exemplar_begin.size()));
@@ -179,12 +183,18 @@ std::string serialize_model_data(const ModelData& data) {
       ar(static_cast<uint64_t>(f.distance_score.size()));
       for (double v : f.distance_score) ar(v);
     }
+    if (data.calibration) {
+      const PoseCalibration& c = *data.calibration;
+      ar(static_cast<uint32_t>(PoseEvidence::kNumFeatures));
+      for (double w : c.weights) ar(w);
+      ar(c.bias, c.threshold, c.num_samples, c.num_positive, c.target_precision);
+    }
   }
   return os.str();
 }
 
 ModelData parse_model_data(const std::string& payload, const std::string& what, uint32_t version) {
-  LMB_CHECK(version == kModelVersion || version == kModelVersionWithoutFusion,
+  LMB_CHECK(version == kModelVersion || version == kModelVersionWithFusion || version == kModelVersionWithoutFusion,
             what << ": model format version " << version << " is not supported");
   ModelData d;
   try {
@@ -233,7 +243,14 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
       d.inverted_file[w] = detail::decode_ascending_ids(r.byte_string("inverted file"), n, d.num_classes - 1,
                                                         what + ": inverted file word " + std::to_string(w));
     }
+    bool has_fusion = version == kModelVersionWithFusion;
     if (version == kModelVersion) {
+      uint8_t flag = 0;
+      r.value(flag);
+      LMB_CHECK(flag <= 1, what << ": has_fusion = " << static_cast<int>(flag) << " is not 0 or 1");
+      has_fusion = flag == 1;
+    }
+    if (has_fusion) {
       DescriptorFusion& f = d.fusion;
       f.exemplar_begin.resize(r.count(sizeof(int64_t), "fusion exemplar offsets"));
       LMB_CHECK(f.exemplar_begin.size() == static_cast<size_t>(d.num_classes) + 1,
@@ -244,6 +261,20 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
       f.exemplars.assign(rows.begin(), rows.end());
       f.distance_score.resize(r.count(sizeof(double), "fusion distance scores"));
       for (double& v : f.distance_score) r.value(v);
+    }
+    if (version == kModelVersion) {
+      PoseCalibration c;
+      uint32_t features = 0;
+      r.value(features);
+      LMB_CHECK(features == static_cast<uint32_t>(PoseEvidence::kNumFeatures),
+                what << ": pose calibration: " << features << " features, expected " << PoseEvidence::kNumFeatures);
+      for (double& w : c.weights) r.value(w);
+      r.value(c.bias);
+      r.value(c.threshold);
+      r.value(c.num_samples);
+      r.value(c.num_positive);
+      r.value(c.target_precision);
+      d.calibration = c;
     }
     LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left() << " unexpected bytes after the model");
   } catch (const cereal::Exception& e) {

@@ -20,7 +20,11 @@
 //     landmark classes whose training observations quantize to the word);
 //   version 2 only, the descriptor-distance fusion: uint64 C + 1, (C + 1) x int64 exemplar
 //     offsets; byte string of the exemplar rows; uint64 8 * descriptor_bytes + 1, that many
-//     doubles (distance_score).
+//     doubles (distance_score);
+//   version 3 only: uint8 has_fusion (0 or 1), then the fusion as in version 2 when 1; then the
+//     pose calibration (infer/pose_confidence.h): uint32 F = PoseEvidence::kNumFeatures, F x
+//     double weights, double bias, double threshold, int64 num_samples, int64 num_positive,
+//     double target_precision.
 // Every count is checked against the bytes left in the payload before anything is allocated.
 //
 // Threading: a Model is immutable after construction; all methods are const and may be called
@@ -30,6 +34,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,13 +46,17 @@
 #include "common/types.h"
 #include "common/vocabulary.h"
 #include "infer/export.h"
+#include "infer/pose_confidence.h"
 
 namespace lmb {
 
 constexpr const char* kModelMagic = "LMBMODEL";
-// Version 2 appends the descriptor-distance fusion (DescriptorFusion); a model without it is
-// written as version 1, byte for byte as before. Both versions are read.
-constexpr uint32_t kModelVersion = 2;
+// Version 2 appends the descriptor-distance fusion (DescriptorFusion); version 3 an optional
+// fusion and the pose calibration (PoseCalibration). A model is written in the oldest version
+// that holds it: without a calibration as version 1 or 2, byte for byte as before. All three are
+// read; a model of version 1 or 2 is uncalibrated (Model::calibrated() false).
+constexpr uint32_t kModelVersion = 3;
+constexpr uint32_t kModelVersionWithFusion = 2;
 constexpr uint32_t kModelVersionWithoutFusion = 1;
 
 // Descriptor-distance fusion (optional; fitted by train/export/descriptor_fusion.h): a landmark
@@ -82,7 +91,10 @@ struct ModelData {
   // Inverted file: inverted_file[w] lists (ascending) the landmark classes (< C) whose training
   // observations quantize to word w. Size: vocabulary.num_words().
   std::vector<std::vector<int32_t>> inverted_file;
-  DescriptorFusion fusion;  // optional (version 2 files)
+  DescriptorFusion fusion;  // optional (version 2 and 3 files)
+  // The pose confidence's calibration (version 3 files; fitted by `lboost export`). Absent = an
+  // uncalibrated model: a pose counts as localized by its inlier count alone.
+  std::optional<PoseCalibration> calibration;
 
   EmbeddingLayout layout() const {
     EmbeddingLayout l;
@@ -98,7 +110,8 @@ struct ModelData {
 // The payload (cereal portable binary, see the file comment) and its inverse. parse throws
 // lmb::Error naming `what` for truncated or corrupt bytes, a count larger than the bytes left,
 // or contents that fail ModelData::check. The payload's version is model_file_version(data):
-// kModelVersion with a fusion, kModelVersionWithoutFusion without; parse reads either.
+// kModelVersion with a calibration, else kModelVersionWithFusion with a fusion, else
+// kModelVersionWithoutFusion; parse reads each.
 LMB_INFER_EXPORT std::string serialize_model_data(const ModelData& data);
 LMB_INFER_EXPORT ModelData parse_model_data(const std::string& payload, const std::string& what,
                                             uint32_t version = kModelVersion);
@@ -172,6 +185,10 @@ class LMB_INFER_EXPORT Model {
   // (< C) for a descriptor of descriptor_bytes() bytes (0 without fusion), and the largest term
   // any descriptor can get (0 without fusion; the screening adds it to every bound).
   bool has_fusion() const { return data_.fusion.enabled(); }
+  // The pose calibration: whether the model has one (false for models older than version 3 or
+  // exported without one), and it (only when calibrated()).
+  bool calibrated() const { return data_.calibration.has_value(); }
+  const PoseCalibration& calibration() const { return *data_.calibration; }
   double fusion_term(int32_t cls, const uint8_t* descriptor) const;
   double fusion_max() const { return fusion_max_; }
   // Word w's used dims prepared for FrameContext::compute_dims.

@@ -97,6 +97,8 @@ void PoseCalibration::check(const std::string& where) const {
   LMB_CHECK(threshold >= 0.0 && threshold <= 1.0, where << ": threshold " << threshold << " is outside [0, 1]");
   LMB_CHECK(num_samples >= 0 && num_positive >= 0 && num_positive <= num_samples,
             where << ": counts " << num_positive << " right of " << num_samples << " samples are inconsistent");
+  LMB_CHECK(target_precision >= 0.0 && target_precision <= 1.0,
+            where << ": target_precision " << target_precision << " is outside [0, 1]");
 }
 
 void PoseCalibrationFitOptions::check() const {

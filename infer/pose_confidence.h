@@ -25,8 +25,9 @@
 //   6  log(1 + correspondences)
 // Every feature is 0 for a pose without inliers.
 //
-// Status: these are the building blocks; the library does not yet ship a fitted calibration, and
-// the Localizer does not yet report a probability (docs/pose.md, "Confidence").
+// `lboost export` fits a calibration on map frames and stores it in the model file
+// (infer/model.h, version 3); the Localizer reports the probability and applies the threshold
+// (infer/localizer.h, LocalizeResult::confidence); docs/pose.md, "Confidence".
 //
 // Threading: everything here is a pure function of its arguments.
 #pragma once
@@ -74,6 +75,9 @@ struct LMB_INFER_EXPORT PoseCalibration {
   double threshold = 0.5;
   int64_t num_samples = 0;   // poses the model was fitted on (informative)
   int64_t num_positive = 0;  // of them right
+  // The precision the threshold was chosen for on the fitted poses (informative), in [0, 1]; 0
+  // when not set.
+  double target_precision = 0.0;
 
   // sigma(bias + weights . features), in (0, 1); 0 when the evidence has no inlier.
   double probability(const PoseEvidence& evidence) const;

@@ -222,8 +222,20 @@ std::vector<Row> rows() {
                "DIR/model.lbm: file too short (0 bytes) for a LMBMODEL header"});
   r.push_back({"model.lbm", "a vocabulary file instead", model_with(good_vocab_file),
                "DIR/model.lbm: not a LMBMODEL file (wrong magic)"});
-  r.push_back({"model.lbm", "format version 3", model_with([] { return with_byte(good_model_file(), 8, 3); }),
-               "DIR/model.lbm: format version 3 is not supported (this build reads versions 1 to 2)"});
+  r.push_back({"model.lbm", "format version 4", model_with([] { return with_byte(good_model_file(), 8, 4); }),
+               "DIR/model.lbm: format version 4 is not supported (this build reads versions 1 to 3)"});
+  r.push_back({"model.lbm", "NaN pose calibration bias (format version 3)", model_with([nan] {
+                 ModelData d = good_model_data();
+                 PoseCalibration c;
+                 c.bias = kMark;
+                 c.threshold = 0.5;
+                 d.calibration = c;
+                 std::string p = serialize_model_data(d);
+                 const std::string mark(reinterpret_cast<const char*>(&kMark), 8);
+                 std::memcpy(p.data() + p.find(mark), &nan, 8);
+                 return as_string(make_container(kModelMagic, kModelVersion, p));
+               }),
+               "DIR/model.lbm: pose calibration: bias is not finite"});
   r.push_back({"model.lbm", "truncated (last byte cut)", model_with([] {
                  std::string s = good_model_file();
                  s.pop_back();

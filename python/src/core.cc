@@ -87,6 +87,8 @@ const std::vector<OptionField>& option_fields() {
       LMB_OPTION("seed", pose.seed, uint64_t, "RANSAC seed: equal seeds and inputs give equal results."),
       LMB_OPTION("min_inliers", pose.min_inliers, int, "Fewest inliers for a pose (>= 4)."),
       LMB_OPTION("refine", pose.refine, bool, "Non-linear refinement on the inliers."),
+      LMB_OPTION("min_confidence", min_confidence, double,
+                 "Probability a calibrated model's pose must reach (negative: the model's operating point)."),
   };
   return fields;
 }
@@ -304,6 +306,11 @@ LocalizerOptions(top_k=5, pose_top_k=2, seed=1). The defaults are those of `lboo
       .def_property_readonly("num_words", &Model::num_words)
       .def_property_readonly("detector", [](const Model& mo) { return mo.data().detector; })
       .def_property_readonly("num_stumps", [](const Model& mo) { return mo.data().stumps.size(); })
+      .def_property_readonly("calibrated", &Model::calibrated,
+                             "Whether the model holds a pose calibration (False: trusted by inlier count alone).")
+      .def_property_readonly(
+          "confidence_threshold", [](const Model& mo) { return mo.calibrated() ? mo.calibration().threshold : -1.0; },
+          "The calibrated model's operating point (-1 when not calibrated).")
       .def_property_readonly(
           "class_landmarks",
           [](py::object self) {
@@ -330,11 +337,18 @@ LocalizerOptions(top_k=5, pose_top_k=2, seed=1). The defaults are those of `lboo
 
   // ---- Result ----
   py::class_<Result, std::shared_ptr<Result>>(m, "LocalizeResult", R"(One frame's localization.
-success, cam_from_world (Rigid3d), num_inliers, iterations; the ranked matches of every keypoint in
+success (the frame is localized: a pose of at least min_inliers inliers and, when the model is
+calibrated, confidence >= confidence_threshold), pose_found (the pose alone), calibrated, confidence
+(P(pose within 20 cm / 5 deg), -1 when the model is not calibrated), confidence_threshold,
+cam_from_world (Rigid3d), num_inliers, iterations; the ranked matches of every keypoint in
 CSR form (keypoint k's matches, best first, are rows match_begin[k]:match_begin[k+1] of the match_*
 arrays); the correspondences given to RANSAC (indices into the keypoints and into the matches) and
 their inlier mask; timings in milliseconds. Arrays are read-only views into this result.)")
-      .def_property_readonly("success", [](const Result& r) { return r.r.pose.success; })
+      .def_property_readonly("success", [](const Result& r) { return r.r.localized; })
+      .def_property_readonly("pose_found", [](const Result& r) { return r.r.pose.success; })
+      .def_property_readonly("calibrated", [](const Result& r) { return r.r.calibrated; })
+      .def_property_readonly("confidence", [](const Result& r) { return r.r.confidence; })
+      .def_property_readonly("confidence_threshold", [](const Result& r) { return r.r.confidence_threshold; })
       .def_property_readonly("cam_from_world", [](const Result& r) { return r.r.pose.cam_from_world; })
       .def_property_readonly("num_inliers", [](const Result& r) { return r.r.pose.num_inliers; })
       .def_property_readonly("iterations", [](const Result& r) { return r.r.pose.iterations; })
@@ -446,7 +460,7 @@ their inlier mask; timings in milliseconds. Arrays are read-only views into this
                                return d;
                              })
       .def("__repr__", [](const Result& r) {
-        return std::string("<landmarkboost.LocalizeResult: ") + (r.r.pose.success ? "localized, " : "not localized, ") +
+        return std::string("<landmarkboost.LocalizeResult: ") + (r.r.localized ? "localized, " : "not localized, ") +
                std::to_string(r.r.pose.num_inliers) + " inliers of " + std::to_string(r.r.correspondence_match.size()) +
                " correspondences, " + std::to_string(r.r.matches.matches.size()) + " matches of " +
                std::to_string(r.r.matches.num_keypoints()) + " keypoints>";

@@ -45,6 +45,8 @@ def test_localize_equals_lboost_localize_bit_for_bit(tiny, which):
         r = localize_frame(localizer, m, f)
         assert frame.name == e["name"]
         assert r.success == e["success"], frame.name
+        assert r.pose_found == e["pose_found"] and r.confidence == e["confidence"], frame.name
+        assert r.calibrated == lb.load(tiny.model).calibrated
         localized += r.success
         q, t = r.cam_from_world.rotation, r.cam_from_world.translation
         pose = e["cam_from_world"]

@@ -1,6 +1,7 @@
 // The C API: same answers as the C++ API, status codes and last-error text, no exception escapes.
 #include "infer/c_api.h"
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -92,6 +93,86 @@ TEST(CApiTest, LocalizesLikeTheCppApi) {
   EXPECT_EQ(n2, num_matches);
   EXPECT_EQ(pose2.success, 1);
   EXPECT_NE(std::string(lmb_last_error()).find("buffer"), std::string::npos);
+  lmb_model_free(model);
+}
+
+// lmb_localize_with_confidence: the calibrated probability of the C++ Localizer, recomputed here
+// from the pose's evidence; the model's threshold decides lmb_pose.success; an uncalibrated model
+// gives -1 and the inlier rule.
+TEST(CApiTest, ReturnsTheCalibratedProbability) {
+  CFixture fx;
+  ModelData d = fx.model.data();
+  PoseCalibration c;
+  c.weights = {0.9, 1.5, -2.0, 0.5, 0.7, 0.3, -0.2};
+  c.bias = -3.0;
+  c.num_samples = 10;
+  c.num_positive = 5;
+  c.target_precision = 0.95;
+  const Eigen::Vector3d& g = fx.world.frame.gravity_in_cam;
+  const double gravity[3] = {g.x(), g.y(), g.z()};
+  const LocalizeResult reference =
+      Localizer(std::make_shared<const Model>(d))
+          .localize(fx.world.frame.camera, fx.world.frame.keypoints, fx.world.frame.descriptors.data(), g);
+  ASSERT_TRUE(reference.pose.success);
+  EXPECT_FALSE(reference.calibrated);
+  EXPECT_EQ(reference.confidence, -1.0);
+  EXPECT_TRUE(reference.localized);
+  const double p = c.probability(reference.evidence);
+  ASSERT_GT(p, 0.0);
+  ASSERT_LT(p, 1.0);
+  EXPECT_GT(reference.evidence.num_inliers, 0);
+  EXPECT_EQ(reference.evidence.num_inliers, reference.pose.num_inliers);
+  for (double threshold : {0.5 * p, std::nextafter(p, 2.0)}) {
+    c.threshold = threshold;
+    d.calibration = c;
+    const Model calibrated(d);
+    const std::filesystem::path path = std::filesystem::temp_directory_path() / "lmb_c_api_calibrated_test.lbm";
+    calibrated.save(path);
+    lmb_model* model = nullptr;
+    ASSERT_EQ(lmb_model_load(path.c_str(), &model), LMB_OK) << lmb_last_error();
+    std::filesystem::remove(path);
+    EXPECT_EQ(lmb_model_is_calibrated(model), 1);
+    lmb_pose pose;
+    lmb_pose_confidence confidence;
+    ASSERT_EQ(
+        lmb_localize_with_confidence(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
+                                     fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, nullptr,
+                                     &pose, &confidence, nullptr, 0, nullptr),
+        LMB_OK)
+        << lmb_last_error();
+    EXPECT_EQ(confidence.calibrated, 1);
+    EXPECT_EQ(confidence.probability, p);
+    EXPECT_EQ(confidence.threshold, threshold);
+    EXPECT_EQ(confidence.pose_found, 1);
+    const int trusted = threshold <= p ? 1 : 0;
+    EXPECT_EQ(confidence.localized, trusted);
+    EXPECT_EQ(pose.success, trusted);
+    EXPECT_EQ(pose.num_inliers, reference.pose.num_inliers);
+    // lmb_localize applies the same rule.
+    lmb_pose plain;
+    ASSERT_EQ(lmb_localize(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
+                           fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, nullptr, &plain,
+                           nullptr, 0, nullptr),
+              LMB_OK);
+    EXPECT_EQ(plain.success, trusted);
+    lmb_model_free(model);
+  }
+  // The uncalibrated model.
+  lmb_model* model = nullptr;
+  ASSERT_EQ(lmb_model_load(fx.path.c_str(), &model), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(lmb_model_is_calibrated(model), 0);
+  EXPECT_EQ(lmb_model_is_calibrated(nullptr), -1);
+  lmb_pose pose;
+  lmb_pose_confidence confidence;
+  ASSERT_EQ(lmb_localize_with_confidence(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
+                                         fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity,
+                                         nullptr, &pose, &confidence, nullptr, 0, nullptr),
+            LMB_OK);
+  EXPECT_EQ(confidence.calibrated, 0);
+  EXPECT_EQ(confidence.probability, -1.0);
+  EXPECT_EQ(confidence.threshold, -1.0);
+  EXPECT_EQ(confidence.localized, 1);
+  EXPECT_EQ(pose.success, 1);
   lmb_model_free(model);
 }
 

@@ -10,6 +10,8 @@
 #include <new>
 #include <string>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include "common/error.h"
@@ -116,7 +118,7 @@ TEST(ModelTest, FusionRoundTripAndFileVersions) {
   EXPECT_TRUE(m.has_fusion());
   EXPECT_EQ(m.fusion_max(), 2.0);
   const std::vector<uint8_t> bytes = m.to_bytes();
-  EXPECT_EQ(bytes[8], kModelVersion);  // version 2: the fusion follows the inverted file
+  EXPECT_EQ(bytes[8], kModelVersionWithFusion);  // version 2: the fusion follows the inverted file
   const auto back = Model::from_bytes(bytes.data(), bytes.size());
   EXPECT_EQ(back->data().fusion.exemplar_begin, d.fusion.exemplar_begin);
   EXPECT_EQ(back->data().fusion.exemplars, d.fusion.exemplars);
@@ -134,15 +136,119 @@ TEST(ModelTest, FusionRoundTripAndFileVersions) {
   EXPECT_EQ(with.substr(0, without.size()), without);
   // A version-1 header on a fusion payload (or the reverse) is rejected by the parser.
   EXPECT_THROW(parse_model_data(with, "t", kModelVersionWithoutFusion), Error);
-  EXPECT_THROW(parse_model_data(without, "t", kModelVersion), Error);
+  EXPECT_THROW(parse_model_data(without, "t", kModelVersionWithFusion), Error);
   // Truncated anywhere in the fusion section: an error, never a crash.
   for (size_t size = without.size(); size < with.size(); ++size) {
-    EXPECT_THROW(parse_model_data(with.substr(0, size), "t", kModelVersion), Error) << "cut at " << size;
+    EXPECT_THROW(parse_model_data(with.substr(0, size), "t", kModelVersionWithFusion), Error) << "cut at " << size;
   }
   // The term: the table at the nearest exemplar's distance.
   const uint8_t* e = d.fusion.exemplars.data() + d.fusion.exemplar_begin[4] * d.descriptor_bytes;
   EXPECT_EQ(m.fusion_term(4, e), 2.0);
   EXPECT_EQ(Model(plain).fusion_term(4, e), 0.0);
+}
+
+PoseCalibration some_calibration() {
+  PoseCalibration c;
+  for (int k = 0; k < PoseEvidence::kNumFeatures; ++k) c.weights[k] = 0.1 * (k + 1) - 0.37 + 1e-13 * k;
+  c.bias = -1.2345678901234567;
+  c.threshold = 0.8123456789;
+  c.num_samples = 321;
+  c.num_positive = 123;
+  c.target_precision = 0.95;
+  return c;
+}
+
+// Version 3: the calibration round-trips bit for bit, with or without a fusion; a model without
+// one is written as before (version 1 or 2) and loads uncalibrated.
+TEST(ModelTest, CalibrationRoundTripBitForBitAndOlderVersionsLoadUncalibrated) {
+  for (bool fusion : {false, true}) {
+    ModelData d = fusion ? code_model_with_fusion(6) : make_code_model_data(some_positions(6));
+    const std::vector<uint8_t> old_bytes = Model(d).to_bytes();
+    EXPECT_EQ(old_bytes[8], fusion ? kModelVersionWithFusion : kModelVersionWithoutFusion);
+    const auto old = Model::from_bytes(old_bytes.data(), old_bytes.size());
+    EXPECT_FALSE(old->calibrated());
+    d.calibration = some_calibration();
+    const Model m(d);
+    ASSERT_TRUE(m.calibrated());
+    const std::vector<uint8_t> bytes = m.to_bytes();
+    EXPECT_EQ(bytes[8], kModelVersion);
+    const auto back = Model::from_bytes(bytes.data(), bytes.size());
+    ASSERT_TRUE(back->calibrated());
+    const PoseCalibration& a = d.calibration.value();
+    const PoseCalibration& b = back->calibration();
+    EXPECT_EQ(std::memcmp(a.weights.data(), b.weights.data(), sizeof(a.weights)), 0);
+    EXPECT_EQ(std::memcmp(&a.bias, &b.bias, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(&a.threshold, &b.threshold, sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(&a.target_precision, &b.target_precision, sizeof(double)), 0);
+    EXPECT_EQ(b.num_samples, a.num_samples);
+    EXPECT_EQ(b.num_positive, a.num_positive);
+    EXPECT_EQ(back->has_fusion(), fusion);
+    EXPECT_EQ(back->data().fusion.distance_score, d.fusion.distance_score);
+    EXPECT_EQ(back->to_bytes(), bytes);
+    // Truncated anywhere after the version-1 part: an error, never a crash.
+    const std::string payload = serialize_model_data(d);
+    for (size_t size = payload.size() - 90; size < payload.size(); ++size) {
+      EXPECT_THROW(parse_model_data(payload.substr(0, size), "t", kModelVersion), Error) << "cut at " << size;
+    }
+  }
+}
+
+// A corrupt calibration field fails with one line naming the file and the field.
+TEST(ModelTest, CorruptCalibrationFailsNamingTheField) {
+  ModelData d = make_code_model_data(some_positions(5));
+  d.calibration = some_calibration();
+  const std::string payload = serialize_model_data(d);
+  // The calibration is the payload's last 4 + 7 * 8 + 8 + 8 + 8 + 8 + 8 bytes (portable binary:
+  // little endian).
+  const size_t at = payload.size() - (4 + 7 * 8 + 5 * 8);
+  const auto rejected = [&](const std::string& bytes) {
+    try {
+      parse_model_data(bytes, "model.lbm", kModelVersion);
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+      EXPECT_EQ(what.rfind("model.lbm", 0), 0u) << what;
+      return what;
+    }
+    ADD_FAILURE() << "a corrupt calibration was accepted";
+    return std::string();
+  };
+  const auto with_double = [&](size_t offset, double v) {
+    std::string bytes = payload;
+    std::memcpy(&bytes[offset], &v, sizeof(double));
+    return bytes;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(rejected(with_double(at + 4 + 3 * 8, nan)).find("pose calibration: weight 3 (inlier_rank) is not finite"),
+            std::string::npos);
+  EXPECT_NE(rejected(with_double(at + 4 + 7 * 8, std::numeric_limits<double>::infinity())).find("bias"),
+            std::string::npos);
+  EXPECT_NE(rejected(with_double(at + 4 + 8 * 8, 1.5)).find("pose calibration: threshold 1.5 is outside [0, 1]"),
+            std::string::npos);
+  EXPECT_NE(rejected(with_double(at + 4 + 8 * 8, nan)).find("threshold"), std::string::npos);
+  EXPECT_NE(rejected(with_double(at + 4 + 11 * 8, -0.5)).find("target_precision"), std::string::npos);
+  std::string bytes = payload;
+  bytes[at] = 9;  // 9 features
+  EXPECT_NE(rejected(bytes).find("pose calibration: 9 features, expected 7"), std::string::npos);
+  bytes = payload;
+  bytes[at + 4 + 9 * 8 + 7] = static_cast<char>(0x80);  // num_samples negative
+  EXPECT_NE(rejected(bytes).find("counts"), std::string::npos);
+  // The same through the file loader names the path.
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("lmb_corrupt_calibration_" + std::to_string(::getpid()) + ".lbm");
+  const std::vector<uint8_t> file = make_container(kModelMagic, kModelVersion, with_double(at + 4 + 8 * 8, 1.5));
+  {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
+  }
+  try {
+    Model::load(path);
+    ADD_FAILURE() << "loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(path.string() + ": pose calibration: threshold"), std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(path);
 }
 
 TEST(ModelTest, CheckRejectsInconsistentFusion) {
@@ -228,7 +334,7 @@ TEST(ModelTest, RejectsWrongMagicVersionAndCrc) {
   bad[0] = 'X';
   EXPECT_NE(expect_rejected(bad).find("magic"), std::string::npos);
   bad = good;
-  bad[8] = 3;  // version 3
+  bad[8] = 4;  // version 4
   EXPECT_NE(expect_rejected(bad).find("version"), std::string::npos);
   bad = good;
   bad[kContainerHeaderBytes + 10] ^= 0x40;

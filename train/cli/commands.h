@@ -22,6 +22,7 @@ void add_inspect_command(CLI::App& app);
 void add_vocab_command(CLI::App& app);
 void add_train_command(CLI::App& app);
 void add_export_command(CLI::App& app);
+void add_calibrate_command(CLI::App& app);  // in export_command.cc
 void add_localize_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_bench_infer_command(CLI::App& app);  // `bench infer`, after add_bench_command

@@ -38,8 +38,8 @@ void run_eval(const EvalOptions& options, const std::string& report_path, const 
   if (!run_dir.empty()) attach_training_summary(result.report, run_dir);
   write_report(report_path, result.report);
   if (!keypoint_ranks.empty()) write_report(keypoint_ranks, result.keypoint_ranks);
-  std::printf("\n%s%s%s-> %s\n%s", result.heading.c_str(), result.table.c_str(), result.gap_table.c_str(),
-              report_path.c_str(), result.cpu_line.c_str());
+  std::printf("\n%s%s%s%s-> %s\n%s", result.heading.c_str(), result.table.c_str(), result.gap_table.c_str(),
+              result.confidence_table.c_str(), report_path.c_str(), result.cpu_line.c_str());
 }
 
 }  // namespace
@@ -99,6 +99,13 @@ void add_eval_command(CLI::App& app) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--ransac-sweep-seeds", o.sweep.seeds, "Seeds of the sweep: --seed, --seed + 1, ...")
+      ->capture_default_str();
+  cmd->add_option("--calibration-frames", o.calibration.max_frames,
+                  "Map frames each method's pose calibration is fitted on at most (every n-th map-session frame; "
+                  "never a query)")
+      ->capture_default_str();
+  cmd->add_option("--target-precision", o.calibration.target_precision,
+                  "Precision on the calibration poses each method's operating point is chosen for, in (0, 1]")
       ->capture_default_str();
   cmd->add_option("--ratio", o.ratio, "Lowe's ratio of the ratio-test methods: d1 < ratio * d2")->capture_default_str();
   cmd->add_option("--faiss-hnsw-m", o.faiss.m, "faiss_hnsw_ratio: HNSW graph degree M")->capture_default_str();

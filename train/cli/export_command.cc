@@ -3,6 +3,11 @@
 // fits the descriptor-distance fusion (train/export/descriptor_fusion.h) on the run's held-out map
 // observations and stores it with the class exemplars.
 //
+// With --calibration on (the default) it fits the pose confidence's calibration on the map's own
+// map-session frames (train/eval/pose_calibration_fit.h: every method's calibration of `lboost
+// eval` is fitted the same way, no query frame is read) with the Localizer's default options, and
+// stores it in the model (format version 3); --target-precision sets the operating point.
+//
 // The trained model (model.bin) records the feature space its stumps were trained in
 // (common/feature_space.h): export takes the context regions from that record and refuses a map or
 // vocabulary other than the ones of training, so it cannot build a silently wrong model. The run's
@@ -21,12 +26,16 @@
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/vocabulary.h"
+#include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/areas/area_training.h"
 #include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
 #include "train/cli/commands.h"
+#include "train/eval/evaluation.h"
+#include "train/eval/landmarkboost_matcher.h"
+#include "train/eval/pose_calibration_fit.h"
 #include "train/export/descriptor_fusion.h"
 #include "train/export/model_export.h"
 #include "train/features/build_features.h"
@@ -46,7 +55,33 @@ struct ExportArgs {
   ExportOptions options;
   std::string fusion = "on";
   DescriptorFusionOptions fusion_options;
+  std::string calibration = "on";
+  PoseCalibrationOptions calibration_options;
 };
+
+// Fits the pose calibration of `data` with the Localizer's default options (see the file comment).
+void add_pose_calibration(const PoseCalibrationOptions& options, const LandmarkMap& map, ModelData& data) {
+  const auto model = std::make_shared<const Model>(data);
+  const LocalizerOptions localizer;  // what `lboost localize` and the library use by default
+  LMB_CHECK(localizer.pose_top_k == 1,
+            "export: the pose calibration assumes the Localizer's default of one match per keypoint");
+  const LandmarkBoostMatcher matcher(model, localizer.classifier, /*rank=*/false);
+  const CalibrationFit fit =
+      fit_method_calibration(matcher, map, localizer.pose, localizer.max_correspondences, PoseThresholds{}, options);
+  if (!fit.fitted) {
+    spdlog::warn(
+        "export: pose calibration: only {} poses from {} map frames (at least {} needed): the model is written "
+        "uncalibrated (a pose is trusted by its inlier count alone)",
+        fit.num_poses, fit.num_frames, options.min_poses);
+    return;
+  }
+  data.calibration = fit.calibration;
+  spdlog::info(
+      "export: pose calibration on {} map frames: {} poses ({} of them with the frame's own landmarks removed), {} "
+      "right; operating point {:.4f} for precision {} keeps {} poses, {} right",
+      fit.num_frames, fit.num_poses, fit.num_elsewhere, fit.num_right, fit.calibration.threshold,
+      fit.calibration.target_precision, fit.passed, fit.passed_right);
+}
 
 // The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
 // --boost-model names one.
@@ -129,6 +164,9 @@ void run_export(const ExportArgs& a) {
         fs.fit_samples);
     spdlog::info("export: held-out P@1 by weight: {}", curve);
   }
+  LMB_CHECK(a.calibration == "on" || a.calibration == "off",
+            "export: --calibration must be on or off, got '" << a.calibration << "'");
+  if (a.calibration == "on") add_pose_calibration(a.calibration_options, map, data);
   const Model model(std::move(data));
   model.save(a.out);
   spdlog::info(
@@ -138,7 +176,43 @@ void run_export(const ExportArgs& a) {
       stats.mean_candidates, a.out, std::filesystem::file_size(a.out));
 }
 
+struct CalibrateArgs {
+  std::string model, map, out;
+  PoseCalibrationOptions options;
+};
+
+// `lboost calibrate`: the pose calibration of an exported model (e.g. one exported before the
+// calibration existed), fitted as export fits it, written as a new model file.
+void run_calibrate(const CalibrateArgs& a) {
+  check_writable_file(a.out, "--out");
+  const std::shared_ptr<const Model> model = Model::load(a.model);
+  const LandmarkMap map = read_map_h5(a.map);
+  check_model_fits_map(*model, a.model, map, a.map);
+  ModelData data = model->data();
+  data.calibration.reset();
+  add_pose_calibration(a.options, map, data);
+  LMB_CHECK(data.calibration.has_value(), "calibrate: too few calibration poses in " << a.map << " (see above)");
+  Model(std::move(data)).save(a.out);
+  spdlog::info("calibrate: {} -> {}", a.model, a.out);
+}
+
 }  // namespace
+
+void add_calibrate_command(CLI::App& app) {
+  auto args = std::make_shared<CalibrateArgs>();
+  auto* cmd = app.add_subcommand(
+      "calibrate", "Fit an exported model's pose confidence on its map's own frames (what export does by default)");
+  cmd->add_option("--model", args->model, "The exported model (model.lbm)")->required();
+  cmd->add_option("--map", args->map, "The map it was trained on (map.h5)")->required();
+  cmd->add_option("--out", args->out, "Output model file with the calibration, written atomically")->required();
+  cmd->add_option("--calibration-frames", args->options.max_frames,
+                  "Map frames the calibration is fitted on at most (every n-th map-session frame)")
+      ->capture_default_str();
+  cmd->add_option("--target-precision", args->options.target_precision,
+                  "Precision of reported poses the operating point is chosen for, in (0, 1]")
+      ->capture_default_str();
+  cmd->callback([args] { run_calibrate(*args); });
+}
 
 void add_export_command(CLI::App& app) {
   auto args = std::make_shared<ExportArgs>();
@@ -158,6 +232,16 @@ void add_export_command(CLI::App& app) {
   cmd->add_option("--fusion", args->fusion,
                   "Descriptor-distance fusion fitted on the run's held-out map observations: on | off "
                   "(off: the stump sums alone, the model file as before)")
+      ->capture_default_str();
+  cmd->add_option("--calibration", args->calibration,
+                  "Pose confidence calibrated on the map's own map-session frames: on | off (off: the model "
+                  "trusts a pose by its inlier count alone, as models before format 3)")
+      ->capture_default_str();
+  cmd->add_option("--calibration-frames", args->calibration_options.max_frames,
+                  "Map frames the calibration is fitted on at most (every n-th map-session frame)")
+      ->capture_default_str();
+  cmd->add_option("--target-precision", args->calibration_options.target_precision,
+                  "Precision of reported poses the operating point is chosen for, in (0, 1]")
       ->capture_default_str();
   cmd->callback([args] { run_export(*args); });
 }

@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   lmb::cli::add_vocab_command(app);
   lmb::cli::add_train_command(app);
   lmb::cli::add_export_command(app);
+  lmb::cli::add_calibrate_command(app);
   lmb::cli::add_localize_command(app);
   lmb::cli::add_eval_command(app);
   lmb::cli::add_import_command(app);

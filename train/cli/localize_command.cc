@@ -124,7 +124,11 @@ nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all
   const LocalizeResult& r = o.result;
   nlohmann::json jf;
   jf["name"] = frame.name;
-  jf["success"] = r.pose.success;
+  // success: localized (the calibrated rule with a calibrated model, else the inlier rule);
+  // pose_found: the inlier rule alone; confidence: the calibrated probability (-1 uncalibrated).
+  jf["success"] = r.localized;
+  jf["pose_found"] = r.pose.success;
+  jf["confidence"] = r.confidence;
   const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
   const Eigen::Vector3d& t = r.pose.cam_from_world.translation;
   jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
@@ -144,7 +148,7 @@ nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all
   int matched = 0;
   for (const KeypointMatch& m : o.matches) matched += m.accepted != kInvalidLandmarkId;
   jf["num_matched_keypoints"] = matched;
-  if (r.pose.success) {
+  if (r.pose.success) {  // the pose RANSAC found, whether trusted or not
     jf["position_error_m"] = position_error(r.pose.cam_from_world, frame.cam_from_world);
     jf["rotation_error_deg"] = rotation_error_deg(r.pose.cam_from_world, frame.cam_from_world);
   }
@@ -174,9 +178,9 @@ nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all
 // metrics (train/eval/metrics.h: match_precision, match_recall, background_rejection_rate, the
 // same definitions as `lboost eval`'s report) and the mean timings.
 nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& frames,
-                            const std::vector<FrameOutcome>& outcomes) {
+                            const std::vector<FrameOutcome>& outcomes, bool localizer_calibrated) {
   std::vector<double> position_errors, rotation_errors;
-  int localized = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
+  int localized = 0, pose_found = 0, pose_found_right = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
   double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
   std::vector<KeypointMatch> matches;
   for (size_t i = 0; i < frames.size(); ++i) {
@@ -186,9 +190,11 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
     embedding_ms += r.timings.embedding_ms;
     classification_ms += r.timings.classification_ms;
     pose_ms += r.timings.pose_ms;
-    if (!r.pose.success) continue;
-    ++localized;
     const Rigid3d& truth = map.frames[frames[i]].cam_from_world;
+    pose_found += r.pose.success;
+    pose_found_right += r.pose.success && pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
+    if (!r.localized) continue;
+    ++localized;
     position_errors.push_back(position_error(r.pose.cam_from_world, truth));
     rotation_errors.push_back(rotation_error_deg(r.pose.cam_from_world, truth));
     within_5cm_1deg += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.05, 1.0});
@@ -197,7 +203,11 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
   const MatchMetrics mm = evaluate_matches(matches);
   const double nf = static_cast<double>(frames.size());
   return {{"frames", frames.size()},
+          {"calibrated", localizer_calibrated},
           {"localized", localized},
+          {"precision_20cm_5deg", localized > 0 ? static_cast<double>(within_20cm_5deg) / localized : 0.0},
+          {"pose_found", pose_found},
+          {"pose_found_within_20cm_5deg", pose_found_right},
           {"within_5cm_1deg", within_5cm_1deg},
           {"within_20cm_5deg", within_20cm_5deg},
           {"median_position_error_m", median(position_errors)},
@@ -218,11 +228,15 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
 void print_summary(const nlohmann::json& s, int threads, const std::string& out) {
   const nlohmann::json& ms = s.at("ms_per_frame");
   std::printf(
-      "localize: %d/%zu frames localized, %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
+      "localize: %d/%zu frames localized (%s; precision %.3f at 20 cm/5 deg; %d/%zu with >= min-inliers inliers, %d of "
+      "them right), %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
       "%.3f m %.2f deg (localized frames); match recall %.3f of %lld keypoints whose true landmark is a "
       "model class, match precision %.3f of %lld accepted matches, background rejection %.3f of %lld "
       "background keypoints; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d thread(s)) -> %s\n",
-      s.at("localized").get<int>(), s.at("frames").get<size_t>(), s.at("within_5cm_1deg").get<int>(),
+      s.at("localized").get<int>(), s.at("frames").get<size_t>(),
+      s.at("calibrated").get<bool>() ? "calibrated confidence" : "uncalibrated model: inlier rule",
+      s.at("precision_20cm_5deg").get<double>(), s.at("pose_found").get<int>(), s.at("frames").get<size_t>(),
+      s.at("pose_found_within_20cm_5deg").get<int>(), s.at("within_5cm_1deg").get<int>(),
       s.at("within_20cm_5deg").get<int>(), s.at("median_position_error_m").get<double>(),
       s.at("median_rotation_error_deg").get<double>(), s.at("match_recall").get<double>(),
       s.at("keypoints_with_class_truth").get<long long>(), s.at("match_precision").get<double>(),
@@ -261,7 +275,13 @@ void run_localize(const LocalizeArgs& a) {
   for (size_t i = 0; i < frames.size(); ++i)
     jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
   out["frames"] = std::move(jframes);
-  out["summary"] = summary_json(map, frames, outcomes);
+  out["summary"] = summary_json(map, frames, outcomes, model->calibrated());
+  out["calibration"] =
+      model->calibrated()
+          ? nlohmann::json{{"threshold", localizer.options().min_confidence >= 0 ? localizer.options().min_confidence
+                                                                                 : model->calibration().threshold},
+                           {"target_precision", model->calibration().target_precision}}
+          : nlohmann::json(nullptr);
   write_file_atomically(a.out, out.dump(1) + "\n");
   print_summary(out["summary"], a.threads, a.out);
 }
@@ -292,6 +312,10 @@ void add_localize_command(CLI::App& app) {
   cmd->add_option("--max-error", args->options.pose.max_reprojection_error_px, "Inlier threshold, pixels")
       ->capture_default_str();
   cmd->add_option("--min-inliers", args->options.pose.min_inliers, "Inliers for a pose")->capture_default_str();
+  cmd->add_option("--min-confidence", args->options.min_confidence,
+                  "Calibrated probability a pose needs to count as localized (negative: the model's operating "
+                  "point; ignored by an uncalibrated model)")
+      ->capture_default_str();
   cmd->add_option("--seed", args->options.pose.seed, "RANSAC seed")->capture_default_str();
   cmd->add_flag("--uniform-sampling{false}", args->options.pose.progressive_sampling,
                 "Uniform RANSAC sampling instead of PROSAC in the order of the match margins");

@@ -14,6 +14,7 @@
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "train/boost/training_set.h"
+#include "train/eval/pose_calibration_fit.h"
 #include "train/eval/pose_stage.h"
 #include "train/eval/report.h"
 #include "train/eval/timing.h"
@@ -88,6 +89,46 @@ std::vector<EvalQuery> query_frames(const LandmarkMap& map, const std::vector<ch
   return out;
 }
 
+// The frames of the map's outside sessions (recorded where the map has no landmark), in map order.
+std::vector<EvalQuery> outside_frames(const LandmarkMap& map) {
+  std::vector<EvalQuery> out;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const int32_t s = map.frames[f].session;
+    if (s < 0 || static_cast<size_t>(s) >= map.sessions.size() || map.sessions[s].kind != SessionKind::kOutside) {
+      continue;
+    }
+    out.push_back(frame_query(map, f, [](int64_t) { return kInvalidLandmarkId; }));
+  }
+  return out;
+}
+
+// How many of the outside frames a method reports localized, by the inlier rule and by the
+// calibrated rule (every reported pose of an outside frame is wrong).
+nlohmann::json evaluate_outside(const EvalMethod& method, const MethodContext& context,
+                                const std::vector<EvalQuery>& frames, const CalibrationFit& fit) {
+  const EvalOptions& a = *context.options;
+  int64_t inlier_rule = 0, calibrated = 0;
+  if (!frames.empty()) {
+    const std::unique_ptr<Matcher> matcher = method.make(context);
+    for (const EvalQuery& q : frames) {
+      const FrameMatches m = matcher->match(q);
+      const FrameOutcome o =
+          estimate_frame_pose(q, select_correspondences(q, m.accepted, a.max_correspondences), a.pose);
+      inlier_rule += o.localized;
+      calibrated += o.localized && fit.fitted && fit.calibration.probability(o.evidence) >= fit.calibration.threshold;
+    }
+  }
+  const double n = static_cast<double>(frames.size());
+  nlohmann::json j = {{"frames", frames.size()},
+                      {"localized_inlier_rule", inlier_rule},
+                      {"share_localized_inlier_rule", frames.empty() ? 0.0 : inlier_rule / n}};
+  if (fit.fitted) {
+    j["localized_calibrated"] = calibrated;
+    j["share_localized_calibrated"] = frames.empty() ? 0.0 : calibrated / n;
+  }
+  return j;
+}
+
 // The map frames holding held-out observations (sorted map keypoints of model classes), as
 // queries whose only keypoints with truth are the held-out ones.
 std::vector<EvalQuery> held_out_frames(const LandmarkMap& map, const std::vector<int64_t>& held) {
@@ -127,9 +168,15 @@ void add_sweep(const PoseSweep& part, PoseSweep& total) {
     total = part;
     return;
   }
-  for (size_t b = 0; b < total.frames_correct.size(); ++b) {
-    for (size_t s = 0; s < total.frames_correct[b].size(); ++s) total.frames_correct[b][s] += part.frames_correct[b][s];
-  }
+  const auto add = [](const std::vector<std::vector<int64_t>>& from, std::vector<std::vector<int64_t>>& to) {
+    for (size_t b = 0; b < to.size(); ++b) {
+      for (size_t s = 0; s < to[b].size(); ++s) to[b][s] += from[b][s];
+    }
+  };
+  add(part.frames_correct, total.frames_correct);
+  add(part.frames_localized, total.frames_localized);
+  add(part.calibrated_localized, total.calibrated_localized);
+  add(part.calibrated_correct, total.calibrated_correct);
   total.num_frames += part.num_frames;
 }
 
@@ -173,7 +220,8 @@ void evaluate_pose_stage(const EvalOptions& a, MethodResult& r) {
 
 // query_session[i]: the index in the evaluated sessions of queries[i]'s session.
 MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context, const std::vector<EvalQuery>& queries,
-                          const std::vector<size_t>& query_session, size_t num_sessions) {
+                          const std::vector<size_t>& query_session, size_t num_sessions, const CalibrationFit& fit) {
+  const PoseCalibration* calibration = fit.fitted ? &fit.calibration : nullptr;
   const EvalOptions& a = *context.options;
   MethodRun run;
   run.result.name = method.name;
@@ -187,7 +235,7 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
     MethodResult result;  // frames and sweep
   };
   std::vector<Part> parts(num_sessions);
-  for (Part& p : parts) p.result.sweep = start_pose_sweep(a.sweep, a.pose.seed);
+  for (Part& p : parts) p.result.sweep = start_pose_sweep(a.sweep, a.pose.seed, fit.fitted);
   for (size_t i = 0; i < queries.size(); ++i) {
     const EvalQuery& q = queries[i];
     Part& part = parts[query_session[i]];
@@ -203,7 +251,7 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
     run.cpu_ms_per_frame += m.cpu_ms + thread_cpu_ms() - c0;
     run.result.frames.push_back(o);
     part.result.frames.push_back(o);
-    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), part.result.sweep);
+    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), part.result.sweep, calibration);
     add_keypoint_matches(q, m.accepted, part.matches);
     std::vector<int32_t> ranks;
     for (size_t k = 0; k < q.keypoints.size(); ++k) {
@@ -249,6 +297,57 @@ RetrievalMetrics rank_held_out(const EvalMethod& method, const MethodContext& co
   return evaluate_retrieval(rankings);
 }
 
+// Precision and recall of "success" by the inlier rule and by the calibrated rule, the PR curve
+// over the calibrated probability, and both rules at each RANSAC budget and seed of the sweep.
+nlohmann::json pose_confidence_report(const MethodResult& r, const CalibrationFit& fit, int default_iterations) {
+  const int64_t n = r.pose.num_frames;
+  const auto rule = [n](int64_t localized, int64_t correct) {
+    return nlohmann::json{{"frames_localized", localized},
+                          {"frames_correct", correct},
+                          {"precision", localized > 0 ? static_cast<double>(correct) / localized : 0.0},
+                          {"recall", n > 0 ? static_cast<double>(correct) / n : 0.0}};
+  };
+  nlohmann::json j = {
+      {"calibration", fit.to_json()}, {"inlier_rule", rule(r.pose.num_localized, r.pose.num_correct)}, {"frames", n}};
+  if (!fit.fitted) return j;
+  std::vector<FrameOutcome> frames = r.frames;
+  int64_t localized = 0, correct = 0;
+  nlohmann::json probability = nlohmann::json::array();
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const double p = fit.calibration.probability(frames[i].evidence);
+    probability.push_back(p);
+    frames[i].confidence = p;
+    if (!frames[i].localized || p < fit.calibration.threshold) continue;
+    ++localized;
+    correct += r.pose.correct[i];
+  }
+  j["calibrated_rule"] = rule(localized, correct);
+  j["calibrated_rule"]["threshold"] = fit.calibration.threshold;
+  const PoseMetrics curve = evaluate_poses(frames, PoseThresholds{});
+  nlohmann::json pr = nlohmann::json::array();
+  for (const PosePrPoint& pt : curve.pr_curve) {
+    pr.push_back({{"threshold", pt.threshold}, {"precision", pt.precision}, {"recall", pt.recall}});
+  }
+  j["confidence_pr_curve"] = pr;
+  j["confidence_auc"] = curve.auc;
+  j["frame_confidence"] = probability;
+  nlohmann::json sweep = nlohmann::json::array();
+  const PoseSweep& s = r.sweep;
+  for (size_t b = 0; b < s.iterations.size() && !s.calibrated_localized.empty(); ++b) {
+    nlohmann::json seeds = nlohmann::json::array();
+    for (size_t k = 0; k < s.seeds.size(); ++k) {
+      seeds.push_back({{"seed", s.seeds[k]},
+                       {"inlier_rule", rule(s.frames_localized[b][k], s.frames_correct[b][k])},
+                       {"calibrated_rule", rule(s.calibrated_localized[b][k], s.calibrated_correct[b][k])}});
+    }
+    sweep.push_back({{"ransac_iterations", s.iterations[b]},
+                     {"default_budget", s.iterations[b] == default_iterations},
+                     {"seeds", seeds}});
+  }
+  j["sweep"] = sweep;
+  return j;
+}
+
 nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build, const nlohmann::json& parameters) {
   nlohmann::json thresholds = nlohmann::json::array();
   for (const PoseThresholds& t : a.pose_thresholds) {
@@ -268,6 +367,8 @@ nlohmann::json settings_json(const EvalOptions& a, const nlohmann::json& build, 
           {"pose_thresholds", thresholds},
           {"ransac_sweep_iterations", a.sweep.iterations},
           {"ransac_sweep_seeds", a.sweep.seeds},
+          {"calibration_frames", a.calibration.max_frames},
+          {"target_precision", a.calibration.target_precision},
           {"hamming_backend", a.hamming_backend},
           {"pca_dims", a.pca_dims},
           {"ratio", a.ratio},
@@ -351,6 +452,14 @@ EvalResult run_evaluation(const EvalOptions& a) {
 
   const MethodContext context{model, &map, &a};
   const MethodContext held_context{model, &map, &a, &held};
+  const std::vector<int64_t> calibration_keypoints =
+      calibration_frame_keypoints(map, calibration_frames(map, a.calibration.max_frames));
+  MethodContext calibration_context{model, &map, &a, &calibration_keypoints};
+  calibration_context.accept_only = true;
+  nlohmann::json confidence = nlohmann::json::object();
+  const std::vector<EvalQuery> outside = outside_frames(map);
+  MethodContext outside_context = context;
+  outside_context.accept_only = true;
   std::vector<MethodResult> results;
   std::vector<std::vector<MethodResult>> session_results(sessions.size());
   nlohmann::json build = nlohmann::json::object(), ranks = nlohmann::json::object();
@@ -359,7 +468,25 @@ EvalResult run_evaluation(const EvalOptions& a) {
   for (const std::string& name : names) {
     const Clock::time_point t0 = Clock::now();
     const EvalMethod& method = find_eval_method(name);
-    MethodRun run = evaluate_method(method, context, queries, query_session, sessions.size());
+    // The method's pose calibration, fitted on map frames (train/eval/pose_calibration_fit.h); the
+    // descriptor baselines search an index without the calibration frames' observations.
+    const CalibrationFit fit = [&] {
+      const std::unique_ptr<Matcher> matcher = method.make(calibration_context);
+      return fit_method_calibration(*matcher, map, a.pose, a.max_correspondences, a.pose_thresholds.front(),
+                                    a.calibration);
+    }();
+    spdlog::info(
+        "eval: {}: pose calibration on {} map frames: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
+        fit.num_poses, fit.num_right, fit.num_elsewhere,
+        fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
+    MethodRun run = evaluate_method(method, context, queries, query_session, sessions.size(), fit);
+    confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);
+    confidence[name]["outside"] = evaluate_outside(method, outside_context, outside, fit);
+    if (!outside.empty()) {
+      spdlog::info("eval: {}: {} of {} outside frames localized by the inlier rule, {} by the calibrated rule", name,
+                   confidence[name]["outside"]["localized_inlier_rule"].get<int64_t>(), outside.size(),
+                   confidence[name]["outside"].value("localized_calibrated", int64_t{0}));
+    }
     spdlog::info(
         "eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
         "correct, {:.2f} ms/frame matching ({:.1f} s)",
@@ -382,6 +509,13 @@ EvalResult run_evaluation(const EvalOptions& a) {
   EvalResult out;
   out.report = build_report(counts, results);
   for (const auto& [name, ms] : cpu.items()) out.report["methods"][name]["cpu_ms_per_frame"] = ms;
+  for (const auto& [name, c] : confidence.items()) out.report["methods"][name]["pose_confidence"] = c;
+  out.report["model_calibration"] = model->calibrated()
+                                        ? nlohmann::json{{"calibrated", true},
+                                                         {"threshold", model->calibration().threshold},
+                                                         {"target_precision", model->calibration().target_precision},
+                                                         {"poses", model->calibration().num_samples}}
+                                        : nlohmann::json{{"calibrated", false}};
   out.report["dataset"]["model_classes"] = model->num_classes();
   out.report["dataset"]["query_keypoints_with_class_truth"] = with_class_truth;
   out.report["settings"] = settings_json(a, build, parameters);
@@ -426,6 +560,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
   out.heading = heading;
   out.table = format_results_table(out.report);
   out.gap_table = format_generalization_gap(out.report);
+  out.confidence_table = format_confidence_table(out.report);
   out.cpu_line = cpu_line(cpu);
   return out;
 }

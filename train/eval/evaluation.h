@@ -22,6 +22,13 @@
 // (the classifier sees the frame's other keypoints as context, as in training), the descriptor
 // baselines searching the map observations without them; precision@1 and MRR over them stand
 // beside each query session's in report["generalization_gap"].
+//
+// Pose confidence: each method's calibration is fitted on the map's own map-session frames, the
+// same way for every method (train/eval/pose_calibration_fit.h; the descriptor baselines' index
+// without those frames' observations), never on a query; report["methods"][M]["pose_confidence"]
+// gives the precision and recall of "success" by the inlier rule and by the calibrated rule, the
+// precision-recall curve over the calibrated probability, and both rules at every budget and seed
+// of the sweep.
 #pragma once
 
 #include <filesystem>
@@ -44,6 +51,9 @@ struct EvalResult {
   // The generalization gap (format_generalization_gap): P@1 on the held-out map observations beside
   // P@1 and pose recall on each query session.
   std::string gap_table;
+  // Precision and recall of "success" per method: the inlier rule and the calibrated rule
+  // (format_confidence_table).
+  std::string confidence_table;
 };
 
 // Runs every selected method on the query sessions' frames (and the held-out map observations).

@@ -10,8 +10,9 @@
 
 namespace lmb {
 
-LandmarkBoostMatcher::LandmarkBoostMatcher(std::shared_ptr<const Model> model, const ClassifierOptions& options)
-    : model_(std::move(model)), options_(options), ranking_(options) {
+LandmarkBoostMatcher::LandmarkBoostMatcher(std::shared_ptr<const Model> model, const ClassifierOptions& options,
+                                           bool rank)
+    : model_(std::move(model)), options_(options), ranking_(options), rank_(rank) {
   LMB_CHECK(model_ != nullptr, "LandmarkBoostMatcher: null model");
   options_.check();
   ranking_.min_margin = -std::numeric_limits<double>::infinity();
@@ -31,8 +32,8 @@ KeypointMatches LandmarkBoostMatcher::classify(const EvalQuery& q, const Classif
 FrameMatches LandmarkBoostMatcher::match(const EvalQuery& q) const {
   LMB_CHECK(q.camera != nullptr, "LandmarkBoostMatcher: query frame " << q.frame << " has no camera");
   FrameMatches r;
-  const KeypointMatches ranked = classify(q, ranking_);
   r.ranking.resize(q.keypoints.size());
+  const KeypointMatches ranked = rank_ ? classify(q, ranking_) : KeypointMatches();
   for (int32_t k = 0; k < ranked.num_keypoints(); ++k) {
     for (int32_t j = 0; j < ranked.count(k); ++j) {
       const ClassMatch& m = ranked.of(k)[j];

@@ -21,9 +21,10 @@ namespace lmb {
 
 class LandmarkBoostMatcher : public Matcher {
  public:
-  // options: top_k, use_inverted_file, min_margin, min_score, screening. Throws lmb::Error on a
-  // null model or invalid options.
-  LandmarkBoostMatcher(std::shared_ptr<const Model> model, const ClassifierOptions& options);
+  // options: top_k, use_inverted_file, min_margin, min_score, screening. rank false: no ranking
+  // pass (FrameMatches::ranking holds empty lists; the pose calibration needs the accepted matches
+  // only). Throws lmb::Error on a null model or invalid options.
+  LandmarkBoostMatcher(std::shared_ptr<const Model> model, const ClassifierOptions& options, bool rank = true);
 
   FrameMatches match(const EvalQuery& query) const override;
   nlohmann::json parameters() const override;
@@ -34,6 +35,7 @@ class LandmarkBoostMatcher : public Matcher {
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;  // the configured classification
   ClassifierOptions ranking_;  // the same without rejection
+  bool rank_ = true;
 };
 
 }  // namespace lmb

@@ -16,7 +16,7 @@ std::unique_ptr<Matcher> make_landmarkboost(const MethodContext& c, bool inverte
   options.top_k = c.options->top_k;
   options.use_inverted_file = inverted_file;
   options.min_margin = c.options->min_margin;
-  return std::make_unique<LandmarkBoostMatcher>(c.model, options);
+  return std::make_unique<LandmarkBoostMatcher>(c.model, options, !c.accept_only);
 }
 
 DescriptorMatcherOptions knn_options(const MethodContext& c) {
@@ -72,6 +72,7 @@ void EvalOptions::check() const {
   LMB_CHECK(!pose_thresholds.empty(), "eval: --pose-thresholds is empty");
   for (const PoseThresholds& t : pose_thresholds) t.check();
   sweep.check();
+  calibration.check();
   faiss.check();
   std::set<std::string> seen;
   for (const std::string& m : methods) {

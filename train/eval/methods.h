@@ -16,6 +16,7 @@
 #include "train/eval/faiss_index.h"
 #include "train/eval/matcher.h"
 #include "train/eval/metrics.h"
+#include "train/eval/pose_calibration_fit.h"
 #include "train/eval/pose_stage.h"
 
 namespace lmb {
@@ -33,6 +34,7 @@ struct EvalOptions {
   // reported at every pair.
   std::vector<PoseThresholds> pose_thresholds = {PoseThresholds{}};
   PoseSweepOptions sweep;                  // pose recall over RANSAC budgets and seeds
+  PoseCalibrationOptions calibration;      // each method's pose calibration (map frames, operating point)
   std::string hamming_backend = "opencv";  // the exact Hamming methods: opencv (BFMatcher) or popcount
   int pca_dims = 16;                       // projected_kdtree
   double ratio = 0.8;                      // the ratio-test methods: Lowe's ratio, in (0, 1]
@@ -58,6 +60,9 @@ struct MethodContext {
   // Map keypoints (sorted) the descriptor baselines leave out of their index: the held-out map
   // observations when those are the queries. Null = none.
   const std::vector<int64_t>* excluded_keypoints = nullptr;
+  // True when only the accepted matches are needed (the pose calibration): LandmarkBoost skips its
+  // ranking pass.
+  bool accept_only = false;
   // The training observations the descriptor baselines search: every observation of a model
   // class's landmark in the map's non-query frames, except excluded_keypoints. Throws lmb::Error
   // when there is none.

@@ -12,6 +12,7 @@
 
 #include "common/rigid3.h"
 #include "common/types.h"
+#include "infer/pose_confidence.h"
 
 namespace lmb {
 
@@ -121,6 +122,7 @@ struct FrameOutcome {
   int num_inliers = 0;          // inliers of the returned pose (ignored when not localized)
   double match_ms = 0.0;        // matching / classification time of the frame, milliseconds
   double total_ms = 0.0;        // matching + pose estimation time of the frame, milliseconds
+  PoseEvidence evidence;        // what the pose's calibrated confidence reads (infer/pose_confidence.h)
 };
 
 struct PoseThresholds {
@@ -195,6 +197,12 @@ struct PoseSweep {
   std::vector<int> iterations;  // budgets
   std::vector<uint64_t> seeds;
   std::vector<std::vector<int64_t>> frames_correct;  // [budget][seed]
+  // The same frames' success: reported by the inlier rule (at least min_inliers inliers), and by the
+  // calibrated rule (that and the calibrated probability at least its threshold) with how many of
+  // those are correct; [budget][seed], the calibrated ones empty when the sweep has no calibration.
+  std::vector<std::vector<int64_t>> frames_localized;
+  std::vector<std::vector<int64_t>> calibrated_localized;
+  std::vector<std::vector<int64_t>> calibrated_correct;
   int64_t num_frames = 0;
   // Recall of budget b, seed s: frames_correct[b][s] / num_frames (0 when no frame).
   double recall(size_t b, size_t s) const;

@@ -44,6 +44,8 @@ FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input,
   o.num_correspondences = static_cast<int>(input.pixels.size());
   o.num_inliers = pose.num_inliers;
   o.confidence = pose.num_inliers;
+  o.evidence =
+      pose_evidence(*query.camera, input.pixels, input.quality, pose, static_cast<int>(query.keypoints.size()));
   return o;
 }
 
@@ -53,25 +55,36 @@ void PoseSweepOptions::check() const {
   LMB_CHECK(seeds >= 1 && seeds <= 1000, "PoseSweepOptions: seeds " << seeds << " must be in 1..1000");
 }
 
-PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed) {
+PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed, bool calibrated) {
   sweep_options.check();
   PoseSweep sweep;
   sweep.iterations = sweep_options.iterations;
   for (int s = 0; s < sweep_options.seeds; ++s) sweep.seeds.push_back(base_seed + static_cast<uint64_t>(s));
   sweep.frames_correct.assign(sweep.iterations.size(), std::vector<int64_t>(sweep.seeds.size(), 0));
+  sweep.frames_localized = sweep.frames_correct;
+  if (calibrated) {
+    sweep.calibrated_localized = sweep.frames_correct;
+    sweep.calibrated_correct = sweep.frames_correct;
+  }
   return sweep;
 }
 
 void sweep_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options,
-                      const PoseThresholds& thresholds, PoseSweep& sweep) {
+                      const PoseThresholds& thresholds, PoseSweep& sweep, const PoseCalibration* calibration) {
+  LMB_CHECK((calibration != nullptr) == !sweep.calibrated_localized.empty(),
+            "sweep_frame_pose: a calibration must be given exactly when the sweep was started calibrated");
   PoseEstimatorOptions o = options;
   for (size_t b = 0; b < sweep.iterations.size(); ++b) {
     for (size_t s = 0; s < sweep.seeds.size(); ++s) {
       o.max_iterations = sweep.iterations[b];
       o.seed = sweep.seeds[s];
       const FrameOutcome f = estimate_frame_pose(query, input, o);
-      if (f.localized && pose_within(f.cam_from_world, f.true_cam_from_world, thresholds)) {
-        ++sweep.frames_correct[b][s];
+      const bool right = f.localized && pose_within(f.cam_from_world, f.true_cam_from_world, thresholds);
+      sweep.frames_correct[b][s] += right;
+      sweep.frames_localized[b][s] += f.localized;
+      if (calibration != nullptr && f.localized && calibration->probability(f.evidence) >= calibration->threshold) {
+        ++sweep.calibrated_localized[b][s];
+        sweep.calibrated_correct[b][s] += right;
       }
     }
   }

@@ -32,7 +32,7 @@ PoseInput select_correspondences(const EvalQuery& query, const std::vector<Corre
                                  int max_correspondences);
 
 // RANSAC on `input` with `options`: the frame's outcome with its truth, correspondence and inlier
-// counts and confidence = inlier count. Times are left to the caller.
+// counts, confidence = inlier count and the pose's evidence. Times are left to the caller.
 FrameOutcome estimate_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options);
 
 // The RANSAC budgets and seeds of the pose-recall sweep.
@@ -43,10 +43,13 @@ struct PoseSweepOptions {
 };
 
 // Adds one frame to `sweep` (set up by start_pose_sweep): RANSAC on `input` for every budget and
-// seed, otherwise with `options`, counting the poses within `thresholds` of the truth.
+// seed, otherwise with `options`, counting the poses within `thresholds` of the truth, the poses
+// reported by the inlier rule and, with a calibration (the sweep started with one), those the
+// calibrated rule reports and how many of them are right.
 void sweep_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options,
-                      const PoseThresholds& thresholds, PoseSweep& sweep);
-// An empty sweep (no frame yet) of the budgets and seeds of `sweep_options` from base_seed.
-PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed);
+                      const PoseThresholds& thresholds, PoseSweep& sweep, const PoseCalibration* calibration = nullptr);
+// An empty sweep (no frame yet) of the budgets and seeds of `sweep_options` from base_seed; with
+// calibrated, the calibrated counts too.
+PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed, bool calibrated = false);
 
 }  // namespace lmb

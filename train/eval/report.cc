@@ -1,5 +1,6 @@
 #include "train/eval/report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -354,6 +355,70 @@ std::string format_generalization_gap(const nlohmann::json& report) {
       const double r = pose.contains(name) && pose.at(name).contains(s) ? value(pose.at(name).at(s)) : std::nan("");
       std::snprintf(cell, sizeof(cell), " %16.4f %7.4f", v, r);
       out += cell;
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+std::string format_confidence_table(const nlohmann::json& report) {
+  const auto methods = report.find("methods");
+  if (methods == report.end() || !methods->is_object()) return "";
+  std::string out;
+  char cell[512];
+  for (const auto& [name, m] : methods->items()) {
+    const auto c = m.find("pose_confidence");
+    if (c == m.end()) continue;
+    if (out.empty()) {
+      out +=
+          "\nsuccess of reported poses (precision = right / reported, recall = right / frames, right = within the "
+          "first pose thresholds); inlier rule vs the calibrated confidence at its operating point:\n";
+      std::snprintf(cell, sizeof(cell), "%-24s %9s %10s %8s %9s %10s %8s %10s  %s\n", "method", "inl.prec",
+                    "inl.recall", "inl.rep", "cal.prec", "cal.recall", "cal.rep", "threshold",
+                    "over seeds: inlier prec / recall -> calibrated prec / recall (mean [min, max])");
+      out += cell;
+    }
+    const nlohmann::json& inl = c->at("inlier_rule");
+    if (!c->contains("calibrated_rule")) {
+      std::snprintf(
+          cell, sizeof(cell), "%-24s %9.4f %10.4f %8lld %9s %10s %8s %10s  (calibration not fitted: %lld poses)\n",
+          name.c_str(), inl.at("precision").get<double>(), inl.at("recall").get<double>(),
+          inl.at("frames_localized").get<long long>(), "-", "-", "-", "-", c->at("calibration").value("poses", 0LL));
+      out += cell;
+      continue;
+    }
+    const nlohmann::json& cal = c->at("calibrated_rule");
+    std::snprintf(cell, sizeof(cell), "%-24s %9.4f %10.4f %8lld %9.4f %10.4f %8lld %10.4f", name.c_str(),
+                  inl.at("precision").get<double>(), inl.at("recall").get<double>(),
+                  inl.at("frames_localized").get<long long>(), cal.at("precision").get<double>(),
+                  cal.at("recall").get<double>(), cal.at("frames_localized").get<long long>(),
+                  cal.at("threshold").get<double>());
+    out += cell;
+    for (const nlohmann::json& b : c->value("sweep", nlohmann::json::array())) {
+      if (!b.value("default_budget", false)) continue;
+      const auto range = [&](const char* rule, const char* field) {
+        double sum = 0, lo = 1e300, hi = -1e300;
+        int n = 0;
+        for (const nlohmann::json& s : b.at("seeds")) {
+          const double v = s.at(rule).at(field).get<double>();
+          sum += v;
+          lo = std::min(lo, v);
+          hi = std::max(hi, v);
+          ++n;
+        }
+        char t[96];
+        std::snprintf(t, sizeof(t), "%.3f [%.3f, %.3f]", n ? sum / n : 0.0, lo, hi);
+        return std::string(t);
+      };
+      out += "  " + std::to_string(b.at("seeds").size()) + " seeds: " + range("inlier_rule", "precision") + " / " +
+             range("inlier_rule", "recall") + " -> " + range("calibrated_rule", "precision") + " / " +
+             range("calibrated_rule", "recall");
+    }
+    const auto outside = c->find("outside");
+    if (outside != c->end() && outside->value("frames", 0LL) > 0) {
+      out += "; outside frames localized " + std::to_string(outside->value("localized_inlier_rule", 0LL)) + "/" +
+             std::to_string(outside->value("frames", 0LL)) + " -> " +
+             std::to_string(outside->value("localized_calibrated", 0LL));
     }
     out += "\n";
   }

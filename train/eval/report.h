@@ -80,4 +80,10 @@ std::string format_results_table(const nlohmann::json& report);
 // "generalization_gap".
 std::string format_generalization_gap(const nlohmann::json& report);
 
+// Precision and recall of "success" per method, from report["methods"][M]["pose_confidence"]: the
+// inlier rule (>= min_inliers inliers) and the calibrated rule (its probability at least the
+// operating point) at the primary RANSAC budget and seed, then the mean [min, max] over the
+// sweep's seeds at that budget when the sweep has it. Empty when no method has pose_confidence.
+std::string format_confidence_table(const nlohmann::json& report);
+
 }  // namespace lmb

@@ -424,6 +424,65 @@ TEST_F(EvalCliTest, ReportSchemaIsDocumented) {
   }
 }
 
+// The pose calibration: export fits it deterministically (a second export is the same file) and
+// stores it (the model is calibrated); eval fits every method's the same way on map frames and
+// its calibrated rule is exactly the frames whose probability reaches the threshold among the
+// frames the inlier rule localizes, counted right by the per-frame flags.
+TEST_F(EvalCliTest, PoseCalibrationIsDeterministicStoredAndCountedByEval) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const auto model = Model::load(dir_ / "model.lbm");
+  ASSERT_TRUE(model->calibrated());
+  EXPECT_EQ(model->calibration().target_precision, 0.95);
+  EXPECT_GT(model->calibration().num_samples, 0);
+  const RunResult again = run("export --run " + (dir_ / "run").string() + " --map " + map_.string() + " --vocab " +
+                                  (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "model_again.lbm").string(),
+                              dir_);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(slurp(dir_ / "model_again.lbm"), slurp(dir_ / "model.lbm"));
+  // --calibration off: the model as before this format (version 1 or 2), uncalibrated.
+  const RunResult off =
+      run("export --run " + (dir_ / "run").string() + " --map " + map_.string() + " --vocab " +
+              (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "model_off.lbm").string() + " --calibration off",
+          dir_);
+  ASSERT_EQ(off.exit_code, 0) << off.err;
+  EXPECT_FALSE(Model::load(dir_ / "model_off.lbm")->calibrated());
+  EXPECT_LT(slurp(dir_ / "model_off.lbm").size(), slurp(dir_ / "model.lbm").size());
+
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  EXPECT_TRUE(report.at("model_calibration").at("calibrated").get<bool>());
+  for (const auto& [name, m] : report.at("methods").items()) {
+    const nlohmann::json& c = m.at("pose_confidence");
+    EXPECT_EQ(c.at("inlier_rule").at("frames_localized"), m.at("frames_localized")) << name;
+    EXPECT_EQ(c.at("inlier_rule").at("frames_correct"), m.at("frames_correct")) << name;
+    const nlohmann::json& fit = c.at("calibration");
+    EXPECT_GT(fit.at("frames").get<int>(), 0) << name;
+    if (!fit.at("fitted").get<bool>()) continue;
+    const double threshold = c.at("calibrated_rule").at("threshold").get<double>();
+    const nlohmann::json& p = c.at("frame_confidence");
+    const nlohmann::json& localized = m.at("per_frame").at("localized");
+    const nlohmann::json& correct = m.at("per_frame").at("correct");
+    ASSERT_EQ(p.size(), localized.size()) << name;
+    int64_t reported = 0, right = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+      EXPECT_GE(p[i].get<double>(), 0.0);
+      EXPECT_LT(p[i].get<double>(), 1.0);
+      if (localized[i].get<int>() == 0 || p[i].get<double>() < threshold) continue;
+      ++reported;
+      right += correct[i].get<int>();
+    }
+    EXPECT_EQ(c.at("calibrated_rule").at("frames_localized").get<int64_t>(), reported) << name;
+    EXPECT_EQ(c.at("calibrated_rule").at("frames_correct").get<int64_t>(), right) << name;
+    EXPECT_LE(reported, m.at("frames_localized").get<int64_t>()) << name;
+  }
+  // LandmarkBoost's calibration in eval is the model's (the same frames, options and seed).
+  const nlohmann::json& lb = report.at("methods").at("landmarkboost").at("pose_confidence").at("calibration");
+  if (lb.at("fitted").get<bool>()) {
+    EXPECT_EQ(lb.at("threshold").get<double>(), model->calibration().threshold);
+    EXPECT_EQ(lb.at("bias").get<double>(), model->calibration().bias);
+  }
+  EXPECT_NE(eval_.out.find("success of reported poses"), std::string::npos) << eval_.out;
+}
+
 // The classes of the model and the training observations of a map (every observation of a class
 // landmark in a map frame), less `excluded` (sorted keypoints).
 std::vector<char> class_flags(const LandmarkMap& map, const Model& model) {

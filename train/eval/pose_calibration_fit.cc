@@ -1,0 +1,135 @@
+#include "train/eval/pose_calibration_fit.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+#include "train/eval/pose_stage.h"
+
+namespace lmb {
+
+void PoseCalibrationOptions::check() const {
+  LMB_CHECK(max_frames >= 1, "pose calibration: max_frames = " << max_frames << " must be >= 1");
+  LMB_CHECK(target_precision > 0.0 && target_precision <= 1.0,
+            "pose calibration: target_precision = " << target_precision << " must be in (0, 1]");
+  LMB_CHECK(min_poses >= 1, "pose calibration: min_poses = " << min_poses << " must be >= 1");
+}
+
+std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames) {
+  LMB_CHECK(max_frames >= 1, "pose calibration: max_frames = " << max_frames << " must be >= 1");
+  std::vector<frame_t> all;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const int32_t s = map.frames[f].session;
+    const bool map_session =
+        s >= 0 && static_cast<size_t>(s) < map.sessions.size() && map.sessions[s].kind == SessionKind::kMap;
+    if (map_session && !map.frames[f].is_query) all.push_back(f);
+  }
+  // Every other frame at least, so that the frames between keep the descriptor baselines' index.
+  const size_t step =
+      std::max<size_t>(2, (all.size() + static_cast<size_t>(max_frames) - 1) / static_cast<size_t>(max_frames));
+  std::vector<frame_t> out;
+  for (size_t i = 0; i < all.size(); i += step) out.push_back(all[i]);
+  return out;
+}
+
+std::vector<int64_t> calibration_frame_keypoints(const LandmarkMap& map, const std::vector<frame_t>& frames) {
+  std::vector<int64_t> out;
+  for (frame_t f : frames) {
+    const MapFrame& frame = map.frames[f];
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) out.push_back(k);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+EvalQuery map_frame_query(const LandmarkMap& map, frame_t f) {
+  const MapFrame& frame = map.frames[f];
+  EvalQuery q;
+  q.frame = f;
+  q.camera = &map.cameras[frame.camera];
+  q.keypoints.assign(map.keypoints.begin() + frame.first_keypoint,
+                     map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+  q.descriptors = map.descriptor(frame.first_keypoint);
+  q.gravity_in_cam = frame.gravity_in_cam;
+  q.true_cam_from_world = frame.cam_from_world;
+  q.truth.assign(q.keypoints.size(), kInvalidLandmarkId);
+  return q;
+}
+
+nlohmann::json CalibrationFit::to_json() const {
+  nlohmann::json j = {{"fitted", fitted},
+                      {"frames", num_frames},
+                      {"poses", num_poses},
+                      {"poses_right", num_right},
+                      {"poses_elsewhere", num_elsewhere},
+                      {"poses_passed", passed},
+                      {"poses_passed_right", passed_right}};
+  if (fitted) {
+    nlohmann::json weights = nlohmann::json::object();
+    for (int k = 0; k < PoseEvidence::kNumFeatures; ++k) {
+      weights[PoseEvidence::feature_names()[k]] = calibration.weights[k];
+    }
+    j["weights"] = weights;
+    j["bias"] = calibration.bias;
+    j["threshold"] = calibration.threshold;
+    j["target_precision"] = calibration.target_precision;
+  }
+  return j;
+}
+
+CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap& map, const PoseEstimatorOptions& pose,
+                                      int max_correspondences, const PoseThresholds& thresholds,
+                                      const PoseCalibrationOptions& options) {
+  options.check();
+  pose.check();
+  thresholds.check();
+  const std::vector<frame_t> frames = calibration_frames(map, options.max_frames);
+  LMB_CHECK(!frames.empty(), "pose calibration: the map has no frame of a map session to calibrate on");
+  CalibrationFit fit;
+  fit.num_frames = static_cast<int64_t>(frames.size());
+  std::vector<PoseEvidence> evidence;
+  std::vector<char> right;
+  for (frame_t f : frames) {
+    const EvalQuery q = map_frame_query(map, f);
+    const FrameMatches m = matcher.match(q);
+    // The frame's own landmarks, sorted.
+    const MapFrame& frame = map.frames[f];
+    std::vector<landmark_t> own;
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+      if (map.keypoint_landmark[k] != kInvalidLandmarkId) own.push_back(map.keypoint_landmark[k]);
+    }
+    std::sort(own.begin(), own.end());
+    std::vector<Correspondence> elsewhere;
+    for (const Correspondence& c : m.accepted) {
+      if (!std::binary_search(own.begin(), own.end(), c.landmark)) elsewhere.push_back(c);
+    }
+    for (int variant = 0; variant < 2; ++variant) {
+      const std::vector<Correspondence>& accepted = variant == 0 ? m.accepted : elsewhere;
+      const PoseInput input = select_correspondences(q, accepted, max_correspondences);
+      const PoseResult r = estimate_absolute_pose(*q.camera, input.pixels, input.points_world, pose, input.quality);
+      if (!r.success) continue;
+      evidence.push_back(
+          pose_evidence(*q.camera, input.pixels, input.quality, r, static_cast<int>(q.keypoints.size())));
+      right.push_back(pose_within(r.cam_from_world, q.true_cam_from_world, thresholds) ? 1 : 0);
+      fit.num_elsewhere += variant;
+    }
+  }
+  fit.num_poses = static_cast<int64_t>(evidence.size());
+  fit.num_right = std::count(right.begin(), right.end(), 1);
+  if (fit.num_poses < options.min_poses) return fit;
+  fit.calibration = fit_pose_calibration(evidence, right);
+  std::vector<double> p;
+  for (const PoseEvidence& e : evidence) p.push_back(fit.calibration.probability(e));
+  fit.calibration.threshold = precision_threshold(p, right, options.target_precision);
+  fit.calibration.target_precision = options.target_precision;
+  fit.calibration.check("pose calibration");
+  for (size_t i = 0; i < p.size(); ++i) {
+    if (p[i] < fit.calibration.threshold) continue;
+    ++fit.passed;
+    fit.passed_right += right[i];
+  }
+  fit.fitted = true;
+  return fit;
+}
+
+}  // namespace lmb

@@ -1,0 +1,76 @@
+// Fitting a method's pose calibration (infer/pose_confidence.h) where the truth is known and no
+// query session is involved: on frames of the map's own map sessions, whose poses the map holds.
+// `lboost export` fits LandmarkBoost's and stores it in model.lbm; `lboost eval` fits every
+// method's the same way (each with its own matcher) before it evaluates the queries.
+//
+// The calibration poses. Calibration frames: every s-th frame of the map sessions (map order,
+// s = max(2, ceil(map frames / max_frames)): the frames between keep the baselines' index). Each frame is matched by
+// the method, and two poses are estimated with the evaluation's pose stage (train/eval/pose_stage.h, same options and
+// seed):
+//   - "as is": the frame's accepted matches;
+//   - "elsewhere": the accepted matches minus those to a landmark the frame itself observes (its
+//     map keypoints' landmarks), i.e. the frame as if taken where its own landmarks are not in
+//     view: what is left are the aliased matches (a door, a poster of another place), which is how
+//     a wrong pose with many inliers arises in an aliased building and how a query from outside
+//     the map looks.
+// A pose enters the fit when the estimator reports success (at least min_inliers inliers): the
+// calibration decides among the poses the inlier rule would report. Label: within the pose
+// thresholds of the frame's map pose. Features: PoseEvidence, the same for every method.
+// The operating point is precision_threshold at target_precision over the fitted poses.
+//
+// Honesty: no query frame is read. The map frames are frames the methods have seen (LandmarkBoost
+// trained on their observations, except the held-out ones; the descriptor baselines are given
+// their index without the calibration frames' observations, MethodContext::excluded_keypoints), so
+// their poses are easier than a query's; the "elsewhere" poses supply the wrong poses a map frame
+// rarely yields. Deterministic: a function of the map, the matcher, the options and the seed.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/landmark_map.h"
+#include "infer/pose_confidence.h"
+#include "infer/pose_estimator.h"
+#include "train/eval/matcher.h"
+#include "train/eval/metrics.h"
+
+namespace lmb {
+
+struct PoseCalibrationOptions {
+  int max_frames = 200;            // calibration frames at most, >= 1
+  double target_precision = 0.95;  // the operating point's precision on the fitted poses, (0, 1]
+  int min_poses = 20;              // fewer fitted poses: no calibration (CalibrationFit::fitted false)
+  void check() const;              // throws lmb::Error naming the field
+};
+
+// The calibration frames of `map` (see the file comment), ascending.
+std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames);
+// Their map keypoints, ascending (what the descriptor baselines leave out of their index).
+std::vector<int64_t> calibration_frame_keypoints(const LandmarkMap& map, const std::vector<frame_t>& frames);
+
+struct CalibrationFit {
+  bool fitted = false;          // false: too few poses (num_poses < min_poses)
+  PoseCalibration calibration;  // when fitted (threshold = the operating point)
+  int64_t num_frames = 0;       // calibration frames
+  int64_t num_poses = 0;        // poses fitted on (both variants)
+  int64_t num_right = 0;        // of them right
+  int64_t num_elsewhere = 0;    // of the poses, "elsewhere" ones
+  int64_t passed = 0;           // poses at or above the operating point
+  int64_t passed_right = 0;     // of them right
+  nlohmann::json to_json() const;
+};
+
+// Matches every calibration frame with `matcher`, estimates both poses with `pose` (at most
+// max_correspondences correspondences, 0 = all) and fits the calibration. Throws lmb::Error on
+// invalid options or a map without map-session frames.
+CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap& map, const PoseEstimatorOptions& pose,
+                                      int max_correspondences, const PoseThresholds& thresholds,
+                                      const PoseCalibrationOptions& options);
+
+// One map frame as a query (truth left empty: the calibration needs the frame's pose only).
+EvalQuery map_frame_query(const LandmarkMap& map, frame_t f);
+
+}  // namespace lmb
