@@ -42,7 +42,7 @@ namespace lmb {
 struct PoseCalibrationOptions {
   int max_frames = 200;            // calibration frames at most, >= 1
   double target_precision = 0.95;  // the operating point's precision on the fitted poses, (0, 1]
-  int min_poses = 20;              // fewer fitted poses: no calibration (CalibrationFit::fitted false)
+  int min_poses = 10;              // fewer fitted poses: no calibration (CalibrationFit::fitted false)
   void check() const;              // throws lmb::Error naming the field
 };
 
