@@ -41,10 +41,11 @@ LMB_CLONES_AVX2 void add_class_to_block(const int64_t* bucket_p, const int64_t* 
     std::memcpy(d, &bits, sizeof(*d));
     *d -= magic;
   };
-  // Inclusive prefix sums of a chunk: [a0, a0+a1, a0+a1+a2, a0+..+a3].
+  // Inclusive prefix sums of a chunk: [a0, a0+a1, a0+a1+a2, a0+..+a3] (__builtin_shufflevector: GCC >= 12
+  // and clang, which builds the fuzz targets).
   auto prefix = [&](V4d* x) {
-    *x += __builtin_shuffle(*x, zero, V4l{4, 0, 1, 2});
-    *x += __builtin_shuffle(*x, zero, V4l{4, 4, 0, 1});
+    *x += __builtin_shufflevector(*x, zero, 4, 0, 1, 2);
+    *x += __builtin_shufflevector(*x, zero, 4, 4, 0, 1);
   };
   V4d incl_p[4], incl_n[4];
   V4d carry_p = zero, carry_n = zero;
@@ -55,8 +56,8 @@ LMB_CLONES_AVX2 void add_class_to_block(const int64_t* bucket_p, const int64_t* 
     prefix(&incl_n[i]);
     incl_p[i] += carry_p;
     incl_n[i] += carry_n;
-    carry_p = __builtin_shuffle(incl_p[i], V4l{3, 3, 3, 3});
-    carry_n = __builtin_shuffle(incl_n[i], V4l{3, 3, 3, 3});
+    carry_p = __builtin_shufflevector(incl_p[i], incl_p[i], 3, 3, 3, 3);
+    carry_n = __builtin_shufflevector(incl_n[i], incl_n[i], 3, 3, 3, 3);
   }
   const double cw = static_cast<double>(class_w), cy = static_cast<double>(class_y);
   const V4d q = {class_q, class_q, class_q, class_q};
