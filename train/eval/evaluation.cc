@@ -59,18 +59,9 @@ std::vector<int32_t> selected_sessions(const LandmarkMap& map, const EvalOptions
 // A frame of the map as a query: its keypoints, and per keypoint `truth(k)` (k: map keypoint).
 template <typename Truth>
 EvalQuery frame_query(const LandmarkMap& map, frame_t f, Truth truth) {
-  const MapFrame& frame = map.frames[f];
-  EvalQuery q;
-  q.frame = f;
-  q.camera = &map.cameras[frame.camera];
-  q.keypoints.assign(map.keypoints.begin() + frame.first_keypoint,
-                     map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
-  q.descriptors = map.descriptor(frame.first_keypoint);
-  q.gravity_in_cam = frame.gravity_in_cam;
-  q.true_cam_from_world = frame.cam_from_world;
-  for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
-    q.truth.push_back(truth(k));
-  }
+  EvalQuery q = map_frame_query(map, f);
+  const int64_t first = map.frames[f].first_keypoint;
+  for (size_t i = 0; i < q.truth.size(); ++i) q.truth[i] = truth(first + static_cast<int64_t>(i));
   return q;
 }
 

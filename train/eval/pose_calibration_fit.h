@@ -70,7 +70,8 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
                                       int max_correspondences, const PoseThresholds& thresholds,
                                       const PoseCalibrationOptions& options);
 
-// One map frame as a query (truth left empty: the calibration needs the frame's pose only).
+// One map frame as a query, its truth every keypoint kInvalidLandmarkId (the calibration needs the
+// frame's pose only; evaluation's frame_query fills the truth in).
 EvalQuery map_frame_query(const LandmarkMap& map, frame_t f);
 
 }  // namespace lmb
