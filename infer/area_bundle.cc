@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -112,6 +113,7 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
   }
   LMB_CHECK(!in.next(), in.where() << ": unexpected line after the last area");
   bundle->models_.resize(bundle->areas_.size());
+  bundle->last_use_.assign(bundle->areas_.size(), 0);
   return bundle;
 }
 
@@ -133,7 +135,10 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
             index_.string() << ": no area " << id << " (the bundle has " << areas_.size() << ")");
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (models_[static_cast<size_t>(id)]) return models_[static_cast<size_t>(id)];
+    if (models_[static_cast<size_t>(id)]) {
+      last_use_[static_cast<size_t>(id)] = ++use_clock_;
+      return models_[static_cast<size_t>(id)];
+    }
   }
   const BundleArea& a = areas_[static_cast<size_t>(id)];
   const std::filesystem::path path = index_.parent_path() / a.file;
@@ -151,8 +156,76 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
   std::shared_ptr<const Model> model =
       Model::from_bytes(reinterpret_cast<const uint8_t*>(image.data()), image.size(), what);
   std::lock_guard<std::mutex> lock(mutex_);
-  if (!models_[static_cast<size_t>(id)]) models_[static_cast<size_t>(id)] = std::move(model);
-  return models_[static_cast<size_t>(id)];
+  const size_t i = static_cast<size_t>(id);
+  last_use_[i] = ++use_clock_;
+  if (!models_[i]) {
+    models_[i] = std::move(model);
+    ++loads_;
+    evict_locked(id);
+  }
+  return models_[i];
+}
+
+void AreaBundle::evict_locked(int32_t keep) {
+  for (;;) {
+    int64_t count = 0;
+    uint64_t bytes = 0;
+    int32_t oldest = -1;
+    for (size_t i = 0; i < models_.size(); ++i) {
+      if (!models_[i]) continue;
+      ++count;
+      bytes += areas_[i].bytes;
+      if (static_cast<int32_t>(i) != keep && (oldest < 0 || last_use_[i] < last_use_[static_cast<size_t>(oldest)])) {
+        oldest = static_cast<int32_t>(i);
+      }
+    }
+    const bool over =
+        (limits_.max_areas > 0 && count > limits_.max_areas) || (limits_.max_bytes > 0 && bytes > limits_.max_bytes);
+    if (!over || oldest < 0) return;
+    models_[static_cast<size_t>(oldest)].reset();
+  }
+}
+
+void AreaBundle::set_cache_limits(const BundleCacheLimits& limits) {
+  LMB_CHECK(limits.max_areas >= 0, "bundle cache: max_areas = " << limits.max_areas << " must be >= 0 (0 = no limit)");
+  std::lock_guard<std::mutex> lock(mutex_);
+  limits_ = limits;
+  // The most recently used area is kept, as after a load.
+  int32_t newest = -1;
+  for (size_t i = 0; i < models_.size(); ++i) {
+    if (models_[i] && (newest < 0 || last_use_[i] > last_use_[static_cast<size_t>(newest)])) {
+      newest = static_cast<int32_t>(i);
+    }
+  }
+  evict_locked(newest);
+}
+
+BundleCacheLimits AreaBundle::cache_limits() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return limits_;
+}
+
+std::vector<int32_t> AreaBundle::loaded_ids() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<int32_t> ids;
+  for (size_t i = 0; i < models_.size(); ++i) {
+    if (models_[i]) ids.push_back(static_cast<int32_t>(i));
+  }
+  return ids;
+}
+
+uint64_t AreaBundle::loaded_bytes() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  uint64_t bytes = 0;
+  for (size_t i = 0; i < models_.size(); ++i) {
+    if (models_[i]) bytes += areas_[i].bytes;
+  }
+  return bytes;
+}
+
+int64_t AreaBundle::loads() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return loads_;
 }
 
 bool AreaBundle::loaded(int32_t id) const {
@@ -171,16 +244,24 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
                                         const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                                         const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
                                         const LocalizerOptions& options) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point start = Clock::now();
   options.check();
   BundleLocalizeResult out;
-  for (int32_t id : bundle.select(prior)) {
+  const std::vector<int32_t> selected = bundle.select(prior);
+  out.selected = static_cast<int32_t>(selected.size());
+  out.prior_used = prior != nullptr;
+  for (int32_t id : selected) {
     std::shared_ptr<const Model> model;
+    const int64_t loads_before = bundle.loads();
     try {
       model = bundle.model(id);
     } catch (const Error& e) {
       out.errors.push_back(e.what());
       continue;
     }
+    // (Another thread's load may count here too: `loaded` is exact for one thread at a time.)
+    out.loaded += bundle.loads() > loads_before ? 1 : 0;
     const Localizer localizer(model, options);
     LocalizeResult r = localizer.localize(camera, keypoints, descriptors, gravity_in_cam, options);
     const int inliers = r.pose.success ? r.pose.num_inliers : 0;
@@ -191,7 +272,54 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
       out.result = std::move(r);
     }
   }
+  out.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return out;
+}
+
+void BundleLocalizerOptions::check() const {
+  localizer.check();
+  LMB_CHECK(std::isfinite(tracking_radius) && tracking_radius >= 0.0,
+            "bundle localizer options: tracking_radius = " << tracking_radius << " must be finite and >= 0");
+}
+
+BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options)
+    : bundle_(std::move(bundle)), options_(options) {
+  LMB_CHECK(bundle_ != nullptr, "bundle localizer: null bundle");
+  options_.check();
+}
+
+BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                               const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                               const PositionPrior* prior) const {
+  return localize_in_bundle(*bundle_, camera, keypoints, descriptors, gravity_in_cam, prior, options_.localizer);
+}
+
+BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                            const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) {
+  BundleLocalizeResult r;
+  bool done = false;
+  if (last_position_) {
+    PositionPrior prior;
+    prior.position = *last_position_;
+    prior.radius = options_.tracking_radius;
+    r = localize(camera, keypoints, descriptors, gravity_in_cam, &prior);
+    done = r.area >= 0 || !options_.relocalize_without_prior;
+  }
+  if (!done) {
+    const double ms = r.total_ms;
+    const int32_t loaded = r.loaded;
+    std::vector<std::string> errors = std::move(r.errors);
+    r = localize(camera, keypoints, descriptors, gravity_in_cam, nullptr);
+    // The failed tracking attempt's time and loads count too.
+    r.total_ms += ms;
+    r.loaded += loaded;
+    for (std::string& e : r.errors) {
+      if (std::find(errors.begin(), errors.end(), e) == errors.end()) errors.push_back(std::move(e));
+    }
+    r.errors = std::move(errors);
+  }
+  if (r.area >= 0) last_position_ = r.result.pose.cam_from_world.center();
+  return r;
 }
 
 }  // namespace lmb

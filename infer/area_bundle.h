@@ -15,13 +15,25 @@
 //
 // Localizing with a prior (position within `radius` metres): the areas whose cell lies within
 // radius + reach of the position are scored, each with its own model; without a prior, every area.
-// The pose with the most inliers wins (ties: the smaller area id).
+// The pose with the most inliers wins (ties: the smaller area id): the areas compete, their matches
+// are not merged (docs/areas.md says why).
+//
+// Memory: set_cache_limits() bounds the loaded areas (a count and/or their model bytes); when a
+// load would exceed a limit, the least recently used other areas are freed first.
+//
+//   auto bundle = AreaBundle::open("bundle/bundle.txt");
+//   bundle->set_cache_limits({8, 0});                 // at most 8 areas in memory
+//   BundleLocalizer localizer(bundle);
+//   PositionPrior prior{gps_position, 10.0};
+//   BundleLocalizeResult r = localizer.localize(camera, keypoints, descriptors, gravity, &prior);
+//   r = localizer.track(camera, keypoints, descriptors, gravity);  // prior: the last pose
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,6 +67,12 @@ struct LMB_INFER_EXPORT PositionPrior {
   double radius = 0.0;
 };
 
+// Limits on the areas a bundle keeps loaded; 0 = no limit.
+struct LMB_INFER_EXPORT BundleCacheLimits {
+  int64_t max_areas = 0;   // loaded areas
+  uint64_t max_bytes = 0;  // the loaded areas' model file bytes (BundleArea::bytes)
+};
+
 class LMB_INFER_EXPORT AreaBundle {
  public:
   // Reads and checks the index only. Throws lmb::Error "<index> line <n>: <what>" (or naming the
@@ -77,12 +95,29 @@ class LMB_INFER_EXPORT AreaBundle {
   // Frees the models of the areas not in `keep` (a caller holding one keeps it alive).
   void release_except(const std::vector<int32_t>& keep);
 
+  // Least-recently-used eviction: after each load, while the loaded areas exceed a limit, the
+  // area used longest ago (other than the one just loaded) is freed. Setting limits applies them
+  // at once. Throws lmb::Error for negative max_areas.
+  void set_cache_limits(const BundleCacheLimits& limits);
+  BundleCacheLimits cache_limits() const;
+  // The loaded areas, ascending, and their model file bytes.
+  std::vector<int32_t> loaded_ids() const;
+  uint64_t loaded_bytes() const;
+  // How many times an area's model was read from its file (loads after an eviction count again).
+  int64_t loads() const;
+
  private:
+  void evict_locked(int32_t keep);  // mutex_ held
+
   std::filesystem::path index_;
   double reach_ = 0.0;
   std::vector<BundleArea> areas_;
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<const Model>> models_;  // per area, null until loaded
+  std::vector<uint64_t> last_use_;                    // per area: the use clock at its last use
+  uint64_t use_clock_ = 0;
+  int64_t loads_ = 0;
+  BundleCacheLimits limits_;
 };
 
 struct LMB_INFER_EXPORT BundleLocalizeResult {
@@ -91,6 +126,10 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
   std::vector<int32_t> scored;      // the areas scored (selected and loaded)
   std::vector<int32_t> inliers;     // per scored area: its pose's inliers (0 without a pose)
   std::vector<std::string> errors;  // one line per selected area that could not be loaded
+  int32_t selected = 0;             // areas the prior selected (every area without one)
+  int32_t loaded = 0;               // areas read from their files during this call
+  bool prior_used = false;          // a prior restricted the areas (track(): false = relocalized)
+  double total_ms = 0.0;            // the whole call, steady clock (loads included)
 };
 
 // Localizes a frame in the areas `prior` selects (every area when prior is null), each through
@@ -100,5 +139,49 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
 LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(
     AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
     const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior, const LocalizerOptions& options = {});
+
+struct LMB_INFER_EXPORT BundleLocalizerOptions {
+  LocalizerOptions localizer;
+  // track(): the prior is the last tracked camera centre within this many metres (how far the
+  // camera may move between two tracked frames; the bundle's reach is added by the selection).
+  double tracking_radius = 1.0;
+  // track(): without a last pose, or when the prior's areas give none, localize in every area.
+  bool relocalize_without_prior = true;
+  // Throws lmb::Error naming the field.
+  void check() const;
+};
+
+// Localization over an AreaBundle, the C++ counterpart of Localizer for a map split into areas.
+// localize() is const and thread-safe (the bundle loads under its own lock); track() keeps the
+// last pose, so one BundleLocalizer tracks one camera from one thread at a time.
+class LMB_INFER_EXPORT BundleLocalizer {
+ public:
+  // Throws lmb::Error for a null bundle or invalid options.
+  explicit BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options = {});
+
+  // The areas `prior` selects (every area when null) compete; see localize_in_bundle.
+  BundleLocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                const PositionPrior* prior) const;
+  // Tracking mode: the prior is the last successful track()'s camera centre within
+  // options.tracking_radius; without one (first frame, after reset_tracking()), or when those
+  // areas give no pose and relocalize_without_prior is set, every area is scored
+  // (result.prior_used false). A successful pose becomes the next frame's prior.
+  BundleLocalizeResult track(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                             const Eigen::Vector3d& gravity_in_cam);
+  void reset_tracking() { last_position_.reset(); }
+  // Sets the last tracked camera centre (e.g. from another source, or none).
+  void set_last_position(const std::optional<Eigen::Vector3d>& position) { last_position_ = position; }
+  // The last tracked camera centre (world frame), if any.
+  const std::optional<Eigen::Vector3d>& last_position() const { return last_position_; }
+
+  AreaBundle& bundle() const { return *bundle_; }
+  const BundleLocalizerOptions& options() const { return options_; }
+
+ private:
+  std::shared_ptr<AreaBundle> bundle_;
+  BundleLocalizerOptions options_;
+  std::optional<Eigen::Vector3d> last_position_;
+};
 
 }  // namespace lmb

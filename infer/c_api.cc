@@ -1,19 +1,28 @@
 #include "infer/c_api.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <memory>
 #include <new>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/error.h"
+#include "infer/area_bundle.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 
 struct lmb_model {
   std::shared_ptr<const lmb::Model> model;
+};
+
+struct lmb_bundle {
+  std::shared_ptr<lmb::AreaBundle> bundle;
+  std::unique_ptr<lmb::BundleLocalizer> tracker;  // lmb_bundle_track's state
+  std::atomic<int> descriptor_bytes{-1};          // of the first area loaded (-1: none yet)
 };
 
 namespace {
@@ -211,6 +220,184 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
     }
     return LMB_OK;
   });
+}
+
+}  // extern "C"
+
+namespace {
+
+lmb::LocalizerOptions to_localizer_options(const lmb_localize_options* options) {
+  lmb_localize_options o;
+  lmb_localize_options_init(&o);
+  if (options != nullptr) o = *options;
+  lmb::LocalizerOptions lo;
+  lo.classifier.top_k = o.top_k;
+  lo.classifier.use_inverted_file = o.use_inverted_file != 0;
+  lo.classifier.min_margin = o.min_margin;
+  lo.pose_top_k = o.pose_top_k;
+  lo.max_correspondences = o.max_correspondences;
+  lo.pose.max_iterations = o.ransac_iterations;
+  lo.pose.max_reprojection_error_px = o.max_reprojection_error_px;
+  lo.pose.min_inliers = o.min_inliers;
+  lo.pose.seed = o.seed;
+  lo.check();
+  return lo;
+}
+
+// A frame's inputs in C++ form, checked as lmb_localize checks them.
+struct BundleFrame {
+  lmb::Camera camera;
+  std::vector<lmb::Keypoint> keypoints;
+  Eigen::Vector3d gravity;
+};
+
+// lmb_bundle_localize and lmb_bundle_track: checks, then `localize(frame)` under the guard.
+template <class F>
+lmb_status bundle_call(const char* fn, lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                       int n, const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                       lmb_pose* out_pose, int* out_area, F&& localize) {
+  if (out_pose != nullptr) *out_pose = lmb_pose{};
+  if (out_area != nullptr) *out_area = -1;
+  if (bundle == nullptr || camera == nullptr || gravity_in_cam == nullptr || out_pose == nullptr) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                std::string(fn) + ": bundle, camera, gravity_in_cam and out_pose must not be NULL");
+  }
+  if (n < 0 || (n > 0 && (keypoints == nullptr || descriptors == nullptr))) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, std::string(fn) + ": n < 0 or NULL keypoints/descriptors");
+  }
+  if (camera->num_params < 0 || (camera->num_params > 0 && camera->params == nullptr)) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, std::string(fn) + ": camera params NULL or num_params < 0");
+  }
+  if (bundle->descriptor_bytes >= 0 && descriptor_bytes != bundle->descriptor_bytes) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT, std::string(fn) + ": descriptors have " + std::to_string(descriptor_bytes) +
+                                                " bytes, the bundle's models expect " +
+                                                std::to_string(bundle->descriptor_bytes));
+  }
+  return guarded(LMB_ERROR_INVALID_ARGUMENT, fn, [&] {
+    BundleFrame frame;
+    frame.camera.model = lmb::camera_model_from_id(camera->model);
+    frame.camera.width = camera->width;
+    frame.camera.height = camera->height;
+    frame.camera.params.assign(camera->params, camera->params + camera->num_params);
+    frame.camera.check("camera");
+    frame.keypoints.resize(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      frame.keypoints[i].x = keypoints[i].x;
+      frame.keypoints[i].y = keypoints[i].y;
+      frame.keypoints[i].scale = keypoints[i].size;
+      frame.keypoints[i].angle = keypoints[i].angle;
+    }
+    frame.gravity = Eigen::Vector3d(gravity_in_cam[0], gravity_in_cam[1], gravity_in_cam[2]);
+    if (bundle->descriptor_bytes < 0) {
+      // The first area that loads tells the descriptor length (every area shares the vocabulary).
+      for (int32_t id = 0; id < static_cast<int32_t>(bundle->bundle->areas().size()); ++id) {
+        try {
+          bundle->descriptor_bytes = bundle->bundle->model(id)->descriptor_bytes();
+          break;
+        } catch (const lmb::Error&) {
+        }
+      }
+      if (bundle->descriptor_bytes >= 0 && descriptor_bytes != bundle->descriptor_bytes) {
+        return fail(LMB_ERROR_INVALID_ARGUMENT,
+                    std::string(fn) + ": descriptors have " + std::to_string(descriptor_bytes) +
+                        " bytes, the bundle's models expect " + std::to_string(bundle->descriptor_bytes));
+      }
+    }
+    const lmb::BundleLocalizeResult r = localize(frame);
+    if (r.scored.empty() && !r.errors.empty()) {
+      std::string message = std::string(fn) + ": no selected area could be loaded: " + r.errors[0];
+      if (r.errors.size() > 1) message += " (and " + std::to_string(r.errors.size() - 1) + " more)";
+      return fail(LMB_ERROR_MODEL_FILE, message);
+    }
+    const lmb::PoseResult& pose = r.result.pose;
+    out_pose->success = r.area >= 0 && pose.success ? 1 : 0;
+    const Eigen::Quaterniond& q = pose.cam_from_world.rotation;
+    out_pose->rotation[0] = q.w();
+    out_pose->rotation[1] = q.x();
+    out_pose->rotation[2] = q.y();
+    out_pose->rotation[3] = q.z();
+    for (int i = 0; i < 3; ++i) out_pose->translation[i] = pose.cam_from_world.translation[i];
+    out_pose->num_inliers = pose.num_inliers;
+    out_pose->num_correspondences = static_cast<int>(r.result.correspondence_keypoint.size());
+    if (out_area != nullptr) *out_area = r.area;
+    return LMB_OK;
+  });
+}
+
+}  // namespace
+
+extern "C" {
+
+lmb_status lmb_bundle_open(const char* index_path, lmb_bundle** out) {
+  if (out == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_bundle_open: out is NULL");
+  *out = nullptr;
+  if (index_path == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_bundle_open: index_path is NULL");
+  return guarded(LMB_ERROR_MODEL_FILE, "lmb_bundle_open", [&] {
+    auto handle = std::make_unique<lmb_bundle>();
+    handle->bundle = lmb::AreaBundle::open(index_path);
+    *out = handle.release();
+    return LMB_OK;
+  });
+}
+
+void lmb_bundle_free(lmb_bundle* bundle) { delete bundle; }
+
+int lmb_bundle_num_areas(const lmb_bundle* bundle) {
+  return bundle ? static_cast<int>(bundle->bundle->areas().size()) : -1;
+}
+
+int lmb_bundle_num_loaded(const lmb_bundle* bundle) {
+  return bundle ? static_cast<int>(bundle->bundle->loaded_ids().size()) : -1;
+}
+
+lmb_status lmb_bundle_set_cache(lmb_bundle* bundle, int max_areas, uint64_t max_bytes) {
+  if (bundle == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_bundle_set_cache: bundle is NULL");
+  if (max_areas < 0) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                "lmb_bundle_set_cache: max_areas " + std::to_string(max_areas) + " must be >= 0 (0 = no limit)");
+  }
+  return guarded(LMB_ERROR_INVALID_ARGUMENT, "lmb_bundle_set_cache", [&] {
+    bundle->bundle->set_cache_limits(lmb::BundleCacheLimits{max_areas, max_bytes});
+    return LMB_OK;
+  });
+}
+
+lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
+                               const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                               const lmb_prior* prior, const lmb_localize_options* options, lmb_pose* out_pose,
+                               int* out_area) {
+  return bundle_call("lmb_bundle_localize", bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
+                     out_pose, out_area, [&](const BundleFrame& f) {
+                       lmb::PositionPrior p;
+                       if (prior != nullptr) {
+                         p.position = Eigen::Vector3d(prior->position[0], prior->position[1], prior->position[2]);
+                         p.radius = prior->radius;
+                       }
+                       lmb::BundleLocalizerOptions bo;
+                       bo.localizer = to_localizer_options(options);
+                       const lmb::BundleLocalizer localizer(bundle->bundle, bo);
+                       return localizer.localize(f.camera, f.keypoints, descriptors, f.gravity,
+                                                 prior != nullptr ? &p : nullptr);
+                     });
+}
+
+lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
+                            const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                            double tracking_radius, const lmb_localize_options* options, lmb_pose* out_pose,
+                            int* out_area) {
+  return bundle_call("lmb_bundle_track", bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
+                     out_pose, out_area, [&](const BundleFrame& f) {
+                       lmb::BundleLocalizerOptions bo;
+                       bo.localizer = to_localizer_options(options);
+                       bo.tracking_radius = tracking_radius;
+                       bo.check();
+                       std::optional<Eigen::Vector3d> last;
+                       if (bundle->tracker) last = bundle->tracker->last_position();
+                       // New options each call; the last position carries over.
+                       bundle->tracker = std::make_unique<lmb::BundleLocalizer>(bundle->bundle, bo);
+                       bundle->tracker->set_last_position(last);
+                       return bundle->tracker->track(f.camera, f.keypoints, descriptors, f.gravity);
+                     });
 }
 
 }  // extern "C"

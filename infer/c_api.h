@@ -149,6 +149,54 @@ LMB_INFER_EXPORT lmb_status lmb_localize_with_confidence(
     int descriptor_bytes, const double gravity_in_cam[3], const lmb_localize_options* options, lmb_pose* out_pose,
     lmb_pose_confidence* out_confidence, lmb_match* out_matches, int max_matches, int* num_matches);
 
+/* Bundles of area models (docs/areas.md): a map split into areas, one model each, with an index
+ * (bundle.txt). Opening reads the index only; an area's model is read on first use and freed again
+ * under the cache limits (least recently used first).
+ *
+ *   lmb_bundle* bundle = NULL;
+ *   lmb_bundle_open("bundle/bundle.txt", &bundle);
+ *   lmb_prior prior;  prior.position = {x, y, z};  prior.radius = 10.0;
+ *   lmb_bundle_localize(bundle, &camera, keypoints, n, descriptors, 32, gravity, &prior, NULL,
+ *                       &pose, &area);
+ *   lmb_bundle_free(bundle);
+ *
+ * Threading: lmb_bundle_localize may run concurrently on one bundle; lmb_bundle_track keeps the
+ * last pose in the bundle handle, so it tracks one camera from one thread at a time. */
+typedef struct lmb_bundle lmb_bundle;
+
+/* The camera centre is within radius metres (>= 0) of position (world frame). */
+typedef struct lmb_prior {
+  double position[3];
+  double radius;
+} lmb_prior;
+
+/* Opens bundle.txt into *out (set to NULL on failure; LMB_ERROR_MODEL_FILE names the line). */
+LMB_INFER_EXPORT lmb_status lmb_bundle_open(const char* index_path, lmb_bundle** out);
+/* Frees a bundle and its loaded areas (NULL is allowed). */
+LMB_INFER_EXPORT void lmb_bundle_free(lmb_bundle* bundle);
+/* Bundle facts; -1 for a NULL bundle. */
+LMB_INFER_EXPORT int lmb_bundle_num_areas(const lmb_bundle* bundle);
+LMB_INFER_EXPORT int lmb_bundle_num_loaded(const lmb_bundle* bundle);
+/* At most max_areas areas and max_bytes model bytes loaded (0 = no limit); applied at once. */
+LMB_INFER_EXPORT lmb_status lmb_bundle_set_cache(lmb_bundle* bundle, int max_areas, uint64_t max_bytes);
+
+/* Localizes one frame in the areas the prior selects (prior NULL: every area); the pose with the
+ * most inliers wins. Arguments as lmb_localize; *out_area (may be NULL) receives the winning area
+ * (-1 without a pose). Areas that cannot be loaded are skipped; when every selected area fails,
+ * the call returns LMB_ERROR_MODEL_FILE naming them. */
+LMB_INFER_EXPORT lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_camera* camera,
+                                                const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
+                                                int descriptor_bytes, const double gravity_in_cam[3],
+                                                const lmb_prior* prior, const lmb_localize_options* options,
+                                                lmb_pose* out_pose, int* out_area);
+/* Tracking: the prior is the last tracked pose's centre within tracking_radius metres; the first
+ * frame, and a frame those areas do not localize, are localized in every area. */
+LMB_INFER_EXPORT lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera,
+                                             const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
+                                             int descriptor_bytes, const double gravity_in_cam[3],
+                                             double tracking_radius, const lmb_localize_options* options,
+                                             lmb_pose* out_pose, int* out_area);
+
 #ifdef __cplusplus
 }
 #endif

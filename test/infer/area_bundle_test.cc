@@ -1,6 +1,7 @@
-// AreaBundle: the index, lazy loading and release, a damaged or missing area failing alone, prior
-// selection against a brute force, and localization through the bundle (one area = the single
-// model's result; several areas = the one that holds the frame's landmarks wins).
+// AreaBundle: the index, lazy loading and release, LRU eviction under count and byte limits, a
+// damaged or missing area failing alone, prior selection against a brute force, localization
+// through the bundle (one area = the single model's result; several areas = the one that holds the
+// frame's landmarks wins) and BundleLocalizer's tracking mode.
 #include "infer/area_bundle.h"
 
 #include <unistd.h>
@@ -72,6 +73,57 @@ TEST_F(AreaBundleTest, OpensLazilyLoadsOnFirstUseAndReleases) {
   EXPECT_FALSE(bundle->loaded(1));
   EXPECT_TRUE(bundle->loaded(2));
   EXPECT_EQ(m1->num_classes(), model.num_classes());  // the caller's copy lives on
+}
+
+TEST_F(AreaBundleTest, EvictsTheLeastRecentlyUsedAreasBeyondTheLimits) {
+  const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  std::vector<BundleArea> areas;
+  for (int32_t i = 0; i < 4; ++i) areas.push_back(add(model, i, i == 0 ? -kInf : i, i == 3 ? kInf : i + 1.0));
+  write_bundle_index(dir_ / "bundle.txt", 1.0, areas);
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_THROW(bundle->set_cache_limits({-1, 0}), Error);
+  bundle->set_cache_limits({2, 0});
+  bundle->model(0);
+  bundle->model(1);
+  EXPECT_EQ(bundle->loaded_ids(), (std::vector<int32_t>{0, 1}));
+  bundle->model(0);  // 0 is now the most recently used: loading 2 frees 1
+  const auto held = bundle->model(2);
+  EXPECT_EQ(bundle->loaded_ids(), (std::vector<int32_t>{0, 2}));
+  EXPECT_EQ(bundle->loads(), 3);
+  bundle->model(3);  // frees 0 (used before 2)
+  EXPECT_EQ(bundle->loaded_ids(), (std::vector<int32_t>{2, 3}));
+  bundle->model(1);  // read again: a load
+  EXPECT_EQ(bundle->loads(), 5);
+  EXPECT_EQ(bundle->loaded_ids(), (std::vector<int32_t>{1, 3}));
+  EXPECT_EQ(held->num_classes(), model.num_classes());  // an evicted area held by a caller lives on
+  EXPECT_EQ(bundle->loaded_bytes(), areas[1].bytes + areas[3].bytes);
+  // A byte limit of one area and a half: one area stays. Lowering a limit applies it at once.
+  bundle->set_cache_limits({0, areas[0].bytes + areas[0].bytes / 2});
+  EXPECT_EQ(bundle->loaded_ids(), std::vector<int32_t>{1});  // 1 was used last
+  bundle->model(2);
+  EXPECT_EQ(bundle->loaded_ids(), std::vector<int32_t>{2});
+  // A limit below one area keeps the area just loaded.
+  bundle->set_cache_limits({0, 1});
+  bundle->model(0);
+  EXPECT_EQ(bundle->loaded_ids(), std::vector<int32_t>{0});
+  // No limit: everything stays.
+  bundle->set_cache_limits({});
+  for (int32_t id = 0; id < 4; ++id) bundle->model(id);
+  EXPECT_EQ(bundle->loaded_ids(), (std::vector<int32_t>{0, 1, 2, 3}));
+  // Localizing frame after frame in the areas a moving prior selects keeps at most the limit.
+  bundle->release_except({});
+  bundle->set_cache_limits({2, 0});
+  const test::TestFrame& f = world.frame;
+  for (double x : {0.5, 1.5, 2.5, 3.5, 0.5}) {
+    PositionPrior prior;
+    prior.position = Eigen::Vector3d(x, 0, 0);
+    prior.radius = 0.0;
+    const BundleLocalizeResult r =
+        localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
+    EXPECT_FALSE(r.scored.empty());
+    EXPECT_LE(bundle->loaded_ids().size(), 2u);
+  }
 }
 
 TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
@@ -208,6 +260,74 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   const BundleLocalizeResult far_only =
       localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
   EXPECT_EQ(far_only.scored, std::vector<int32_t>{0});
+}
+
+TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const auto model = std::make_shared<const Model>(test::make_code_model_data(world.positions));
+  const test::TestWorld other = test::make_test_world(101, 60, 140, 99);
+  std::vector<Eigen::Vector3d> far = other.positions;
+  for (auto& p : far) p += Eigen::Vector3d(50, 0, 0);
+  const Model far_model(test::make_code_model_data(far, 7));
+  const test::TestFrame& f = world.frame;
+  const Eigen::Vector3d centre = f.cam_from_world.center();
+  write_bundle_index(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
+  BundleLocalizerOptions options;
+  options.tracking_radius = 2.0;
+  BundleLocalizer localizer(AreaBundle::open(dir_ / "two.txt"), options);
+  EXPECT_FALSE(localizer.last_position().has_value());
+  // First frame: no last pose, every area.
+  const BundleLocalizeResult first = localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_FALSE(first.prior_used);
+  EXPECT_EQ(first.scored, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(first.loaded, 2);
+  ASSERT_EQ(first.area, 1);
+  ASSERT_TRUE(localizer.last_position().has_value());
+  EXPECT_LT((*localizer.last_position() - centre).norm(), 0.05);
+  // Next frame: the last pose selects only the frame's own area; it is loaded already.
+  const BundleLocalizeResult next = localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_TRUE(next.prior_used);
+  EXPECT_EQ(next.selected, 1);
+  EXPECT_EQ(next.scored, std::vector<int32_t>{1});
+  EXPECT_EQ(next.loaded, 0);
+  EXPECT_EQ(next.area, 1);
+  EXPECT_EQ(next.result.pose.num_inliers, first.result.pose.num_inliers);
+  // The same as localize() with that prior.
+  PositionPrior prior;
+  prior.position = *localizer.last_position();
+  prior.radius = 2.0;
+  const BundleLocalizeResult direct =
+      localizer.localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
+  EXPECT_EQ(direct.scored, next.scored);
+  EXPECT_EQ(direct.result.pose.inlier_mask, next.result.pose.inlier_mask);
+  localizer.reset_tracking();
+  EXPECT_FALSE(localizer.last_position().has_value());
+
+  // The frame's own area sits where the last pose is not: the prior's area (missing) gives no pose,
+  // so track() relocalizes in every area, reporting the missing one once.
+  write_bundle_index(dir_ / "swapped.txt", 1.0, {add(*model, 0, 25.0, kInf), add(far_model, 1, -kInf, 25.0)});
+  fs::remove(dir_ / "area-1.lbm");
+  BundleLocalizer swapped(AreaBundle::open(dir_ / "swapped.txt"), options);
+  const BundleLocalizeResult a = swapped.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  ASSERT_EQ(a.area, 0);
+  EXPECT_EQ(a.errors.size(), 1u);
+  const BundleLocalizeResult b = swapped.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_FALSE(b.prior_used);  // the tracked prior (area 1 only) failed: relocalized
+  EXPECT_EQ(b.area, 0);
+  ASSERT_EQ(b.errors.size(), 1u);
+  EXPECT_NE(b.errors[0].find("area 1 (area-1.lbm)"), std::string::npos) << b.errors[0];
+  // Without relocalization the tracked frame fails and the last pose is kept.
+  options.relocalize_without_prior = false;
+  BundleLocalizer strict(AreaBundle::open(dir_ / "swapped.txt"), options);
+  ASSERT_EQ(strict.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam).area, 0);
+  const BundleLocalizeResult c = strict.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_TRUE(c.prior_used);
+  EXPECT_EQ(c.area, -1);
+  EXPECT_TRUE(c.scored.empty());
+  EXPECT_TRUE(strict.last_position().has_value());
+  options.tracking_radius = -1.0;
+  EXPECT_THROW(BundleLocalizer(AreaBundle::open(dir_ / "two.txt"), options), Error);
+  EXPECT_THROW(BundleLocalizer(nullptr), Error);
 }
 
 }  // namespace

@@ -5,6 +5,13 @@
 int lmb_c89_check(void) {
   lmb_localize_options options;
   lmb_model* model = 0;
+  lmb_bundle* bundle = 0;
+  lmb_prior prior;
+  prior.position[0] = 0.0;
+  prior.radius = 5.0;
   lmb_localize_options_init(&options);
+  if (lmb_bundle_open("bundle.txt", &bundle) != LMB_OK || lmb_bundle_set_cache(bundle, 4, 0) != LMB_OK) return 2;
+  if (lmb_bundle_localize(bundle, 0, 0, 0, 0, 0, 0, &prior, &options, 0, 0) != LMB_ERROR_INVALID_ARGUMENT) return 3;
+  lmb_bundle_free(bundle);
   return lmb_model_load("model.lbm", &model) == LMB_OK ? 0 : 1;
 }

@@ -4,12 +4,16 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "infer/area_bundle.h"
 #include "infer/localizer.h"
 #include "test/infer/test_models.h"
 
@@ -238,6 +242,191 @@ TEST(CApiTest, ErrorsAreStatusesWithMessages) {
   EXPECT_EQ(other, "");
   lmb_model_free(model);
   lmb_model_free(nullptr);
+}
+
+// CRC-32 (IEEE, reflected), bit by bit: the bundle index's checksum, computed here independently.
+uint32_t reference_crc32(const std::string& bytes) {
+  uint32_t crc = 0xFFFFFFFFu;
+  for (unsigned char c : bytes) {
+    crc ^= c;
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
+// A two-area bundle: area 0 (x >= 25) holds another world's model moved 50 m away, area 1 (x < 25)
+// the frame's own model.
+struct CBundleFixture : CFixture {
+  std::filesystem::path dir = std::filesystem::temp_directory_path() / "lmb_c_api_bundle_test";
+  std::filesystem::path index = dir / "bundle.txt";
+  CBundleFixture() {
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const test::TestWorld other = test::make_test_world(101, 60, 140, 99);
+    std::vector<Eigen::Vector3d> far = other.positions;
+    for (auto& p : far) p += Eigen::Vector3d(50, 0, 0);
+    const Model far_model(test::make_code_model_data(far, 7));
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<BundleArea> areas(2);
+    for (int32_t id = 0; id < 2; ++id) {
+      BundleArea& a = areas[id];
+      a.id = id;
+      a.file = "area-" + std::to_string(id) + ".lbm";
+      (id == 0 ? far_model : model).save(dir / a.file);
+      std::ifstream in(dir / a.file, std::ios::binary);
+      const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      a.bytes = bytes.size();
+      a.crc32 = reference_crc32(bytes);
+      a.landmarks = 101;
+      a.cell_lo = Eigen::Vector3d(id == 0 ? 25.0 : -inf, -inf, -inf);
+      a.cell_hi = Eigen::Vector3d(id == 0 ? inf : 25.0, inf, inf);
+    }
+    write_bundle_index(index, 1.0, areas);
+  }
+  ~CBundleFixture() { std::filesystem::remove_all(dir); }
+};
+
+TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
+  CBundleFixture fx;
+  EXPECT_EQ(reference_crc32("123456789"), 0xCBF43926u);
+  lmb_bundle* bundle = nullptr;
+  ASSERT_EQ(lmb_bundle_open(fx.index.c_str(), &bundle), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(lmb_bundle_num_areas(bundle), 2);
+  EXPECT_EQ(lmb_bundle_num_loaded(bundle), 0);
+  const test::TestFrame& f = fx.world.frame;
+  const double gravity[3] = {f.gravity_in_cam.x(), f.gravity_in_cam.y(), f.gravity_in_cam.z()};
+  const int n = static_cast<int>(fx.keypoints.size());
+  lmb_pose pose;
+  int area = -2;
+  // No prior: both areas compete, the frame's own wins; the same pose as the C++ API.
+  ASSERT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                test::kCodeDescriptorBytes, gravity, nullptr, nullptr, &pose, &area),
+            LMB_OK)
+      << lmb_last_error();
+  EXPECT_EQ(lmb_bundle_num_loaded(bundle), 2);
+  const auto cpp_bundle = AreaBundle::open(fx.index);
+  const BundleLocalizeResult want =
+      localize_in_bundle(*cpp_bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+  ASSERT_EQ(want.area, 1);
+  EXPECT_EQ(area, 1);
+  EXPECT_EQ(pose.success, 1);
+  EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers);
+  EXPECT_EQ(pose.translation[0], want.result.pose.cam_from_world.translation.x());
+  EXPECT_EQ(pose.rotation[0], want.result.pose.cam_from_world.rotation.w());
+  EXPECT_LT(position_error(want.result.pose.cam_from_world, f.cam_from_world), 1e-3);
+  // A prior at the far area: only it is scored, and it does not give the frame's pose.
+  lmb_prior prior = {{50.0, 0.0, 0.0}, 5.0};
+  ASSERT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                test::kCodeDescriptorBytes, gravity, &prior, nullptr, &pose, &area),
+            LMB_OK);
+  EXPECT_NE(area, 1);
+  // A prior at the camera: its own area.
+  const Eigen::Vector3d c = f.cam_from_world.center();
+  prior = lmb_prior{{c.x(), c.y(), c.z()}, 2.0};
+  ASSERT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                test::kCodeDescriptorBytes, gravity, &prior, nullptr, &pose, &area),
+            LMB_OK);
+  EXPECT_EQ(area, 1);
+  EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers);
+  // The cache limit applies at once, and a frame needing both areas leaves one loaded.
+  ASSERT_EQ(lmb_bundle_set_cache(bundle, 1, 0), LMB_OK);
+  EXPECT_EQ(lmb_bundle_num_loaded(bundle), 1);
+  ASSERT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                test::kCodeDescriptorBytes, gravity, nullptr, nullptr, &pose, &area),
+            LMB_OK);
+  EXPECT_EQ(area, 1);
+  EXPECT_EQ(lmb_bundle_num_loaded(bundle), 1);
+  // Tracking: the first frame in every area, the next with the last pose as the prior.
+  for (int frame = 0; frame < 2; ++frame) {
+    ASSERT_EQ(lmb_bundle_track(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                               test::kCodeDescriptorBytes, gravity, 1.0, nullptr, &pose, &area),
+              LMB_OK)
+        << lmb_last_error();
+    EXPECT_EQ(area, 1);
+    EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers);
+  }
+  lmb_bundle_free(bundle);
+  lmb_bundle_free(nullptr);
+}
+
+TEST(CApiTest, BundleErrorsAreStatusesWithMessages) {
+  CBundleFixture fx;
+  lmb_bundle* bundle = reinterpret_cast<lmb_bundle*>(0x1);
+  const std::string missing = (fx.dir / "missing.txt").string();
+  EXPECT_EQ(lmb_bundle_open(missing.c_str(), &bundle), LMB_ERROR_MODEL_FILE);
+  EXPECT_EQ(bundle, nullptr);
+  EXPECT_NE(std::string(lmb_last_error()).find(missing), std::string::npos) << lmb_last_error();
+  EXPECT_EQ(lmb_bundle_open(nullptr, &bundle), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_bundle_open(fx.index.c_str(), nullptr), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_bundle_num_areas(nullptr), -1);
+  EXPECT_EQ(lmb_bundle_num_loaded(nullptr), -1);
+  EXPECT_EQ(lmb_bundle_set_cache(nullptr, 1, 0), LMB_ERROR_INVALID_ARGUMENT);
+
+  // Area 1 (the frame's own) damaged: the bundle opens, area 0 alone is scored.
+  {
+    std::fstream io(fx.dir / "area-1.lbm", std::ios::in | std::ios::out | std::ios::binary);
+    io.seekp(100);
+    io.put('\x5a');
+  }
+  ASSERT_EQ(lmb_bundle_open(fx.index.c_str(), &bundle), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(lmb_bundle_set_cache(bundle, -1, 0), LMB_ERROR_INVALID_ARGUMENT);
+  const test::TestFrame& f = fx.world.frame;
+  const double gravity[3] = {f.gravity_in_cam.x(), f.gravity_in_cam.y(), f.gravity_in_cam.z()};
+  const int n = static_cast<int>(fx.keypoints.size());
+  const uint8_t* desc = f.descriptors.data();
+  const int bytes = test::kCodeDescriptorBytes;
+  lmb_pose pose;
+  int area = -2;
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, nullptr, nullptr,
+                                &pose, &area),
+            LMB_OK)
+      << lmb_last_error();
+  EXPECT_NE(area, 1);
+  // A prior selecting only the damaged area: a model-file error naming it, on one line.
+  const Eigen::Vector3d c = f.cam_from_world.center();
+  lmb_prior prior = {{c.x(), c.y(), c.z()}, 1.0};
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, &prior, nullptr,
+                                &pose, &area),
+            LMB_ERROR_MODEL_FILE);
+  const std::string message = lmb_last_error();
+  EXPECT_NE(message.find("area 1 (area-1.lbm): CRC-32 mismatch"), std::string::npos) << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  EXPECT_EQ(area, -1);
+  EXPECT_EQ(pose.success, 0);
+  // Bad arguments.
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, 32, gravity, nullptr, nullptr, &pose,
+                                &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lmb_last_error()).find("bytes"), std::string::npos) << lmb_last_error();
+  prior.radius = -1.0;
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, &prior, nullptr,
+                                &pose, &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lmb_last_error()).find("radius"), std::string::npos) << lmb_last_error();
+  prior.radius = 1.0;
+  prior.position[1] = std::nan("");
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, &prior, nullptr,
+                                &pose, &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_bundle_localize(nullptr, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, nullptr, nullptr,
+                                &pose, &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, nullptr, n, desc, bytes, gravity, nullptr, nullptr, &pose, &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, nullptr, nullptr,
+                                nullptr, &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  lmb_localize_options options;
+  lmb_localize_options_init(&options);
+  options.ransac_iterations = 0;
+  EXPECT_EQ(lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, nullptr, &options,
+                                &pose, &area),
+            LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(
+      lmb_bundle_track(bundle, &fx.camera, fx.keypoints.data(), n, desc, bytes, gravity, -1.0, nullptr, &pose, &area),
+      LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lmb_last_error()).find("tracking_radius"), std::string::npos) << lmb_last_error();
+  lmb_bundle_free(bundle);
 }
 
 }  // namespace

@@ -25,9 +25,10 @@ void add_export_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);  // in export_command.cc
 void add_localize_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
-void add_bench_infer_command(CLI::App& app);  // `bench infer`, after add_bench_command
-void add_bench_pose_command(CLI::App& app);   // `bench pose`, after add_bench_command
-void add_import_command(CLI::App& app);       // `import` group: `import tum`, `import colmap`
+void add_bench_infer_command(CLI::App& app);   // `bench infer`, after add_bench_command
+void add_bench_pose_command(CLI::App& app);    // `bench pose`, after add_bench_command
+void add_bench_bundle_command(CLI::App& app);  // `bench bundle`, after add_bench_command
+void add_import_command(CLI::App& app);        // `import` group: `import tum`, `import colmap`
 void add_areas_command(CLI::App& app);
 void add_bundle_command(CLI::App& app);
 void add_bench_command(CLI::App& app);  // `bench` group: `bench context`, ...

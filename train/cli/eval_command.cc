@@ -6,6 +6,8 @@
 //   lboost eval --model model.lbm --map map.h5 --report report.json [--run RUN_DIR]
 //               [--query-session NAME ...] [--keypoint-ranks ranks.json] [--methods a,b,...]
 //               [--top-k 20] ...
+//   lboost eval --bundle bundle.txt --map map.h5 --report report.json [--model model.lbm]
+//               [--prior-noise 5 ...] [--no-prior]       (areas: docs/areas.md)
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -16,6 +18,7 @@
 #include "common/error.h"
 #include "train/boost/train_config.h"
 #include "train/cli/commands.h"
+#include "train/eval/bundle_eval.h"
 #include "train/eval/evaluation.h"
 #include "train/eval/report.h"
 
@@ -42,11 +45,29 @@ void run_eval(const EvalOptions& options, const std::string& report_path, const 
               result.confidence_table.c_str(), report_path.c_str(), result.cpu_line.c_str());
 }
 
+// --bundle: pose recall of a bundle of area models with each prior mode and, with --model, of the
+// single model, on the same frames and seeds (train/eval/bundle_eval.h).
+void run_bundle_eval(const EvalOptions& o, BundleEvalOptions b, const std::string& report_path) {
+  b.map = o.map;
+  b.model = o.model;
+  b.localizer.classifier.min_margin = o.min_margin;
+  b.localizer.max_correspondences = o.max_correspondences;
+  b.localizer.pose = o.pose;
+  b.seeds = o.sweep.seeds;
+  b.thresholds = o.pose_thresholds.at(0);
+  const BundleEvalResult r = evaluate_bundle(b);
+  write_report(report_path, r.report);
+  std::printf("\nBundle %s on %zu query frames, %d RANSAC seeds, correct within %g m / %g deg:\n%s-> %s\n",
+              b.bundle.c_str(), r.report.at("frames").get<size_t>(), b.seeds, b.thresholds.max_position_error_m,
+              b.thresholds.max_rotation_error_deg, r.table.c_str(), report_path.c_str());
+}
+
 }  // namespace
 
 void add_eval_command(CLI::App& app) {
   struct EvalArgs {
     EvalOptions options;
+    BundleEvalOptions bundle;
     std::string report, run, keypoint_ranks;
     std::string pose_thresholds = "0.2,5";
   };
@@ -59,7 +80,21 @@ void add_eval_command(CLI::App& app) {
   }
   auto* cmd = app.add_subcommand(
       "eval", "LandmarkBoost and the descriptor baselines on the map's query frames: report.json + results table");
-  cmd->add_option("--model", o.model, "Inference model (model.lbm)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--model", o.model, "Inference model (model.lbm); with --bundle, the single model compared")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--bundle", args->bundle.bundle,
+                  "A bundle of area models (bundle.txt of `lboost bundle`): pose recall with --prior-noise and/or "
+                  "--no-prior, and of --model on the same frames (docs/areas.md)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--prior-noise", args->bundle.prior_noise,
+                  "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
+                  "radius METRES (repeatable)");
+  cmd->add_flag("--no-prior", args->bundle.no_prior, "--bundle: also localize in every area, without a prior");
+  cmd->add_option("--prior-seed", args->bundle.prior_seed, "--bundle: seed of the prior's direction")
+      ->capture_default_str();
+  cmd->add_option("--cache-areas", args->bundle.cache.max_areas,
+                  "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
+      ->capture_default_str();
   cmd->add_option("--map", o.map, "The map the model was trained on, with its query frames (map.h5)")
       ->required()
       ->check(CLI::ExistingFile);
@@ -120,6 +155,13 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--pca-dims", o.pca_dims, "projected_kdtree: PCA dimensions")->capture_default_str();
   cmd->callback([args] {
     args->options.pose_thresholds = parse_pose_thresholds(args->pose_thresholds, "eval: --pose-thresholds");
+    if (!args->bundle.bundle.empty()) {
+      run_bundle_eval(args->options, args->bundle, args->report);
+      return;
+    }
+    LMB_CHECK(args->bundle.prior_noise.empty() && !args->bundle.no_prior,
+              "eval: --prior-noise and --no-prior need --bundle");
+    LMB_CHECK(!args->options.model.empty(), "eval: --model is required (or --bundle)");
     run_eval(args->options, args->report, args->run, args->keypoint_ranks);
   });
 }

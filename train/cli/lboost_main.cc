@@ -53,6 +53,7 @@ int main(int argc, char** argv) {
   lmb::cli::add_bench_command(app);
   lmb::cli::add_bench_infer_command(app);
   lmb::cli::add_bench_pose_command(app);
+  lmb::cli::add_bench_bundle_command(app);
   spdlog::set_pattern("[%H:%M:%S] %v");
   // The command of the message: the deepest subcommand parsed ("import colmap"), or none.
   auto command = [&app] {

@@ -1,6 +1,7 @@
 // `lboost localize`: model.lbm + the query frames of a map (keypoints, descriptors, camera and
 // gravity as the mapper detected them) -> poses and matches as JSON, and a summary against the
-// map's ground-truth poses and keypoint landmarks.
+// map's ground-truth poses and keypoint landmarks. With --bundle (docs/areas.md): the query frames
+// localized through a bundle of area models, with a noisy ground-truth prior and/or none.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -23,6 +24,7 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
+#include "train/eval/bundle_eval.h"
 #include "train/eval/evaluation.h"
 #include "train/eval/metrics.h"
 #include "train/eval/report.h"
@@ -39,6 +41,7 @@ struct LocalizeArgs {
   LocalizerOptions options;
   int threads = 1;
   bool all_matches = false;
+  BundleEvalOptions bundle;  // --bundle, --prior-noise, --no-prior, --prior-seed, --cache-areas
 };
 
 struct FrameOutcome {
@@ -245,8 +248,31 @@ void print_summary(const nlohmann::json& s, int threads, const std::string& out)
       ms.at("classification").get<double>(), ms.at("pose").get<double>(), threads, out.c_str());
 }
 
+// --bundle: every query frame through the bundle in each prior mode (one RANSAC seed, one thread).
+void run_bundle_localize(const LocalizeArgs& a) {
+  LMB_CHECK(a.queries.empty(), "localize: --queries is not supported with --bundle (every query frame)");
+  check_writable_file(a.out, "--out");
+  BundleEvalOptions b = a.bundle;
+  b.map = a.map;
+  b.model = a.model;
+  b.localizer = a.options;
+  b.seeds = 1;
+  b.memory_per_area = false;
+  const BundleEvalResult r = evaluate_bundle(b);
+  write_file_atomically(a.out, r.report.dump(1) + "\n");
+  std::printf("localize: bundle %s, %zu query frames, seed %llu, correct within 0.2 m / 5 deg:\n%s-> %s\n",
+              b.bundle.c_str(), r.report.at("frames").get<size_t>(),
+              static_cast<unsigned long long>(a.options.pose.seed), r.table.c_str(), a.out.c_str());
+}
+
 void run_localize(const LocalizeArgs& a) {
   LMB_CHECK(a.threads >= 1 && a.threads <= 256, "localize: --threads = " << a.threads << " must be in 1..256");
+  if (!a.bundle.bundle.empty()) {
+    run_bundle_localize(a);
+    return;
+  }
+  LMB_CHECK(a.bundle.prior_noise.empty() && !a.bundle.no_prior, "localize: --prior-noise and --no-prior need --bundle");
+  LMB_CHECK(!a.model.empty(), "localize: --model is required (or --bundle)");
   check_writable_file(a.out, "--out");
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
@@ -292,7 +318,19 @@ void add_localize_command(CLI::App& app) {
   auto args = std::make_shared<LocalizeArgs>();
   auto* cmd = app.add_subcommand("localize",
                                  "Localize the query frames of a map with model.lbm; write poses and matches as JSON");
-  cmd->add_option("--model", args->model, "Inference model (model.lbm)")->required();
+  cmd->add_option("--model", args->model, "Inference model (model.lbm); with --bundle, the single model compared");
+  cmd->add_option("--bundle", args->bundle.bundle,
+                  "A bundle of area models (bundle.txt of `lboost bundle`), localized with --prior-noise and/or "
+                  "--no-prior (docs/areas.md)");
+  cmd->add_option("--prior-noise", args->bundle.prior_noise,
+                  "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
+                  "radius METRES (repeatable)");
+  cmd->add_flag("--no-prior", args->bundle.no_prior, "--bundle: localize in every area, without a prior");
+  cmd->add_option("--prior-seed", args->bundle.prior_seed, "--bundle: seed of the prior's direction")
+      ->capture_default_str();
+  cmd->add_option("--cache-areas", args->bundle.cache.max_areas,
+                  "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
+      ->capture_default_str();
   cmd->add_option("--map", args->map, "Map whose query frames are localized (map.h5)")->required();
   cmd->add_option("--queries", args->queries, "Frame names to localize (default: every query frame)");
   cmd->add_option("--out", args->out, "Output JSON (poses, matches, summary)")->required();

@@ -1,7 +1,10 @@
 // `lboost areas` and `lboost train --area` on the tiny rendered world (docs/areas.md): the split
 // covers every eligible landmark; an area's run trains exactly its landmarks, bit-identical on 1,
 // 2 and 3 MPI ranks; the area is recorded in config.toml and a resume with another area or a
-// changed areas file is refused; bad --area values fail with one line.
+// changed areas file is refused; bad --area values fail with one line. Bundles: one area localizes
+// as its model (library, `lboost localize --bundle` and `lboost eval --bundle`); a bundle of every
+// area selects the areas the split's prior selection gives, --no-prior scores every area, a
+// damaged area fails alone with one line.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -214,12 +217,145 @@ TEST_F(AreasCliTest, ABundleOfOneAreaLocalizesAsItsModel) {
   }
   EXPECT_GT(frames, 0);
   EXPECT_GT(localized, 0);
+  // The CLI: `lboost localize --bundle` with a prior, without one, and the single model in the same
+  // run give the same frames, poses and inliers (one area); `lboost eval --bundle` the same recall
+  // at every seed.
+  const fs::path loc = dir_ / "bundle_localize.json";
+  const RunResult l =
+      run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() + " --model " +
+              (models / "area-0.lbm").string() + " --prior-noise 0.5 --no-prior --out " + loc.string(),
+          dir_);
+  ASSERT_EQ(l.exit_code, 0) << l.err;
+  const nlohmann::json lj = nlohmann::json::parse(slurp(loc));
+  ASSERT_EQ(lj["modes"].size(), 3u);
+  EXPECT_EQ(lj["modes"][0]["mode"], "prior 0.5 m");
+  EXPECT_EQ(lj["modes"][1]["mode"], "no prior");
+  EXPECT_EQ(lj["modes"][2]["mode"], "single model");
+  const nlohmann::json& single_frames = lj["modes"][2]["frames"];
+  EXPECT_EQ(single_frames.size(), static_cast<size_t>(frames));
+  int single_localized = 0;
+  for (int m = 0; m < 2; ++m) {
+    const nlohmann::json& fr = lj["modes"][m]["frames"];
+    ASSERT_EQ(fr.size(), single_frames.size());
+    for (size_t i = 0; i < fr.size(); ++i) {
+      EXPECT_EQ(fr[i]["name"], single_frames[i]["name"]);
+      EXPECT_EQ(fr[i]["success"], single_frames[i]["success"]) << i;
+      EXPECT_EQ(fr[i]["num_inliers"], single_frames[i]["num_inliers"]) << i;
+      EXPECT_EQ(fr[i]["correct"], single_frames[i]["correct"]) << i;
+      EXPECT_EQ(fr[i]["areas_selected"], 1);
+      EXPECT_EQ(fr[i]["area"], single_frames[i]["success"].get<bool>() ? 0 : -1);
+      if (fr[i]["success"].get<bool>()) {
+        EXPECT_EQ(fr[i]["position_error_m"], single_frames[i]["position_error_m"]) << i;
+      }
+      single_localized += m == 0 && single_frames[i]["success"].get<bool>();
+    }
+  }
+  EXPECT_EQ(single_localized, localized);
+  const fs::path rep = dir_ / "bundle_eval.json";
+  const RunResult ev = run("eval --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                               " --model " + (models / "area-0.lbm").string() +
+                               " --prior-noise 0.5 --no-prior --ransac-sweep-seeds 2 --report " + rep.string(),
+                           dir_);
+  ASSERT_EQ(ev.exit_code, 0) << ev.err;
+  const nlohmann::json ej = nlohmann::json::parse(slurp(rep));
+  ASSERT_EQ(ej["modes"].size(), 3u);
+  EXPECT_EQ(ej["seeds"], 2);
+  EXPECT_EQ(ej["modes"][0]["frames_correct_per_seed"], ej["modes"][2]["frames_correct_per_seed"]);
+  EXPECT_EQ(ej["modes"][1]["frames_correct_per_seed"], ej["modes"][2]["frames_correct_per_seed"]);
+  EXPECT_EQ(ej["modes"][0]["pose_recall"], ej["modes"][2]["pose_recall"]);
+  ASSERT_EQ(ej["areas"].size(), 1u);
+  EXPECT_TRUE(ej["areas"][0]["resident_bytes"].is_number_integer()) << ej["areas"][0];
+  EXPECT_EQ(ej["areas"][0]["file_bytes"].get<uint64_t>(), fs::file_size(models / "area-0.lbm"));
+  EXPECT_NE(ev.out.find("single model"), std::string::npos) << ev.out;
   // The split of several areas has no models in that folder: one line naming the first area.
   expect_one_error(run("bundle --areas " + (dir_ / "areas.txt").string() + " --models " + models.string(), dir_),
                    "bundle", "area-0.lbm (area 0): ");
   fs::remove(models / "area-0.lbm");
   expect_one_error(run("bundle --areas " + one.string() + " --models " + models.string(), dir_), "bundle",
                    "area 0: " + (models / "area-0.lbm").string());
+}
+
+TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
+  // Every area of the split trained (a few rounds: the test is about the areas, not the poses),
+  // exported and bundled.
+  const fs::path areas = dir_ / "areas.txt";
+  const AreaFile file = read_area_file(areas);
+  const fs::path models = dir_ / "all_bundle";
+  fs::create_directories(models);
+  const int num_areas = static_cast<int>(file.split.areas.size());
+  for (int id = 0; id < num_areas; ++id) {
+    const fs::path run_dir = dir_ / ("all_area" + std::to_string(id));
+    const RunResult t = run(train_args(areas.string() + ":" + std::to_string(id), run_dir), dir_);
+    ASSERT_EQ(t.exit_code, 0) << t.err;
+    const RunResult e =
+        run("export --run " + run_dir.string() + " --map " + map_.string() + " --vocab " +
+                (dir_ / "vocab.lbv").string() + " --out " + (models / ("area-" + std::to_string(id) + ".lbm")).string(),
+            dir_);
+    ASSERT_EQ(e.exit_code, 0) << e.err;
+  }
+  ASSERT_EQ(run("bundle --areas " + areas.string() + " --models " + models.string(), dir_).exit_code, 0);
+  const fs::path out = dir_ / "all_localize.json";
+  const std::string localize = "localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                               " --prior-noise 0 --prior-noise 0.5 --no-prior --out " + out.string();
+  const RunResult l = run(localize, dir_);
+  ASSERT_EQ(l.exit_code, 0) << l.err;
+  const nlohmann::json j = nlohmann::json::parse(slurp(out));
+  ASSERT_EQ(j["modes"].size(), 3u);
+  // The areas each mode selects: the split's own selection (train/areas) for the same prior.
+  const LandmarkMap map = read_map_h5(map_);
+  std::vector<frame_t> queries;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    if (map.frames[f].is_query) queries.push_back(f);
+  }
+  const std::vector<double> noise = {0.0, 0.5};
+  for (int m = 0; m < 3; ++m) {
+    const nlohmann::json& fr = j["modes"][m]["frames"];
+    ASSERT_EQ(fr.size(), queries.size());
+    for (size_t i = 0; i < queries.size(); ++i) {
+      const MapFrame& f = map.frames[queries[i]];
+      size_t want = static_cast<size_t>(num_areas);
+      if (m < 2) {
+        const Eigen::Vector3d prior = f.cam_from_world.center() + noise[m] * prior_direction(1, queries[i]);
+        want = areas_near(file.split, prior, noise[m] + file.split.options.reach).size();
+        EXPECT_LT(want, static_cast<size_t>(num_areas)) << "a prior that selects every area tests nothing";
+      }
+      EXPECT_EQ(fr[i]["areas_selected"].get<size_t>(), want) << m << " " << i;
+      EXPECT_EQ(fr[i]["areas_scored"].get<size_t>(), want) << m << " " << i;
+      if (m == 0 && fr[i]["success"].get<bool>()) {
+        // The winning area is one the prior selected: its cell lies within the reach.
+        const Area& a = file.split.areas[fr[i]["area"].get<size_t>()];
+        EXPECT_LE(a.cell.distance(f.cam_from_world.center()), file.split.options.reach) << i;
+      }
+    }
+  }
+  // A damaged area: the run goes on without it, naming it once per frame that selects it.
+  std::string image = slurp(models / "area-1.lbm");
+  image[image.size() / 2] ^= 0x20;
+  write_file_atomically(models / "area-1.lbm", image);
+  const RunResult d = run(localize, dir_);
+  ASSERT_EQ(d.exit_code, 0) << d.err;
+  const nlohmann::json dj = nlohmann::json::parse(slurp(out));
+  const nlohmann::json& nf = dj["modes"][2]["frames"];
+  for (size_t i = 0; i < nf.size(); ++i) {
+    EXPECT_EQ(nf[i]["areas_scored"].get<int>(), num_areas - 1);
+    ASSERT_EQ(nf[i]["errors"].size(), 1u);
+    const std::string e = nf[i]["errors"][0];
+    EXPECT_NE(e.find("area 1 (area-1.lbm): CRC-32 mismatch"), std::string::npos) << e;
+    EXPECT_NE(nf[i]["area"], 1);
+  }
+  // Bad flags: one line.
+  expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() + " --out " +
+                           out.string(),
+                       dir_),
+                   "localize", "--bundle needs --prior-noise METRES and/or --no-prior");
+  expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                           " --prior-noise -2 --out " + out.string(),
+                       dir_),
+                   "localize", "--prior-noise -2: must be finite and >= 0");
+  expect_one_error(run("localize --map " + map_.string() + " --no-prior --out " + out.string(), dir_), "localize",
+                   "--prior-noise and --no-prior need --bundle");
+  expect_one_error(run("eval --map " + map_.string() + " --report " + out.string(), dir_), "eval",
+                   "--model is required (or --bundle)");
 }
 
 TEST_F(AreasCliTest, BadAreaArgumentsFailWithOneLine) {

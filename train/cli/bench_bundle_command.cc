@@ -1,0 +1,68 @@
+// `lboost bench bundle`: per-frame time of localization through a bundle of area models with a
+// position prior, without a prior, and of the single model, single thread, in the same run
+// (train/eval/bundle_eval.h; docs/areas.md). Prints one line with the ratios.
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "common/error.h"
+#include "common/file_io.h"
+#include "common/machine_info.h"
+#include "train/cli/commands.h"
+#include "train/eval/bundle_eval.h"
+
+namespace lmb::cli {
+
+namespace {
+
+struct BenchBundleArgs {
+  BundleEvalOptions options;
+  double prior_noise = 5.0;
+  std::string json;
+};
+
+void run_bench_bundle(BenchBundleArgs a) {
+  LMB_CHECK(!a.options.model.empty(), "bench bundle: --model (the single model to compare) is required");
+  a.options.prior_noise = {a.prior_noise};
+  a.options.no_prior = true;
+  a.options.memory_per_area = false;
+  const BundleEvalResult r = evaluate_bundle(a.options);
+  const nlohmann::json& modes = r.report.at("modes");
+  const auto ms = [&](size_t i) { return modes.at(i).at("cpu_ms_per_frame").at("mean").get<double>(); };
+  const double prior = ms(0), none = ms(1), single = ms(2);
+  std::printf(
+      "bench bundle (%s, %zu frames x %d seeds, single thread, thread CPU ms per frame): prior %g m %.2f ms "
+      "(%.2f areas scored, %.2fx the single model), no prior %.2f ms (%.2f areas, %.2fx the single model, %.2fx the "
+      "prior), single model %.2f ms\n%s",
+      machine_info().summary().c_str(), r.report.at("frames").get<size_t>(), a.options.seeds, a.prior_noise, prior,
+      modes.at(0).at("areas_scored_per_frame").get<double>(), prior / single, none,
+      modes.at(1).at("areas_scored_per_frame").get<double>(), none / single, none / prior, single, r.table.c_str());
+  if (!a.json.empty()) write_file_atomically(a.json, r.report.dump(1) + "\n");
+}
+
+}  // namespace
+
+void add_bench_bundle_command(CLI::App& app) {
+  CLI::App* bench = app.get_subcommand("bench");
+  auto args = std::make_shared<BenchBundleArgs>();
+  BundleEvalOptions& o = args->options;
+  o.seeds = 3;
+  auto* cmd = bench->add_subcommand(
+      "bundle", "Per-frame time through a bundle of area models with a prior, without one, and the single model");
+  cmd->add_option("--bundle", o.bundle, "bundle.txt of `lboost bundle`")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--map", o.map, "Map whose query frames are localized (map.h5)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--model", o.model, "The single model compared (model.lbm)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--prior-noise", args->prior_noise, "Prior: true centre moved METRES, radius METRES")
+      ->capture_default_str();
+  cmd->add_option("--repeats", o.seeds, "Passes over the frames (RANSAC seeds --seed, --seed + 1, ...)")
+      ->capture_default_str();
+  cmd->add_option("--seed", o.localizer.pose.seed, "First RANSAC seed")->capture_default_str();
+  cmd->add_option("--json", args->json, "Also write the figures as JSON");
+  cmd->callback([args] { run_bench_bundle(*args); });
+}
+
+}  // namespace lmb::cli

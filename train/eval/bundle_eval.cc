@@ -1,0 +1,270 @@
+#include "train/eval/bundle_eval.h"
+
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <numeric>
+
+#include "common/error.h"
+#include "common/io/map_h5.h"
+#include "common/landmark_map.h"
+#include "infer/model.h"
+#include "train/areas/area_split.h"
+
+namespace lmb {
+
+namespace {
+
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+// Resident memory of this process, bytes (Linux /proc/self/statm; 0 when unreadable).
+int64_t resident_bytes() {
+  std::ifstream in("/proc/self/statm");
+  int64_t size = 0, resident = 0;
+  if (!(in >> size >> resident)) return 0;
+  return resident * static_cast<int64_t>(sysconf(_SC_PAGESIZE));
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double mean(const std::vector<double>& v) {
+  return v.empty() ? std::numeric_limits<double>::quiet_NaN()
+                   : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+}
+
+std::string number_text(double metres) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", metres);
+  return buf;
+}
+
+// One frame's outcome in one mode at one seed.
+struct Outcome {
+  bool success = false;
+  Rigid3d pose;
+  int inliers = 0;
+  int32_t area = -1;
+  int32_t selected = 0, scored = 0, loaded = 0;
+  std::vector<std::string> errors;
+  double wall_ms = 0.0, cpu_ms = 0.0;
+};
+
+}  // namespace
+
+void BundleEvalOptions::check() const {
+  LMB_CHECK(!bundle.empty(), "--bundle is empty");
+  for (double m : prior_noise) {
+    LMB_CHECK(std::isfinite(m) && m >= 0.0, "--prior-noise " << m << ": must be finite and >= 0");
+  }
+  LMB_CHECK(!prior_noise.empty() || no_prior, "--bundle needs --prior-noise METRES and/or --no-prior");
+  LMB_CHECK(seeds >= 1 && seeds <= 100, "seeds " << seeds << ": must be in 1..100");
+  LMB_CHECK(cache.max_areas >= 0, "--cache-areas " << cache.max_areas << ": must be >= 0");
+  thresholds.check();
+  localizer.check();
+}
+
+BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
+  options.check();
+  const std::shared_ptr<AreaBundle> bundle = AreaBundle::open(options.bundle);
+  const LandmarkMap map = read_map_h5(options.map);
+  std::vector<frame_t> frames;
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    if (map.frames[f].is_query) frames.push_back(f);
+  }
+  LMB_CHECK(!frames.empty(), options.map << ": no query frames");
+  std::shared_ptr<const Model> single;
+  if (!options.model.empty()) single = Model::load(options.model);
+
+  nlohmann::json report;
+  report["bundle"] = options.bundle;
+  report["map"] = options.map;
+  report["model"] = options.model;
+  report["frames"] = frames.size();
+  report["seeds"] = options.seeds;
+  report["first_seed"] = options.localizer.pose.seed;
+  report["prior_seed"] = options.prior_seed;
+  report["reach_m"] = bundle->reach();
+  report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
+                          {"rotation_deg", options.thresholds.max_rotation_error_deg}};
+  report["cache"] = {{"max_areas", options.cache.max_areas}, {"max_bytes", options.cache.max_bytes}};
+
+  // Memory per area: the areas loaded one after the other, the growth of the process's resident
+  // memory at each load (freeing an area first would let the next one reuse its pages).
+  nlohmann::json areas = nlohmann::json::array();
+  for (const BundleArea& a : bundle->areas()) {
+    nlohmann::json ja = {{"id", a.id}, {"file", a.file}, {"file_bytes", a.bytes}, {"landmarks", a.landmarks}};
+    if (options.memory_per_area) {
+      const int64_t before = resident_bytes();
+      const auto t0 = std::chrono::steady_clock::now();
+      try {
+        bundle->model(a.id);
+        ja["load_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        ja["resident_bytes"] = resident_bytes() - before;
+      } catch (const Error& e) {
+        ja["error"] = e.what();
+      }
+    }
+    areas.push_back(std::move(ja));
+  }
+  bundle->release_except({});
+  report["areas"] = std::move(areas);
+  bundle->set_cache_limits(options.cache);
+
+  struct Mode {
+    std::string name;
+    bool single = false;
+    bool has_prior = false;
+    double noise = 0.0;
+  };
+  std::vector<Mode> modes;
+  for (double m : options.prior_noise) {
+    std::string name = "prior ";
+    name += number_text(m);
+    name += " m";
+    modes.push_back({name, false, true, m});
+  }
+  if (options.no_prior) modes.push_back({"no prior", false, false, 0.0});
+  if (single) modes.push_back({"single model", true, false, 0.0});
+
+  std::string table =
+      "mode               recall  (per seed)          localized  med_pos_m  cpu_ms/frame (mean, "
+      "median)  areas selected/scored/loaded per frame\n";
+  nlohmann::json jmodes = nlohmann::json::array();
+  for (const Mode& mode : modes) {
+    std::vector<int> correct_per_seed;
+    std::vector<double> cpu, wall, pos_err;
+    double selected = 0, scored = 0, loaded = 0, localized = 0;
+    int64_t runs = 0;
+    const int64_t loads_before = bundle->loads();
+    nlohmann::json jframes = nlohmann::json::array();
+    for (int s = 0; s < options.seeds; ++s) {
+      LocalizerOptions lo = options.localizer;
+      lo.pose.seed = options.localizer.pose.seed + static_cast<uint64_t>(s);
+      int correct = 0;
+      for (frame_t f : frames) {
+        const MapFrame& frame = map.frames[f];
+        const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
+                                              map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+        const uint8_t* descriptors = map.descriptor(frame.first_keypoint);
+        const Camera& camera = map.cameras[frame.camera];
+        Outcome o;
+        const double c0 = thread_cpu_ms();
+        const auto t0 = std::chrono::steady_clock::now();
+        if (mode.single) {
+          const Localizer localizer(single, lo);
+          const LocalizeResult r = localizer.localize(camera, keypoints, descriptors, frame.gravity_in_cam);
+          o.success = r.pose.success;
+          o.pose = r.pose.cam_from_world;
+          o.inliers = r.pose.num_inliers;
+        } else {
+          PositionPrior prior;
+          if (mode.has_prior) {
+            prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(options.prior_seed, f);
+            prior.radius = mode.noise;
+          }
+          BundleLocalizeResult r = localize_in_bundle(*bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
+                                                      mode.has_prior ? &prior : nullptr, lo);
+          o.success = r.area >= 0;
+          o.pose = r.result.pose.cam_from_world;
+          o.inliers = r.result.pose.num_inliers;
+          o.area = r.area;
+          o.selected = r.selected;
+          o.scored = static_cast<int32_t>(r.scored.size());
+          o.loaded = r.loaded;
+          o.errors = std::move(r.errors);
+        }
+        o.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        o.cpu_ms = thread_cpu_ms() - c0;
+        const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, options.thresholds);
+        correct += ok;
+        cpu.push_back(o.cpu_ms);
+        wall.push_back(o.wall_ms);
+        selected += o.selected;
+        scored += o.scored;
+        loaded += o.loaded;
+        localized += o.success;
+        ++runs;
+        if (o.success && s == 0) pos_err.push_back(position_error(o.pose, frame.cam_from_world));
+        if (s == 0) {
+          nlohmann::json jf = {{"name", frame.name},       {"success", o.success}, {"correct", ok},
+                               {"num_inliers", o.inliers}, {"cpu_ms", o.cpu_ms},   {"wall_ms", o.wall_ms}};
+          if (!mode.single) {
+            jf["area"] = o.area;
+            jf["areas_selected"] = o.selected;
+            jf["areas_scored"] = o.scored;
+            jf["areas_loaded"] = o.loaded;
+            if (!o.errors.empty()) jf["errors"] = o.errors;
+          }
+          if (o.success) {
+            jf["position_error_m"] = position_error(o.pose, frame.cam_from_world);
+            jf["rotation_error_deg"] = rotation_error_deg(o.pose, frame.cam_from_world);
+          }
+          jframes.push_back(std::move(jf));
+        }
+      }
+      correct_per_seed.push_back(correct);
+    }
+    const double nf = static_cast<double>(frames.size());
+    const double recall = std::accumulate(correct_per_seed.begin(), correct_per_seed.end(), 0.0) / (nf * options.seeds);
+    const double n = static_cast<double>(runs);
+    nlohmann::json jm = {{"mode", mode.name},
+                         {"pose_recall", recall},
+                         {"frames_correct_per_seed", correct_per_seed},
+                         {"localized_per_frame", localized / n},
+                         {"median_position_error_m", median(pos_err)},
+                         {"cpu_ms_per_frame", {{"mean", mean(cpu)}, {"median", median(cpu)}}},
+                         {"wall_ms_per_frame", {{"mean", mean(wall)}, {"median", median(wall)}}}};
+    if (mode.has_prior) jm["prior_noise_m"] = mode.noise;
+    if (!mode.single) {
+      jm["areas_selected_per_frame"] = selected / n;
+      jm["areas_scored_per_frame"] = scored / n;
+      jm["areas_loaded_per_frame"] = loaded / n;
+      jm["area_loads"] = bundle->loads() - loads_before;
+      jm["areas_loaded_at_end"] = bundle->loaded_ids().size();
+      jm["loaded_bytes_at_end"] = bundle->loaded_bytes();
+    }
+    jm["frames"] = std::move(jframes);
+    std::string seeds_text;
+    for (size_t i = 0; i < correct_per_seed.size(); ++i) {
+      if (i > 0) seeds_text += ',';
+      seeds_text += std::to_string(correct_per_seed[i]);
+    }
+    std::string areas_text = "-";
+    if (!mode.single) {
+      areas_text = number_text(selected / n);
+      areas_text += " / ";
+      areas_text += number_text(scored / n);
+      areas_text += " / ";
+      areas_text += number_text(loaded / n);
+    }
+    char line[400];
+    std::snprintf(line, sizeof(line), "%-17s  %6.4f  (%s of %zu)  %9.3f  %9.3f  %8.2f %8.2f  %s\n", mode.name.c_str(),
+                  recall, seeds_text.c_str(), frames.size(), localized / n, median(pos_err), mean(cpu), median(cpu),
+                  areas_text.c_str());
+    table += line;
+    jmodes.push_back(std::move(jm));
+  }
+  report["modes"] = std::move(jmodes);
+  BundleEvalResult result;
+  result.report = std::move(report);
+  result.table = std::move(table);
+  return result;
+}
+
+}  // namespace lmb
