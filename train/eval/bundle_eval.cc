@@ -79,6 +79,181 @@ void BundleEvalOptions::check() const {
   localizer.check();
 }
 
+namespace {
+
+// Memory per area: the areas loaded one after the other, the growth of the process's resident
+// memory at each load (freeing an area first would let the next one reuse its pages).
+nlohmann::json measure_areas(AreaBundle& bundle, bool memory_per_area) {
+  nlohmann::json areas = nlohmann::json::array();
+  for (const BundleArea& a : bundle.areas()) {
+    nlohmann::json ja = {{"id", a.id}, {"file", a.file}, {"file_bytes", a.bytes}, {"landmarks", a.landmarks}};
+    if (memory_per_area) {
+      const int64_t before = resident_bytes();
+      const auto t0 = std::chrono::steady_clock::now();
+      try {
+        bundle.model(a.id);
+        ja["load_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        ja["resident_bytes"] = resident_bytes() - before;
+      } catch (const Error& e) {
+        ja["error"] = e.what();
+      }
+    }
+    areas.push_back(std::move(ja));
+  }
+  bundle.release_except({});
+  return areas;
+}
+
+struct Mode {
+  std::string name;
+  bool single = false;
+  bool has_prior = false;
+  double noise = 0.0;
+};
+
+std::vector<Mode> make_modes(const BundleEvalOptions& options, bool with_single) {
+  std::vector<Mode> modes;
+  for (double m : options.prior_noise) {
+    std::string name = "prior ";
+    name += number_text(m);
+    name += " m";
+    modes.push_back({name, false, true, m});
+  }
+  if (options.no_prior) modes.push_back({"no prior", false, false, 0.0});
+  if (with_single) modes.push_back({"single model", true, false, 0.0});
+  return modes;
+}
+
+// Everything one mode's frames share.
+struct ModeContext {
+  const BundleEvalOptions& options;
+  const LandmarkMap& map;
+  AreaBundle& bundle;
+  const std::shared_ptr<const Model>& single;
+};
+
+// One query frame localized in one mode, timed on this thread.
+Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const LocalizerOptions& lo) {
+  const MapFrame& frame = c.map.frames[f];
+  const std::vector<Keypoint> keypoints(c.map.keypoints.begin() + frame.first_keypoint,
+                                        c.map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+  const uint8_t* descriptors = c.map.descriptor(frame.first_keypoint);
+  const Camera& camera = c.map.cameras[frame.camera];
+  Outcome o;
+  const double c0 = thread_cpu_ms();
+  const auto t0 = std::chrono::steady_clock::now();
+  if (mode.single) {
+    const Localizer localizer(c.single, lo);
+    const LocalizeResult r = localizer.localize(camera, keypoints, descriptors, frame.gravity_in_cam);
+    o.success = r.pose.success;
+    o.pose = r.pose.cam_from_world;
+    o.inliers = r.pose.num_inliers;
+  } else {
+    PositionPrior prior;
+    if (mode.has_prior) {
+      prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(c.options.prior_seed, f);
+      prior.radius = mode.noise;
+    }
+    BundleLocalizeResult r = localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
+                                                mode.has_prior ? &prior : nullptr, lo);
+    o.success = r.area >= 0;
+    o.pose = r.result.pose.cam_from_world;
+    o.inliers = r.result.pose.num_inliers;
+    o.area = r.area;
+    o.selected = r.selected;
+    o.scored = static_cast<int32_t>(r.scored.size());
+    o.loaded = r.loaded;
+    o.errors = std::move(r.errors);
+  }
+  o.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  o.cpu_ms = thread_cpu_ms() - c0;
+  return o;
+}
+
+nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome& o, bool correct) {
+  nlohmann::json jf = {{"name", frame.name},       {"success", o.success}, {"correct", correct},
+                       {"num_inliers", o.inliers}, {"cpu_ms", o.cpu_ms},   {"wall_ms", o.wall_ms}};
+  if (!mode.single) {
+    jf["area"] = o.area;
+    jf["areas_selected"] = o.selected;
+    jf["areas_scored"] = o.scored;
+    jf["areas_loaded"] = o.loaded;
+    if (!o.errors.empty()) jf["errors"] = o.errors;
+  }
+  if (o.success) {
+    jf["position_error_m"] = position_error(o.pose, frame.cam_from_world);
+    jf["rotation_error_deg"] = rotation_error_deg(o.pose, frame.cam_from_world);
+  }
+  return jf;
+}
+
+// One mode over every frame and seed: its report entry, and its line of the table.
+nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::vector<frame_t>& frames,
+                             std::string* table) {
+  std::vector<int> correct_per_seed;
+  std::vector<double> cpu, wall, pos_err;
+  double selected = 0, scored = 0, loaded = 0, localized = 0;
+  int64_t runs = 0;
+  const int64_t loads_before = c.bundle.loads();
+  nlohmann::json jframes = nlohmann::json::array();
+  for (int s = 0; s < c.options.seeds; ++s) {
+    LocalizerOptions lo = c.options.localizer;
+    lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
+    int correct = 0;
+    for (frame_t f : frames) {
+      const MapFrame& frame = c.map.frames[f];
+      const Outcome o = localize_frame(c, mode, f, lo);
+      const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, c.options.thresholds);
+      correct += ok;
+      cpu.push_back(o.cpu_ms);
+      wall.push_back(o.wall_ms);
+      selected += o.selected;
+      scored += o.scored;
+      loaded += o.loaded;
+      localized += o.success;
+      ++runs;
+      if (o.success && s == 0) pos_err.push_back(position_error(o.pose, frame.cam_from_world));
+      if (s == 0) jframes.push_back(frame_json(frame, mode, o, ok));
+    }
+    correct_per_seed.push_back(correct);
+  }
+  const double nf = static_cast<double>(frames.size());
+  const double recall = std::accumulate(correct_per_seed.begin(), correct_per_seed.end(), 0.0) / (nf * c.options.seeds);
+  const double n = static_cast<double>(runs);
+  nlohmann::json jm = {{"mode", mode.name},
+                       {"pose_recall", recall},
+                       {"frames_correct_per_seed", correct_per_seed},
+                       {"localized_per_frame", localized / n},
+                       {"median_position_error_m", median(pos_err)},
+                       {"cpu_ms_per_frame", {{"mean", mean(cpu)}, {"median", median(cpu)}}},
+                       {"wall_ms_per_frame", {{"mean", mean(wall)}, {"median", median(wall)}}}};
+  if (mode.has_prior) jm["prior_noise_m"] = mode.noise;
+  std::string areas_text = "-";
+  if (!mode.single) {
+    jm["areas_selected_per_frame"] = selected / n;
+    jm["areas_scored_per_frame"] = scored / n;
+    jm["areas_loaded_per_frame"] = loaded / n;
+    jm["area_loads"] = c.bundle.loads() - loads_before;
+    jm["areas_loaded_at_end"] = c.bundle.loaded_ids().size();
+    jm["loaded_bytes_at_end"] = c.bundle.loaded_bytes();
+    areas_text = number_text(selected / n) + " / " + number_text(scored / n) + " / " + number_text(loaded / n);
+  }
+  jm["frames"] = std::move(jframes);
+  std::string seeds_text;
+  for (size_t i = 0; i < correct_per_seed.size(); ++i) {
+    if (i > 0) seeds_text += ',';
+    seeds_text += std::to_string(correct_per_seed[i]);
+  }
+  char line[400];
+  std::snprintf(line, sizeof(line), "%-17s  %6.4f  (%s of %zu)  %9.3f  %9.3f  %8.2f %8.2f  %s\n", mode.name.c_str(),
+                recall, seeds_text.c_str(), frames.size(), localized / n, median(pos_err), mean(cpu), median(cpu),
+                areas_text.c_str());
+  *table += line;
+  return jm;
+}
+
+}  // namespace
+
 BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   options.check();
   const std::shared_ptr<AreaBundle> bundle = AreaBundle::open(options.bundle);
@@ -103,167 +278,20 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
                           {"rotation_deg", options.thresholds.max_rotation_error_deg}};
   report["cache"] = {{"max_areas", options.cache.max_areas}, {"max_bytes", options.cache.max_bytes}};
-
-  // Memory per area: the areas loaded one after the other, the growth of the process's resident
-  // memory at each load (freeing an area first would let the next one reuse its pages).
-  nlohmann::json areas = nlohmann::json::array();
-  for (const BundleArea& a : bundle->areas()) {
-    nlohmann::json ja = {{"id", a.id}, {"file", a.file}, {"file_bytes", a.bytes}, {"landmarks", a.landmarks}};
-    if (options.memory_per_area) {
-      const int64_t before = resident_bytes();
-      const auto t0 = std::chrono::steady_clock::now();
-      try {
-        bundle->model(a.id);
-        ja["load_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        ja["resident_bytes"] = resident_bytes() - before;
-      } catch (const Error& e) {
-        ja["error"] = e.what();
-      }
-    }
-    areas.push_back(std::move(ja));
-  }
-  bundle->release_except({});
-  report["areas"] = std::move(areas);
+  report["areas"] = measure_areas(*bundle, options.memory_per_area);
   bundle->set_cache_limits(options.cache);
 
-  struct Mode {
-    std::string name;
-    bool single = false;
-    bool has_prior = false;
-    double noise = 0.0;
-  };
-  std::vector<Mode> modes;
-  for (double m : options.prior_noise) {
-    std::string name = "prior ";
-    name += number_text(m);
-    name += " m";
-    modes.push_back({name, false, true, m});
-  }
-  if (options.no_prior) modes.push_back({"no prior", false, false, 0.0});
-  if (single) modes.push_back({"single model", true, false, 0.0});
-
-  std::string table =
+  BundleEvalResult result;
+  result.table =
       "mode               recall  (per seed)          localized  med_pos_m  cpu_ms/frame (mean, "
       "median)  areas selected/scored/loaded per frame\n";
+  const ModeContext context{options, map, *bundle, single};
   nlohmann::json jmodes = nlohmann::json::array();
-  for (const Mode& mode : modes) {
-    std::vector<int> correct_per_seed;
-    std::vector<double> cpu, wall, pos_err;
-    double selected = 0, scored = 0, loaded = 0, localized = 0;
-    int64_t runs = 0;
-    const int64_t loads_before = bundle->loads();
-    nlohmann::json jframes = nlohmann::json::array();
-    for (int s = 0; s < options.seeds; ++s) {
-      LocalizerOptions lo = options.localizer;
-      lo.pose.seed = options.localizer.pose.seed + static_cast<uint64_t>(s);
-      int correct = 0;
-      for (frame_t f : frames) {
-        const MapFrame& frame = map.frames[f];
-        const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
-                                              map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
-        const uint8_t* descriptors = map.descriptor(frame.first_keypoint);
-        const Camera& camera = map.cameras[frame.camera];
-        Outcome o;
-        const double c0 = thread_cpu_ms();
-        const auto t0 = std::chrono::steady_clock::now();
-        if (mode.single) {
-          const Localizer localizer(single, lo);
-          const LocalizeResult r = localizer.localize(camera, keypoints, descriptors, frame.gravity_in_cam);
-          o.success = r.pose.success;
-          o.pose = r.pose.cam_from_world;
-          o.inliers = r.pose.num_inliers;
-        } else {
-          PositionPrior prior;
-          if (mode.has_prior) {
-            prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(options.prior_seed, f);
-            prior.radius = mode.noise;
-          }
-          BundleLocalizeResult r = localize_in_bundle(*bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                                                      mode.has_prior ? &prior : nullptr, lo);
-          o.success = r.area >= 0;
-          o.pose = r.result.pose.cam_from_world;
-          o.inliers = r.result.pose.num_inliers;
-          o.area = r.area;
-          o.selected = r.selected;
-          o.scored = static_cast<int32_t>(r.scored.size());
-          o.loaded = r.loaded;
-          o.errors = std::move(r.errors);
-        }
-        o.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        o.cpu_ms = thread_cpu_ms() - c0;
-        const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, options.thresholds);
-        correct += ok;
-        cpu.push_back(o.cpu_ms);
-        wall.push_back(o.wall_ms);
-        selected += o.selected;
-        scored += o.scored;
-        loaded += o.loaded;
-        localized += o.success;
-        ++runs;
-        if (o.success && s == 0) pos_err.push_back(position_error(o.pose, frame.cam_from_world));
-        if (s == 0) {
-          nlohmann::json jf = {{"name", frame.name},       {"success", o.success}, {"correct", ok},
-                               {"num_inliers", o.inliers}, {"cpu_ms", o.cpu_ms},   {"wall_ms", o.wall_ms}};
-          if (!mode.single) {
-            jf["area"] = o.area;
-            jf["areas_selected"] = o.selected;
-            jf["areas_scored"] = o.scored;
-            jf["areas_loaded"] = o.loaded;
-            if (!o.errors.empty()) jf["errors"] = o.errors;
-          }
-          if (o.success) {
-            jf["position_error_m"] = position_error(o.pose, frame.cam_from_world);
-            jf["rotation_error_deg"] = rotation_error_deg(o.pose, frame.cam_from_world);
-          }
-          jframes.push_back(std::move(jf));
-        }
-      }
-      correct_per_seed.push_back(correct);
-    }
-    const double nf = static_cast<double>(frames.size());
-    const double recall = std::accumulate(correct_per_seed.begin(), correct_per_seed.end(), 0.0) / (nf * options.seeds);
-    const double n = static_cast<double>(runs);
-    nlohmann::json jm = {{"mode", mode.name},
-                         {"pose_recall", recall},
-                         {"frames_correct_per_seed", correct_per_seed},
-                         {"localized_per_frame", localized / n},
-                         {"median_position_error_m", median(pos_err)},
-                         {"cpu_ms_per_frame", {{"mean", mean(cpu)}, {"median", median(cpu)}}},
-                         {"wall_ms_per_frame", {{"mean", mean(wall)}, {"median", median(wall)}}}};
-    if (mode.has_prior) jm["prior_noise_m"] = mode.noise;
-    if (!mode.single) {
-      jm["areas_selected_per_frame"] = selected / n;
-      jm["areas_scored_per_frame"] = scored / n;
-      jm["areas_loaded_per_frame"] = loaded / n;
-      jm["area_loads"] = bundle->loads() - loads_before;
-      jm["areas_loaded_at_end"] = bundle->loaded_ids().size();
-      jm["loaded_bytes_at_end"] = bundle->loaded_bytes();
-    }
-    jm["frames"] = std::move(jframes);
-    std::string seeds_text;
-    for (size_t i = 0; i < correct_per_seed.size(); ++i) {
-      if (i > 0) seeds_text += ',';
-      seeds_text += std::to_string(correct_per_seed[i]);
-    }
-    std::string areas_text = "-";
-    if (!mode.single) {
-      areas_text = number_text(selected / n);
-      areas_text += " / ";
-      areas_text += number_text(scored / n);
-      areas_text += " / ";
-      areas_text += number_text(loaded / n);
-    }
-    char line[400];
-    std::snprintf(line, sizeof(line), "%-17s  %6.4f  (%s of %zu)  %9.3f  %9.3f  %8.2f %8.2f  %s\n", mode.name.c_str(),
-                  recall, seeds_text.c_str(), frames.size(), localized / n, median(pos_err), mean(cpu), median(cpu),
-                  areas_text.c_str());
-    table += line;
-    jmodes.push_back(std::move(jm));
+  for (const Mode& mode : make_modes(options, single != nullptr)) {
+    jmodes.push_back(evaluate_mode(context, mode, frames, &result.table));
   }
   report["modes"] = std::move(jmodes);
-  BundleEvalResult result;
   result.report = std::move(report);
-  result.table = std::move(table);
   return result;
 }
 
