@@ -169,6 +169,91 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename 
 
 constexpr int kRunnerUpPool = 8;
 
+namespace ransac_detail {
+
+inline int shared_count(const std::vector<char>& a, const std::vector<char>& b) {
+  int shared = 0;
+  for (size_t i = 0; i < a.size(); ++i) shared += a[i] & b[i];
+  return shared;
+}
+
+// Up to kRunnerUpPool scored hypotheses that share few inliers with each other, from which the
+// runner-up (the best hypothesis explaining mostly other data than the winner) is drawn at the end.
+template <typename Estimator>
+class RunnerUpPool {
+ public:
+  using Model = typename Estimator::Model;
+
+  RunnerUpPool(Estimator& estimator, const RansacOptions& options) : estimator_(estimator), options_(options) {
+    pool_.reserve(kRunnerUpPool);
+  }
+
+  // Offers a scored hypothesis: it replaces a kept one it mostly agrees with when it scores
+  // better, else the worst kept one when the pool is full and it scores better than that.
+  void offer(const Model& model, double score, int inliers) {
+    if (inliers <= Estimator::kSampleSize) return;
+    int worst = -1;
+    for (int k = 0; k < static_cast<int>(pool_.size()); ++k) {
+      if (worst < 0 || pool_[k].score > pool_[worst].score) worst = k;
+    }
+    if (static_cast<int>(pool_.size()) == kRunnerUpPool && score >= pool_[worst].score) return;
+    estimator_.inliers(model, &mask_);
+    for (Kept& k : pool_) {
+      const int shared = shared_count(mask_, k.mask);
+      if (shared > options_.max_shared_inliers * std::min(inliers, k.inliers)) {
+        if (score < k.score) k = Kept{model, score, inliers, mask_};
+        return;
+      }
+    }
+    if (static_cast<int>(pool_.size()) == kRunnerUpPool) {
+      pool_[worst] = Kept{model, score, inliers, mask_};
+    } else {
+      pool_.push_back(Kept{model, score, inliers, mask_});
+    }
+  }
+
+  // The lowest-cost kept hypothesis that mostly explains other data than best_mask, locally
+  // refined when that lowers its cost without making it agree with the winner; fills the
+  // runner-up fields of stats (and counts the refinement).
+  void pick(const std::vector<char>& best_mask, RansacStats* stats, Model* runner_up_model) {
+    std::sort(pool_.begin(), pool_.end(), [](const Kept& a, const Kept& b) { return a.score < b.score; });
+    for (const Kept& k : pool_) {
+      if (shared_count(k.mask, best_mask) > options_.max_shared_inliers * k.inliers) continue;
+      Kept runner = k;
+      Model refined = k.model;
+      estimator_.refine(&refined, false);
+      ++stats->refinements;
+      int refined_inliers = 0;
+      const double refined_score = estimator_.score(refined, &refined_inliers);
+      if (refined_score < runner.score) {
+        estimator_.inliers(refined, &mask_);
+        if (shared_count(mask_, best_mask) <= options_.max_shared_inliers * refined_inliers) {
+          runner = Kept{refined, refined_score, refined_inliers, mask_};
+        }
+      }
+      stats->runner_up_inliers = runner.inliers;
+      stats->runner_up_shared = shared_count(runner.mask, best_mask);
+      stats->runner_up_score = runner.score;
+      if (runner_up_model != nullptr) *runner_up_model = runner.model;
+      return;
+    }
+  }
+
+ private:
+  struct Kept {
+    Model model;
+    double score;
+    int inliers;
+    std::vector<char> mask;
+  };
+  Estimator& estimator_;
+  const RansacOptions& options_;
+  std::vector<Kept> pool_;
+  std::vector<char> mask_;
+};
+
+}  // namespace ransac_detail
+
 template <typename Estimator>
 RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename Estimator::Model* best_model,
                    typename Estimator::Model* runner_up_model) {
@@ -185,43 +270,7 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename 
   const double horizon = options.prosac_horizon > 0 ? options.prosac_horizon : options.max_iterations;
   ProsacSampler sampler(n, m, options.progressive, horizon, options.seed);
   ProsacStopping stopping(n, m, options);
-
-  struct Kept {
-    Model model;
-    double score;
-    int inliers;
-    std::vector<char> mask;
-  };
-  std::vector<Kept> pool;
-  pool.reserve(kRunnerUpPool);
-  auto shared_count = [](const std::vector<char>& a, const std::vector<char>& b) {
-    int shared = 0;
-    for (size_t i = 0; i < a.size(); ++i) shared += a[i] & b[i];
-    return shared;
-  };
-  std::vector<char> mask;
-  // Offers a scored hypothesis to the pool of mutually different hypotheses.
-  auto offer = [&](const Model& model, double score, int inliers) {
-    if (inliers <= m) return;
-    int worst = -1;
-    for (int k = 0; k < static_cast<int>(pool.size()); ++k) {
-      if (worst < 0 || pool[k].score > pool[worst].score) worst = k;
-    }
-    if (static_cast<int>(pool.size()) == kRunnerUpPool && score >= pool[worst].score) return;
-    estimator.inliers(model, &mask);
-    for (Kept& k : pool) {
-      const int shared = shared_count(mask, k.mask);
-      if (shared > options.max_shared_inliers * std::min(inliers, k.inliers)) {
-        if (score < k.score) k = Kept{model, score, inliers, mask};
-        return;
-      }
-    }
-    if (static_cast<int>(pool.size()) == kRunnerUpPool) {
-      pool[worst] = Kept{model, score, inliers, mask};
-    } else {
-      pool.push_back(Kept{model, score, inliers, mask});
-    }
-  };
+  ransac_detail::RunnerUpPool<Estimator> pool(estimator, options);
 
   double best_score = std::numeric_limits<double>::infinity();
   int best_inliers = 0;
@@ -258,7 +307,7 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename 
       const double score = estimator.score(models[k], &inliers);
       ++stats.models;
       if (!std::isfinite(score)) continue;
-      offer(models[k], score, inliers);
+      pool.offer(models[k], score, inliers);
       if (score < best_minimal_score) {
         if (candidate < 0 || score < candidate_score) {
           candidate = static_cast<int>(k);
@@ -293,35 +342,7 @@ RansacStats ransac(Estimator& estimator, const RansacOptions& options, typename 
   stats.num_inliers = best_inliers;
   stats.inlier_ratio = static_cast<double>(best_inliers) / n;
   stats.score = best_score;
-
-  // The runner-up: the lowest-cost kept hypothesis that mostly explains other data.
-  std::sort(pool.begin(), pool.end(), [](const Kept& a, const Kept& b) { return a.score < b.score; });
-  for (const Kept& k : pool) {
-    if (shared_count(k.mask, best_mask) > options.max_shared_inliers * k.inliers) continue;
-    Model runner = k.model;
-    double runner_score = k.score;
-    int runner_inliers = k.inliers;
-    std::vector<char> runner_mask = k.mask;
-    Model refined = runner;
-    estimator.refine(&refined, false);
-    ++stats.refinements;
-    int refined_inliers = 0;
-    const double refined_score = estimator.score(refined, &refined_inliers);
-    if (refined_score < runner_score) {
-      estimator.inliers(refined, &mask);
-      if (shared_count(mask, best_mask) <= options.max_shared_inliers * refined_inliers) {
-        runner = refined;
-        runner_score = refined_score;
-        runner_inliers = refined_inliers;
-        runner_mask = mask;
-      }
-    }
-    stats.runner_up_inliers = runner_inliers;
-    stats.runner_up_shared = shared_count(runner_mask, best_mask);
-    stats.runner_up_score = runner_score;
-    if (runner_up_model != nullptr) *runner_up_model = runner;
-    break;
-  }
+  pool.pick(best_mask, &stats, runner_up_model);
   return stats;
 }
 
