@@ -14,7 +14,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <memory>
 #include <string>
@@ -24,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "infer/localizer.h"
@@ -70,16 +70,9 @@ bool is_correct(const Rigid3d& estimate, const Rigid3d& truth) {
   return position_error(estimate, truth) <= 0.20 && rotation_error_deg(estimate, truth) <= 5.0;
 }
 
-void run_bench_pose(const BenchPoseArgs& a) {
-  LMB_CHECK(a.seeds >= 1 && a.seeds <= 1000, "bench pose: --seeds " << a.seeds << " must be in 1..1000");
-  LMB_CHECK(a.iterations >= 1 && a.baseline_iterations >= 1, "bench pose: iterations must be >= 1");
-  const std::shared_ptr<const Model> model = Model::load(a.model);
-  const LandmarkMap map = read_map_h5(a.map);
-  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(), a.map << ": " << map.descriptor_bytes
-                                                                     << "-byte descriptors, the model expects "
-                                                                     << model->descriptor_bytes());
-
-  // The correspondences of every query frame, once (the pose of this pass is not used).
+// The correspondences of every query frame, once (the pose of this pass is not used).
+std::vector<Frame> classify_frames(const BenchPoseArgs& a, const std::shared_ptr<const Model>& model,
+                                   const LandmarkMap& map) {
   LocalizerOptions lo;
   lo.classifier.min_margin = a.min_margin;
   lo.pose.max_iterations = 1;
@@ -105,7 +98,11 @@ void run_bench_pose(const BenchPoseArgs& a) {
     }
     frames.push_back(std::move(fr));
   }
-  LMB_CHECK(!frames.empty(), a.map << ": no query frames");
+  return frames;
+}
+
+// Every solver on every frame at every seed.
+std::vector<Solver> run_solvers(const BenchPoseArgs& a, const std::vector<Frame>& frames) {
   spdlog::info("bench pose: {} query frames, {} seeds; ransac_opengv {} iterations, lo_ransac {} iterations",
                frames.size(), a.seeds, a.baseline_iterations, a.iterations);
 
@@ -148,7 +145,11 @@ void run_bench_pose(const BenchPoseArgs& a) {
       }
     }
   }
+  return solvers;
+}
 
+// Prints the table and returns the JSON report.
+nlohmann::json report(const BenchPoseArgs& a, const std::vector<Frame>& frames, const std::vector<Solver>& solvers) {
   const double runs = static_cast<double>(frames.size()) * a.seeds;
   const double baseline_ms = solvers[0].cpu_ms / runs;
   nlohmann::json j;
@@ -200,11 +201,22 @@ void run_bench_pose(const BenchPoseArgs& a) {
       j["solvers"][s.name]["refinements_per_frame"] = s.refinements / runs;
     }
   }
-  if (!a.json.empty()) {
-    std::ofstream out(a.json);
-    LMB_CHECK(out.good(), a.json << ": cannot open for writing");
-    out << j.dump(1) << "\n";
-  }
+  return j;
+}
+
+void run_bench_pose(const BenchPoseArgs& a) {
+  LMB_CHECK(a.seeds >= 1 && a.seeds <= 1000, "bench pose: --seeds " << a.seeds << " must be in 1..1000");
+  LMB_CHECK(a.iterations >= 1 && a.baseline_iterations >= 1, "bench pose: iterations must be >= 1");
+  if (!a.json.empty()) check_writable_file(a.json, "--json");
+  const std::shared_ptr<const Model> model = Model::load(a.model);
+  const LandmarkMap map = read_map_h5(a.map);
+  LMB_CHECK(map.descriptor_bytes == model->descriptor_bytes(), a.map << ": " << map.descriptor_bytes
+                                                                     << "-byte descriptors, the model expects "
+                                                                     << model->descriptor_bytes());
+  const std::vector<Frame> frames = classify_frames(a, model, map);
+  LMB_CHECK(!frames.empty(), a.map << ": no query frames");
+  const nlohmann::json j = report(a, frames, run_solvers(a, frames));
+  if (!a.json.empty()) write_file_atomically(a.json, j.dump(1) + "\n");
 }
 
 }  // namespace
