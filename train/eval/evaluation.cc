@@ -401,6 +401,107 @@ std::vector<char> check_model_fits_map(const Model& model, const std::string& mo
   return is_class;
 }
 
+// What the runs of every method add to the report.
+struct MethodsOutcome {
+  std::vector<MethodResult> results;                       // per method
+  std::vector<std::vector<MethodResult>> session_results;  // per selected session, per method
+  nlohmann::json build = nlohmann::json::object(), ranks = nlohmann::json::object();
+  nlohmann::json cpu = nlohmann::json::object(), parameters = nlohmann::json::object();
+  nlohmann::json held_methods = nlohmann::json::object(), confidence = nlohmann::json::object();
+  size_t held_frames = 0, held_keypoints = 0;
+};
+
+// Each method in turn: its pose calibration, the queries, the outside frames and the held-out map
+// observations.
+MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Model>& model, const LandmarkMap& map,
+                           const std::vector<EvalQuery>& queries, const std::vector<size_t>& query_session,
+                           size_t num_sessions) {
+  MethodsOutcome o;
+  o.session_results.resize(num_sessions);
+  // The held-out map observations of the model's training run (the validation column).
+  std::vector<int64_t> held;
+  std::vector<EvalQuery> held_queries;
+  if (a.training_set) {
+    std::vector<landmark_t> classes;
+    for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
+    held = held_out_observations(map, classes, *a.training_set);
+    held_queries = held_out_frames(map, held);
+    o.held_frames = held_queries.size();
+    o.held_keypoints = held.size();
+    spdlog::info("eval: {} held-out map observations in {} map frames (validation_fraction {}, seed {})", held.size(),
+                 held_queries.size(), a.training_set->validation_fraction, a.training_set->seed);
+  }
+
+  const MethodContext context{model, &map, &a};
+  const MethodContext held_context{model, &map, &a, &held};
+  const std::vector<int64_t> calibration_keypoints =
+      calibration_frame_keypoints(map, calibration_frames(map, a.calibration.max_frames));
+  MethodContext calibration_context{model, &map, &a, &calibration_keypoints};
+  calibration_context.accept_only = true;
+  const std::vector<EvalQuery> outside = outside_frames(map);
+  MethodContext outside_context = context;
+  outside_context.accept_only = true;
+  for (const std::string& name : a.method_names()) {
+    const Clock::time_point t0 = Clock::now();
+    const EvalMethod& method = find_eval_method(name);
+    // The method's pose calibration, fitted on map frames (train/eval/pose_calibration_fit.h); the
+    // descriptor baselines search an index without the calibration frames' observations.
+    const CalibrationFit fit = [&] {
+      const std::unique_ptr<Matcher> matcher = method.make(calibration_context);
+      return fit_method_calibration(*matcher, map, a.pose, a.max_correspondences, a.pose_thresholds.front(),
+                                    a.calibration);
+    }();
+    spdlog::info(
+        "eval: {}: pose calibration on {} map frames: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
+        fit.num_poses, fit.num_right, fit.num_elsewhere,
+        fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
+    MethodRun run = evaluate_method(method, context, queries, query_session, num_sessions, fit);
+    o.confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);
+    o.confidence[name]["outside"] = evaluate_outside(method, outside_context, outside, fit);
+    if (!outside.empty()) {
+      spdlog::info("eval: {}: {} of {} outside frames localized by the inlier rule, {} by the calibrated rule", name,
+                   o.confidence[name]["outside"]["localized_inlier_rule"].get<int64_t>(), outside.size(),
+                   o.confidence[name]["outside"].value("localized_calibrated", int64_t{0}));
+    }
+    spdlog::info(
+        "eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
+        "correct, {:.2f} ms/frame matching ({:.1f} s)",
+        name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr, run.result.matches.match_precision,
+        run.result.matches.match_recall, run.result.pose.num_correct, run.result.pose.num_frames,
+        run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
+    if (!held.empty()) {
+      const RetrievalMetrics r = rank_held_out(method, held_context, held_queries);
+      o.held_methods[name] = {{"precision_at_1", r.precision_at_1}, {"mrr", r.mrr}};
+      spdlog::info("eval: {}: held-out map observations P@1 {:.4f}, MRR {:.4f}", name, r.precision_at_1, r.mrr);
+    }
+    o.build[name] = run.build_seconds;
+    o.ranks[name] = run.ranks;
+    o.cpu[name] = run.cpu_ms_per_frame;
+    o.parameters[name] = run.parameters;
+    o.results.push_back(std::move(run.result));
+    for (size_t i = 0; i < num_sessions; ++i) o.session_results[i].push_back(std::move(run.sessions[i]));
+  }
+
+  return o;
+}
+
+// One report per selected query session, each with every method's figures.
+nlohmann::json session_reports(const LandmarkMap& map, const std::vector<int32_t>& sessions,
+                               const std::vector<std::vector<MethodResult>>& session_results) {
+  nlohmann::json reports = nlohmann::json::array();
+  for (size_t i = 0; i < sessions.size(); ++i) {
+    const MapSession& session = map.sessions[static_cast<size_t>(sessions[i])];
+    nlohmann::json r = {{"name", session.name},
+                        {"kind", session_kind_name(session.kind)},
+                        {"frames", session_results[i].front().pose.num_frames},
+                        {"keypoints_with_class_truth", session_results[i].front().retrieval.num_with_truth},
+                        {"methods", nlohmann::json::object()}};
+    for (const MethodResult& m : session_results[i]) r["methods"][m.name] = session_method_report(m);
+    reports.push_back(r);
+  }
+  return reports;
+}
+
 EvalResult run_evaluation(const EvalOptions& a) {
   a.check();
   cv::setNumThreads(1);
@@ -429,78 +530,12 @@ EvalResult run_evaluation(const EvalOptions& a) {
       counts.query_frames, counts.query_keypoints, counts.query_keypoints_with_truth, with_class_truth,
       model->num_classes(), model->data().stumps.size(), method_list);
 
-  // The held-out map observations of the model's training run (the validation column).
-  std::vector<int64_t> held;
-  std::vector<EvalQuery> held_queries;
-  if (a.training_set) {
-    std::vector<landmark_t> classes;
-    for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
-    held = held_out_observations(map, classes, *a.training_set);
-    held_queries = held_out_frames(map, held);
-    spdlog::info("eval: {} held-out map observations in {} map frames (validation_fraction {}, seed {})", held.size(),
-                 held_queries.size(), a.training_set->validation_fraction, a.training_set->seed);
-  }
-
-  const MethodContext context{model, &map, &a};
-  const MethodContext held_context{model, &map, &a, &held};
-  const std::vector<int64_t> calibration_keypoints =
-      calibration_frame_keypoints(map, calibration_frames(map, a.calibration.max_frames));
-  MethodContext calibration_context{model, &map, &a, &calibration_keypoints};
-  calibration_context.accept_only = true;
-  nlohmann::json confidence = nlohmann::json::object();
-  const std::vector<EvalQuery> outside = outside_frames(map);
-  MethodContext outside_context = context;
-  outside_context.accept_only = true;
-  std::vector<MethodResult> results;
-  std::vector<std::vector<MethodResult>> session_results(sessions.size());
-  nlohmann::json build = nlohmann::json::object(), ranks = nlohmann::json::object();
-  nlohmann::json cpu = nlohmann::json::object(), parameters = nlohmann::json::object();
-  nlohmann::json held_methods = nlohmann::json::object();
-  for (const std::string& name : names) {
-    const Clock::time_point t0 = Clock::now();
-    const EvalMethod& method = find_eval_method(name);
-    // The method's pose calibration, fitted on map frames (train/eval/pose_calibration_fit.h); the
-    // descriptor baselines search an index without the calibration frames' observations.
-    const CalibrationFit fit = [&] {
-      const std::unique_ptr<Matcher> matcher = method.make(calibration_context);
-      return fit_method_calibration(*matcher, map, a.pose, a.max_correspondences, a.pose_thresholds.front(),
-                                    a.calibration);
-    }();
-    spdlog::info(
-        "eval: {}: pose calibration on {} map frames: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
-        fit.num_poses, fit.num_right, fit.num_elsewhere,
-        fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
-    MethodRun run = evaluate_method(method, context, queries, query_session, sessions.size(), fit);
-    confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);
-    confidence[name]["outside"] = evaluate_outside(method, outside_context, outside, fit);
-    if (!outside.empty()) {
-      spdlog::info("eval: {}: {} of {} outside frames localized by the inlier rule, {} by the calibrated rule", name,
-                   confidence[name]["outside"]["localized_inlier_rule"].get<int64_t>(), outside.size(),
-                   confidence[name]["outside"].value("localized_calibrated", int64_t{0}));
-    }
-    spdlog::info(
-        "eval: {}: P@1 {:.4f}, MRR {:.4f}, match precision {:.4f}, match recall {:.4f}, {}/{} frames "
-        "correct, {:.2f} ms/frame matching ({:.1f} s)",
-        name, run.result.retrieval.precision_at_1, run.result.retrieval.mrr, run.result.matches.match_precision,
-        run.result.matches.match_recall, run.result.pose.num_correct, run.result.pose.num_frames,
-        run.result.pose.mean_match_ms, ms_since(t0) / 1000.0);
-    if (!held.empty()) {
-      const RetrievalMetrics r = rank_held_out(method, held_context, held_queries);
-      held_methods[name] = {{"precision_at_1", r.precision_at_1}, {"mrr", r.mrr}};
-      spdlog::info("eval: {}: held-out map observations P@1 {:.4f}, MRR {:.4f}", name, r.precision_at_1, r.mrr);
-    }
-    build[name] = run.build_seconds;
-    ranks[name] = run.ranks;
-    cpu[name] = run.cpu_ms_per_frame;
-    parameters[name] = run.parameters;
-    results.push_back(std::move(run.result));
-    for (size_t i = 0; i < sessions.size(); ++i) session_results[i].push_back(std::move(run.sessions[i]));
-  }
+  MethodsOutcome m = run_methods(a, model, map, queries, query_session, sessions.size());
 
   EvalResult out;
-  out.report = build_report(counts, results);
-  for (const auto& [name, ms] : cpu.items()) out.report["methods"][name]["cpu_ms_per_frame"] = ms;
-  for (const auto& [name, c] : confidence.items()) out.report["methods"][name]["pose_confidence"] = c;
+  out.report = build_report(counts, m.results);
+  for (const auto& [name, ms] : m.cpu.items()) out.report["methods"][name]["cpu_ms_per_frame"] = ms;
+  for (const auto& [name, c] : m.confidence.items()) out.report["methods"][name]["pose_confidence"] = c;
   out.report["model_calibration"] = model->calibrated()
                                         ? nlohmann::json{{"calibrated", true},
                                                          {"threshold", model->calibration().threshold},
@@ -509,35 +544,25 @@ EvalResult run_evaluation(const EvalOptions& a) {
                                         : nlohmann::json{{"calibrated", false}};
   out.report["dataset"]["model_classes"] = model->num_classes();
   out.report["dataset"]["query_keypoints_with_class_truth"] = with_class_truth;
-  out.report["settings"] = settings_json(a, build, parameters);
-  nlohmann::json session_names = nlohmann::json::array(), session_reports = nlohmann::json::array();
-  for (size_t i = 0; i < sessions.size(); ++i) {
-    const MapSession& session = map.sessions[static_cast<size_t>(sessions[i])];
-    session_names.push_back(session.name);
-    nlohmann::json r = {{"name", session.name},
-                        {"kind", session_kind_name(session.kind)},
-                        {"frames", session_results[i].front().pose.num_frames},
-                        {"keypoints_with_class_truth", session_results[i].front().retrieval.num_with_truth},
-                        {"methods", nlohmann::json::object()}};
-    for (const MethodResult& m : session_results[i]) r["methods"][m.name] = session_method_report(m);
-    session_reports.push_back(r);
-  }
+  out.report["settings"] = settings_json(a, m.build, m.parameters);
+  nlohmann::json session_names = nlohmann::json::array();
+  for (int32_t s : sessions) session_names.push_back(map.sessions[static_cast<size_t>(s)].name);
   out.report["dataset"]["query_sessions"] = session_names;
-  out.report["sessions"] = session_reports;
+  out.report["sessions"] = session_reports(map, sessions, m.session_results);
   if (a.training_set) {
-    out.report["held_out_map_observations"] = {{"frames", held_queries.size()},
-                                               {"keypoints", held.size()},
+    out.report["held_out_map_observations"] = {{"frames", m.held_frames},
+                                               {"keypoints", m.held_keypoints},
                                                {"validation_fraction", a.training_set->validation_fraction},
                                                {"min_train_observations", a.training_set->min_train_observations},
                                                {"seed", a.training_set->seed},
-                                               {"methods", held_methods}};
+                                               {"methods", m.held_methods}};
   }
   out.report["generalization_gap"] = generalization_gap(out.report);
   nlohmann::json frame_names = nlohmann::json::array();
   for (const EvalQuery& q : queries) frame_names.push_back(map.frames[q.frame].name);
   out.report["query_frame_names"] = frame_names;
   out.keypoint_ranks = {{"frames", frame_names},
-                        {"truth_rank", ranks},
+                        {"truth_rank", m.ranks},
                         {"note",
                          "per method, per query frame, per keypoint: 1-based rank of the true landmark "
                          "among the method's candidates, 0 when absent or the keypoint has no true "
@@ -552,7 +577,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
   out.table = format_results_table(out.report);
   out.gap_table = format_generalization_gap(out.report);
   out.confidence_table = format_confidence_table(out.report);
-  out.cpu_line = cpu_line(cpu);
+  out.cpu_line = cpu_line(m.cpu);
   return out;
 }
 
