@@ -21,6 +21,7 @@ struct WorldArgs {
   bool stats = false;
   int map_frames = -1;
   int query_frames = -1;
+  int outside_frames = -1;
   int map_sessions = -1;
   int query_sessions = -1;
   double length_m = -1.0;
@@ -43,6 +44,7 @@ void run_world(const WorldArgs& a) {
   o.threads = a.threads;
   if (a.map_frames != -1) o.map_frames = a.map_frames;
   if (a.query_frames != -1) o.query_frames = a.query_frames;
+  if (a.outside_frames != -1) o.outside_frames = a.outside_frames;
   if (a.map_sessions != -1) o.map_sessions = a.map_sessions;
   if (a.query_sessions != -1) o.query_sessions = a.query_sessions;
   if (a.length_m != -1.0) o.length_m = a.length_m;
@@ -71,7 +73,7 @@ void run_world(const WorldArgs& a) {
   });
   spdlog::info("world: built in {:.2f} s, rendered and wrote {} + {} frames in {:.1f} s ({:.3f} s/frame)",
                s.build_seconds, s.map_frames, s.query_frames, s.render_seconds,
-               s.render_seconds / std::max(1, s.map_frames + s.query_frames));
+               s.render_seconds / std::max(1, s.map_frames + s.query_frames + s.outside_frames));
   if (a.stats) {
     const LandmarkStats ls = estimate_landmarks(a.out);
     std::printf(
@@ -101,6 +103,9 @@ void add_world_command(CLI::App& app) {
   cmd->add_option("--map-frames", args->map_frames,
                   "Override the preset's map frame count (all map sessions together, split evenly)");
   cmd->add_option("--query-frames", args->query_frames, "Override the preset's frame count of each query session");
+  cmd->add_option("--outside-frames", args->outside_frames,
+                  "Frames of an 'outside' session rendered in a second corridor of the same building that no map "
+                  "session sees (0 = none; default: the preset's)");
   cmd->add_option("--map-sessions", args->map_sessions,
                   "Override the preset's map sessions (1-4): other lanes, camera heights, yaw patterns and lighting");
   cmd->add_option("--query-sessions", args->query_sessions,

@@ -218,6 +218,24 @@ Session make_query_session(const World& world, int frames, int index) {
   return s;
 }
 
+Rigid3d Session::recorded_cam_from_world(size_t i) const {
+  // x_cam = R (x - offset) + t.
+  Rigid3d pose = cam_from_world[i];
+  pose.translation -= pose.rotation * world_offset;
+  return pose;
+}
+
+Session make_outside_session(const World& outside_world, int frames) {
+  LMB_CHECK(frames >= 1, "world: the outside session needs >= 1 frame, got " << frames);
+  LMB_CHECK(outside_world.options.region == 1, "world: the outside session is rendered in the outside corridor");
+  Session s = make_session(outside_world, query_style(0), frames, 0x0E5, 0);
+  s.name = "outside";
+  s.kind = SessionKind::kOutside;
+  s.frame_key_base = static_cast<uint64_t>(9) << 32;
+  s.world_offset = Eigen::Vector3d(0.0, kOutsideOffsetY, 0.0);
+  return s;
+}
+
 std::vector<Session> make_world_sessions(const World& world) {
   const WorldOptions& o = world.options;
   o.check();

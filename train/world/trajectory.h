@@ -48,7 +48,12 @@ struct Session {
   std::vector<Rigid3d> cam_from_world;  // one per frame
   Lighting lighting;
   uint64_t frame_key_base = 0;  // frame i is rendered with noise key frame_key_base | i
-  PassParams passes[2];         // forward, backward (world.json)
+  // cam_from_world are poses in the corridor the session is rendered in; the collection records
+  // them moved by this offset of the world frame (the outside session: (0, kOutsideOffsetY, 0)).
+  Eigen::Vector3d world_offset = Eigen::Vector3d::Zero();
+  // Frame i's pose as recorded: cam_from_world[i] of a world moved by world_offset.
+  Rigid3d recorded_cam_from_world(size_t i) const;
+  PassParams passes[2];  // forward, backward (world.json)
 };
 
 // `frames` frames each (the first ceil(frames / 2) walk forward); deterministic in the world's
@@ -57,6 +62,10 @@ struct Session {
 // when frames < 1 or the index is outside 0..kMaxMapSessions - 1 (0..kMaxQuerySessions - 1).
 Session make_map_session(const World& world, int frames, int index = 0);
 Session make_query_session(const World& world, int frames, int index = 0);
+
+// The outside session: `frames` frames in `outside_world` (build_world with region 1), the first
+// query session's style, named "outside", kind kOutside, world_offset (0, kOutsideOffsetY, 0).
+Session make_outside_session(const World& outside_world, int frames);
 
 // The sessions of world.options: map_sessions map sessions sharing map_frames (the first
 // map_frames % map_sessions get one frame more), then query_sessions query sessions of

@@ -25,6 +25,9 @@ void WorldOptions::check() const {
             "world: --map-sessions must be in [1, " << kMaxMapSessions << "], got " << map_sessions);
   LMB_CHECK(query_sessions >= 1 && query_sessions <= kMaxQuerySessions,
             "world: --query-sessions must be in [1, " << kMaxQuerySessions << "], got " << query_sessions);
+  LMB_CHECK(outside_frames >= 0 && outside_frames <= 1000000,
+            "world: --outside-frames must be in [0, 1000000], got " << outside_frames);
+  LMB_CHECK(region == 0 || region == 1, "world: region must be 0 or 1, got " << region);
   LMB_CHECK(map_frames >= map_sessions,
             "world: --map-frames " << map_frames << " cannot be shared by " << map_sessions << " map sessions");
   LMB_CHECK(poster_designs >= 1 && poster_designs <= 64,
@@ -102,7 +105,11 @@ enum : uint64_t {
 
 class WorldBuilder {
  public:
-  explicit WorldBuilder(const WorldOptions& options) : o_(options), layout_(counter_hash(options.seed, 0x1A70)) {
+  // The outside corridor (region 1) draws its layout and unique textures from other keys.
+  explicit WorldBuilder(const WorldOptions& options)
+      : o_(options),
+        layout_(options.region == 0 ? counter_hash(options.seed, 0x1A70)
+                                    : counter_hash(options.seed, 0x1A70, static_cast<uint64_t>(options.region))) {
     w_.options = options;
     w_.length = options.length_m;
     w_.width = options.width_m;
@@ -131,7 +138,10 @@ class WorldBuilder {
   // Seed of a texture: in the aliased world it depends on the design only, in the control world on
   // the instance too. Unique elements pass unique = true.
   uint64_t texture_seed(uint64_t kind, uint64_t design, uint64_t instance, bool unique = false) const {
-    if (o_.non_aliased || unique) return counter_hash(o_.seed, kind, 1000000 + instance, 7);
+    if (o_.non_aliased || unique) {
+      const uint64_t salt = o_.region == 0 ? 7 : 7 + 1000 * static_cast<uint64_t>(o_.region);
+      return counter_hash(o_.seed, kind, 1000000 + instance, salt);
+    }
     return counter_hash(o_.seed, kind, design, 3);
   }
 

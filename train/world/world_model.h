@@ -23,18 +23,28 @@ namespace lmb {
 
 inline constexpr int kMaxMapSessions = 4;
 inline constexpr int kMaxQuerySessions = 3;
+// Where the outside corridor lies: this far along +y from the mapped one (world frame, metres).
+inline constexpr double kOutsideOffsetY = 1000.0;
 
 struct WorldOptions {
   std::string preset = "default";
   uint64_t seed = 1;
   bool non_aliased = false;
-  double length_m = 16.0;          // corridor length
-  double width_m = 2.4;            // corridor width
-  double height_m = 2.7;           // ceiling height
-  int map_frames = 40;             // over all map sessions (split evenly)
-  int query_frames = 16;           // per query session
-  int map_sessions = 1;            // 1..kMaxMapSessions (train/world/trajectory.h)
-  int query_sessions = 1;          // 1..kMaxQuerySessions
+  double length_m = 16.0;  // corridor length
+  double width_m = 2.4;    // corridor width
+  double height_m = 2.7;   // ceiling height
+  int map_frames = 40;     // over all map sessions (split evenly)
+  int query_frames = 16;   // per query session
+  int map_sessions = 1;    // 1..kMaxMapSessions (train/world/trajectory.h)
+  int query_sessions = 1;  // 1..kMaxQuerySessions
+  // Frames of the "outside" session (0 = none; 0..1000000): a second corridor of the same
+  // building that no map session sees, kOutsideOffsetY metres away: the same sizes and the same
+  // textures of every repeated element (doors, posters, pillars, tiles, lamps), so its aliasing
+  // is the mapped corridor's, but its own layout, unique items (plates, signs, stains, objects)
+  // and walk (the first query session's style). Written as a session of kind outside.
+  int outside_frames = 0;
+  // The corridor build_world builds: 0 the mapped one, 1 the outside one (write_world sets it).
+  int region = 0;
   int poster_designs = 4;          // distinct poster designs of the aliased world
   double pillar_bay_m = 4.0;       // pillar spacing along the corridor
   double door_share = 0.45;        // share of wall slots that get a door (+ room plate)

@@ -118,6 +118,13 @@ nlohmann::json world_json(const WorldOptions& options, const World& world, const
                  {"floor_tiles", s.floor_tiles},
                  {"ceiling_panels", s.ceiling_panels},
                  {"textures", s.textures}};
+  if (stats.outside_frames > 0) {
+    // Frames of the outside corridor: kOutsideOffsetY metres along +y, never seen by a map session.
+    j["counts"]["outside_frames"] = stats.outside_frames;
+    j["outside"] = {{"kind", "a second corridor of the same building, same repeated textures, own layout"},
+                    {"offset_m", {0.0, kOutsideOffsetY, 0.0}},
+                    {"y_range", {kOutsideOffsetY - world.width / 2, kOutsideOffsetY + world.width / 2}}};
+  }
   j["camera"] = {{"camera_id", 1},
                  {"model", camera_model_name(camera.model)},
                  {"width", camera.width},
@@ -175,7 +182,15 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     const World world = build_world(options);
     const Camera camera = world_camera(options.image_scale);
     const RayTable rays(camera, options.supersampling);
-    const std::vector<Session> sessions = make_world_sessions(world);
+    std::vector<Session> sessions = make_world_sessions(world);
+    // The outside corridor and its session (WorldOptions::outside_frames).
+    World outside_world;
+    if (options.outside_frames > 0) {
+      WorldOptions oo = options;
+      oo.region = 1;
+      outside_world = build_world(oo);
+      sessions.push_back(make_outside_session(outside_world, options.outside_frames));
+    }
     stats.build_seconds = seconds_since(t0);
     stats.summary = world.summary;
 
@@ -186,8 +201,9 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
     int total = 0;
     for (const Session& session : sessions) {
       total += static_cast<int>(session.cam_from_world.size());
-      (session.kind == SessionKind::kMap ? stats.map_frames : stats.query_frames) +=
-          static_cast<int>(session.cam_from_world.size());
+      (session.kind == SessionKind::kMap     ? stats.map_frames
+       : session.kind == SessionKind::kQuery ? stats.query_frames
+                                             : stats.outside_frames) += static_cast<int>(session.cam_from_world.size());
       session_list.push_back(MapSession{session.name, session.kind});
       for (const char* sub : {"images", "depth"}) {
         std::error_code ec;
@@ -201,7 +217,8 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
       for (size_t i = 0; i < session.cam_from_world.size(); ++i) {
         char name[64];
         std::snprintf(name, sizeof(name), "%s/%06zu.png", session.name.c_str(), i);
-        const RenderedFrame frame = render_frame(world, rays, session.cam_from_world[i], session.lighting,
+        const World& scene = session.kind == SessionKind::kOutside ? outside_world : world;
+        const RenderedFrame frame = render_frame(scene, rays, session.cam_from_world[i], session.lighting,
                                                  session.frame_key_base | i, options.threads);
         write_png(tmp / "images" / name, frame.image);
         write_png(tmp / "depth" / name, frame.depth_mm);
@@ -209,7 +226,7 @@ WorldWriteStats write_world(const WorldOptions& options, const fs::path& out_dir
         im.image_id = static_cast<int>(model.images.size()) + 1;
         im.camera_id = 1;
         im.name = name;
-        im.cam_from_world = session.cam_from_world[i];
+        im.cam_from_world = session.recorded_cam_from_world(i);
         model.images.push_back(im);
         ++done;
         if (progress) progress(done, total);

@@ -5,7 +5,8 @@
 //                                               "SESSION/NNNNNN.png" session after session, ids
 //                                               from 1; no 2D points, no 3D points)
 //   DIR/sessions.txt                            the sessions, "NAME KIND" (common/io/session_file.h):
-//                                               map, map-2, ... (map), query, query-2, ... (query)
+//                                               map, map-2, ... (map), query, query-2, ... (query),
+//                                               outside (outside; WorldOptions::outside_frames)
 //   DIR/images/SESSION/NNNNNN.png              8-bit grayscale renders
 //   DIR/depth/SESSION/NNNNNN.png               16-bit z-depth of each pixel centre in mm (0 = none)
 //   DIR/world.json                             preset, seed, up axis, counts, camera, geometry,
@@ -26,6 +27,7 @@ namespace lmb {
 struct WorldWriteStats {
   int map_frames = 0;           // over all map sessions
   int query_frames = 0;         // over all query sessions
+  int outside_frames = 0;       // the outside session's
   double build_seconds = 0.0;   // textures and layout
   double render_seconds = 0.0;  // rendering and PNG writing
   WorldSummary summary;
