@@ -49,6 +49,21 @@ class AreaBundleTest : public ::testing::Test {
     a.cell_hi = Eigen::Vector3d(x_hi, kInf, kInf);
     return a;
   }
+
+  // A small world's model, and the model of another world moved 50 m along x: its landmarks are
+  // elsewhere, the first world's frame matches few of them.
+  struct NearAndFar {
+    test::TestWorld world;
+    std::shared_ptr<const Model> model, far_model;
+  };
+  static NearAndFar near_and_far() {
+    NearAndFar n{test::make_test_world(101, 60, 140, 21), nullptr, nullptr};
+    n.model = std::make_shared<const Model>(test::make_code_model_data(n.world.positions));
+    std::vector<Eigen::Vector3d> far = test::make_test_world(101, 60, 140, 99).positions;
+    for (auto& p : far) p += Eigen::Vector3d(50, 0, 0);
+    n.far_model = std::make_shared<const Model>(test::make_code_model_data(far, 7));
+    return n;
+  }
   fs::path dir_;
 };
 
@@ -223,14 +238,10 @@ TEST_F(AreaBundleTest, PriorSelectsTheAreasWithinRadiusPlusReach) {
 }
 
 TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
-  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
-  const auto model = std::make_shared<const Model>(test::make_code_model_data(world.positions));
-  // Another world's model: its landmarks are elsewhere, the frame's keypoints match few of them.
-  const test::TestWorld other = test::make_test_world(101, 60, 140, 99);
-  std::vector<Eigen::Vector3d> far = other.positions;
-  for (auto& p : far) p += Eigen::Vector3d(50, 0, 0);
-  const Model far_model(test::make_code_model_data(far, 7));
-  const test::TestFrame& f = world.frame;
+  const NearAndFar n = near_and_far();
+  const std::shared_ptr<const Model>& model = n.model;
+  const Model& far_model = *n.far_model;
+  const test::TestFrame& f = n.world.frame;
   write_bundle_index(dir_ / "one.txt", 1.0, {add(*model, 0, -kInf, kInf)});
   const auto one = AreaBundle::open(dir_ / "one.txt");
   const BundleLocalizeResult b =
@@ -263,13 +274,10 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
 }
 
 TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne) {
-  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
-  const auto model = std::make_shared<const Model>(test::make_code_model_data(world.positions));
-  const test::TestWorld other = test::make_test_world(101, 60, 140, 99);
-  std::vector<Eigen::Vector3d> far = other.positions;
-  for (auto& p : far) p += Eigen::Vector3d(50, 0, 0);
-  const Model far_model(test::make_code_model_data(far, 7));
-  const test::TestFrame& f = world.frame;
+  const NearAndFar n = near_and_far();
+  const std::shared_ptr<const Model>& model = n.model;
+  const Model& far_model = *n.far_model;
+  const test::TestFrame& f = n.world.frame;
   const Eigen::Vector3d centre = f.cam_from_world.center();
   write_bundle_index(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
   BundleLocalizerOptions options;

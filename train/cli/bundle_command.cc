@@ -15,6 +15,7 @@
 #include "infer/model.h"
 #include "train/areas/area_file.h"
 #include "train/cli/commands.h"
+#include "train/eval/bundle_eval.h"
 
 namespace lmb::cli {
 
@@ -82,6 +83,18 @@ void add_bundle_command(CLI::App& app) {
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--out", args->out, "the index, in the --models folder (default MODELS/bundle.txt)");
   cmd->callback([args] { run_bundle(*args); });
+}
+
+void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
+  cmd->add_option("--prior-noise", options->prior_noise,
+                  "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
+                  "radius METRES (repeatable)");
+  cmd->add_flag("--no-prior", options->no_prior, "--bundle: localize in every area, without a prior");
+  cmd->add_option("--prior-seed", options->prior_seed, "--bundle: seed of the prior's direction")
+      ->capture_default_str();
+  cmd->add_option("--cache-areas", options->cache.max_areas,
+                  "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
+      ->capture_default_str();
 }
 
 }  // namespace lmb::cli

@@ -5,6 +5,10 @@
 
 #include <CLI/CLI.hpp>
 
+namespace lmb {
+struct BundleEvalOptions;
+}
+
 namespace lmb::cli {
 
 // Thrown by a command to end `lboost` with this exit code and no error line (e.g. 75 = requeue).
@@ -31,6 +35,9 @@ void add_bench_bundle_command(CLI::App& app);  // `bench bundle`, after add_benc
 void add_import_command(CLI::App& app);        // `import` group: `import tum`, `import colmap`
 void add_areas_command(CLI::App& app);
 void add_bundle_command(CLI::App& app);
+// The options of localization through a bundle that `localize` and `eval` share: --prior-noise,
+// --no-prior, --prior-seed, --cache-areas (in bundle_command.cc).
+void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options);
 void add_bench_command(CLI::App& app);  // `bench` group: `bench context`, ...
 
 }  // namespace lmb::cli

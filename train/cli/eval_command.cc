@@ -86,15 +86,7 @@ void add_eval_command(CLI::App& app) {
                   "A bundle of area models (bundle.txt of `lboost bundle`): pose recall with --prior-noise and/or "
                   "--no-prior, and of --model on the same frames (docs/areas.md)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--prior-noise", args->bundle.prior_noise,
-                  "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
-                  "radius METRES (repeatable)");
-  cmd->add_flag("--no-prior", args->bundle.no_prior, "--bundle: also localize in every area, without a prior");
-  cmd->add_option("--prior-seed", args->bundle.prior_seed, "--bundle: seed of the prior's direction")
-      ->capture_default_str();
-  cmd->add_option("--cache-areas", args->bundle.cache.max_areas,
-                  "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
-      ->capture_default_str();
+  add_bundle_mode_options(cmd, &args->bundle);
   cmd->add_option("--map", o.map, "The map the model was trained on, with its query frames (map.h5)")
       ->required()
       ->check(CLI::ExistingFile);

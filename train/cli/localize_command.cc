@@ -322,15 +322,7 @@ void add_localize_command(CLI::App& app) {
   cmd->add_option("--bundle", args->bundle.bundle,
                   "A bundle of area models (bundle.txt of `lboost bundle`), localized with --prior-noise and/or "
                   "--no-prior (docs/areas.md)");
-  cmd->add_option("--prior-noise", args->bundle.prior_noise,
-                  "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
-                  "radius METRES (repeatable)");
-  cmd->add_flag("--no-prior", args->bundle.no_prior, "--bundle: localize in every area, without a prior");
-  cmd->add_option("--prior-seed", args->bundle.prior_seed, "--bundle: seed of the prior's direction")
-      ->capture_default_str();
-  cmd->add_option("--cache-areas", args->bundle.cache.max_areas,
-                  "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
-      ->capture_default_str();
+  add_bundle_mode_options(cmd, &args->bundle);
   cmd->add_option("--map", args->map, "Map whose query frames are localized (map.h5)")->required();
   cmd->add_option("--queries", args->queries, "Frame names to localize (default: every query frame)");
   cmd->add_option("--out", args->out, "Output JSON (poses, matches, summary)")->required();
