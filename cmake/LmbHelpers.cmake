@@ -55,3 +55,56 @@ function(lmb_add_mpi_test name)
                          ENVIRONMENT_MODIFICATION "${LMB_MPI_TEST_ENV_MODIFICATION}")
   endforeach()
 endfunction()
+
+# ---- SIMD kernels (common/simd/simd_level.h) -----------------------------------------------------
+# The target architecture decides which kernel files are built: x86_64 (generic, avx2, avx512),
+# aarch64 (generic, neon) or other (generic only). Each file is compiled with its own ISA flags;
+# the code in it is also guarded by the architecture.
+if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$")
+  set(LMB_SIMD_ARCH x86_64)
+elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64|ARM64)$")
+  set(LMB_SIMD_ARCH aarch64)
+else()
+  set(LMB_SIMD_ARCH other)
+endif()
+
+# No fused multiply-adds the source does not spell out. GCC contracts a * b + c in C++ by default
+# wherever the ISA has an FMA (every aarch64 CPU; x86 code built with -mfma or -march=native),
+# which would make results depend on the architecture and the SIMD level, and would split a
+# region bound p + s * c computed by a kernel from the same bound in a test's reference.
+# Inference promises the same bits on x86 and arm64 and at every level: every target on
+# architectures whose baseline has an FMA, and the inference path's own targets everywhere
+# (lmb_fp_exact; the x86-64 baseline and the kernels' flags have no FMA, so the rest cannot
+# contract there).
+if(NOT LMB_SIMD_ARCH STREQUAL "x86_64")
+  add_compile_options(-ffp-contract=off)
+endif()
+function(lmb_fp_exact target)
+  target_compile_options(${target} PRIVATE -ffp-contract=off)
+endfunction()
+set(LMB_SIMD_FLAGS_avx2 -mavx2 -mpopcnt)
+set(LMB_SIMD_FLAGS_avx512 -mavx512f -mavx512bw -mavx512dq -mavx512vl -mavx2 -mpopcnt)
+
+# lmb_simd_sources(<out var> <path prefix> ISAS <avx2|avx512|neon>... [AVX512_FLAGS <flag>...])
+# Sets <out var> to <prefix>_generic.cc plus <prefix>_<isa>.cc for each ISA of this architecture,
+# with the ISA's compile flags (AVX512_FLAGS: extra flags of the avx512 file).
+function(lmb_simd_sources out prefix)
+  cmake_parse_arguments(ARG "" "" "ISAS;AVX512_FLAGS" ${ARGN})
+  set(files ${prefix}_generic.cc)
+  foreach(isa ${ARG_ISAS})
+    set(file ${prefix}_${isa}.cc)
+    if(isa STREQUAL "neon")
+      if(LMB_SIMD_ARCH STREQUAL "aarch64")
+        list(APPEND files ${file})  # Advanced SIMD is part of every ARMv8-A CPU: no flags
+      endif()
+    elseif(LMB_SIMD_ARCH STREQUAL "x86_64")
+      set(flags ${LMB_SIMD_FLAGS_${isa}})
+      if(isa STREQUAL "avx512")
+        list(APPEND flags ${ARG_AVX512_FLAGS})
+      endif()
+      set_source_files_properties(${file} PROPERTIES COMPILE_OPTIONS "${flags}")
+      list(APPEND files ${file})
+    endif()
+  endforeach()
+  set(${out} ${files} PARENT_SCOPE)
+endfunction()

@@ -7,10 +7,6 @@
 #include <limits>
 #include <numeric>
 
-#if defined(__x86_64__)
-#include <immintrin.h>
-#endif
-
 #include "common/cpu_dispatch.h"
 #include "common/error.h"
 #include "common/hamming.h"
@@ -106,9 +102,15 @@ FrameKeypoints frame_keypoints_from_detections(const Camera& camera, const Keypo
 // FrameContext
 
 FrameContext::FrameContext(const ContextRegions& regions, int32_t num_words)
-    : regions_(&regions), num_words_(num_words) {
+    : regions_(&regions), num_words_(num_words), kernels_(&detail::embedding_kernels()) {
   LMB_CHECK(num_words >= 1 && num_words <= 256, "frame context: num_words = " << num_words << " must be in 1..256");
   LMB_CHECK(regions.size() >= 1, "frame context: no context regions");
+}
+
+FrameContext::FrameContext(const ContextRegions& regions, int32_t num_words, SimdLevel level)
+    : FrameContext(regions, num_words) {
+  kernels_ = detail::embedding_kernels(level);
+  LMB_CHECK(kernels_ != nullptr, "frame context: this CPU cannot run the SIMD level " << simd_level_name(level));
 }
 
 void FrameContext::Axis::build(int32_t n) {
@@ -150,92 +152,14 @@ inline int32_t FrameContext::Axis::rank(float v) const {
   return static_cast<int32_t>(std::lower_bound(sorted.data() + i, sorted.data() + e, v) - sorted.data());
 }
 
-namespace {
-
-constexpr int32_t kMaxRankBatch = FrameContext::kMaxRankBatch;
-#if defined(__x86_64__)
-const bool kHasAvx2 = (__builtin_cpu_init(), __builtin_cpu_supports("avx2"));
-#endif
-
-#if defined(__x86_64__)
-// FrameContext::Axis::ranks for 8 corners at a time: the bounds, cells and the first two
-// coordinates of each cell as in Axis::cell and Axis::rank (the same IEEE float operations:
-// separate multiply and add, max / min with the same operand order, truncation), with gathers;
-// lanes whose cell holds more than two coordinates finish with a binary search, as in rank().
-// kPerKeypoint: the bounds p[i] + s[i] * corners[0] of m keypoints and one corner (p and s have m
-// rounded up to a multiple of 8 readable entries); else p[0] + s[0] * corners[i] of one keypoint
-// and m corners.
-template <bool kPerKeypoint>
-__attribute__((target("avx2"))) void axis_ranks_avx2(const float* sorted, const uint16_t* start, float lo, float inv,
-                                                     float last, const float* p, const float* s, const float* corners,
-                                                     int32_t m, int32_t* out) {
-  // Three passes over the corners (m <= kMaxRankBatch), so that the gathers of one pass do not
-  // wait on each other: bounds and cells; the cells' first ranks; the first two coordinates.
-  assert(m <= kMaxRankBatch);
-  alignas(32) float bounds[kMaxRankBatch];
-  alignas(32) int32_t cells[kMaxRankBatch], firsts[kMaxRankBatch], ends[kMaxRankBatch];
-  const __m256 vlo = _mm256_set1_ps(lo);
-  const __m256 vinv = _mm256_set1_ps(inv), vlast = _mm256_set1_ps(last);
-  for (int32_t i = 0; i < m; i += 8) {
-    const __m256 vp = kPerKeypoint ? _mm256_loadu_ps(p + i) : _mm256_set1_ps(p[0]);
-    const __m256 vs = kPerKeypoint ? _mm256_loadu_ps(s + i) : _mm256_set1_ps(s[0]);
-    const __m256 vc = kPerKeypoint ? _mm256_set1_ps(corners[0]) : _mm256_loadu_ps(corners + i);
-    const __m256 offset = _mm256_mul_ps(vs, vc);
-    const __m256 bound = _mm256_add_ps(vp, offset);
-    __m256 t = _mm256_mul_ps(_mm256_sub_ps(bound, vlo), vinv);
-    t = _mm256_max_ps(t, _mm256_setzero_ps());  // t > 0 ? t : 0
-    t = _mm256_min_ps(t, vlast);                // t < last ? t : last
-    _mm256_store_ps(bounds + i, bound);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(cells + i), _mm256_cvttps_epi32(t));
-  }
-  const __m256i low16 = _mm256_set1_epi32(0xFFFF);
-  for (int32_t i = 0; i < m; i += 8) {
-    // start[cell] | start[cell + 1] << 16: one 32-bit read at byte 2 * cell.
-    const __m256i cell = _mm256_load_si256(reinterpret_cast<const __m256i*>(cells + i));
-    const __m256i se = _mm256_i32gather_epi32(reinterpret_cast<const int*>(start), cell, 2);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(firsts + i), _mm256_and_si256(se, low16));
-    _mm256_store_si256(reinterpret_cast<__m256i*>(ends + i), _mm256_srli_epi32(se, 16));
-  }
-  const __m256i one = _mm256_set1_epi32(1);
-  for (int32_t i = 0; i < m; i += 8) {
-    const __m256 bound = _mm256_load_ps(bounds + i);
-    const __m256i first = _mm256_load_si256(reinterpret_cast<const __m256i*>(firsts + i));
-    const __m256i end = _mm256_load_si256(reinterpret_cast<const __m256i*>(ends + i));
-    const __m256 v0 = _mm256_i32gather_ps(sorted, first, 4);  // sentinels past n
-    const __m256i below0 =
-        _mm256_and_si256(_mm256_cmpgt_epi32(end, first), _mm256_castps_si256(_mm256_cmp_ps(v0, bound, _CMP_LT_OQ)));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + i), _mm256_sub_epi32(first, below0));
-    const int crowded = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_sub_epi32(end, first), one)));
-    for (int32_t l = 0; crowded != 0 && l < 8; ++l) {  // rare: a binary search, as in rank()
-      if (crowded & (1 << l)) {
-        out[i + l] = static_cast<int32_t>(
-            std::lower_bound(sorted + firsts[i + l], sorted + ends[i + l], bounds[i + l]) - sorted);
-      }
-    }
-  }
-}
-#endif
-
-}  // namespace
-
-void FrameContext::Axis::ranks(float p, float s, const float* corners, int32_t m, int32_t* out) const {
-#if defined(__x86_64__)
-  if (kHasAvx2) {
-    axis_ranks_avx2<false>(sorted.data(), start.data(), lo, inv, last, &p, &s, corners, m, out);
-    return;
-  }
-#endif
-  for (int32_t i = 0; i < m; ++i) out[i] = rank(detail::region_bound(p, s, corners[i]));
-}
-
-void FrameContext::Axis::keypoint_ranks(const float* p, const float* s, float corner, int32_t m, int32_t* out) const {
-#if defined(__x86_64__)
-  if (kHasAvx2) {
-    axis_ranks_avx2<true>(sorted.data(), start.data(), lo, inv, last, p, s, &corner, m, out);
-    return;
-  }
-#endif
-  for (int32_t i = 0; i < m; ++i) out[i] = rank(detail::region_bound(p[i], s[i], corner));
+detail::AxisView FrameContext::Axis::view() const {
+  detail::AxisView v;
+  v.sorted = sorted.data();
+  v.start = start.data();
+  v.lo = lo;
+  v.inv = inv;
+  v.last = last;
+  return v;
 }
 
 namespace {
@@ -549,12 +473,13 @@ LMB_CLONES_AVX2 void FrameContext::compute_dims(int32_t k, const DimPlan& plan, 
   constexpr int32_t kChunk = kMaxRankBatch;
   alignas(32) int32_t ranks[4][kChunk];  // ix0, ix1, iy0, iy1 of the chunk's regions
   const float px = x_[k], py = y_[k], s = scale_[k];
+  const detail::AxisView ax = axis_x_.view(), ay = axis_y_.view();
   for (int32_t u0 = 0; u0 < U; u0 += kChunk) {
     const int32_t m = std::min(kChunk, U - u0);
-    axis_x_.ranks(px, s, plan.corners_[0].data() + u0, m, ranks[0]);
-    axis_x_.ranks(px, s, plan.corners_[1].data() + u0, m, ranks[1]);
-    axis_y_.ranks(py, s, plan.corners_[2].data() + u0, m, ranks[2]);
-    axis_y_.ranks(py, s, plan.corners_[3].data() + u0, m, ranks[3]);
+    kernels_->corner_ranks(ax, px, s, plan.corners_[0].data() + u0, m, ranks[0]);
+    kernels_->corner_ranks(ax, px, s, plan.corners_[1].data() + u0, m, ranks[1]);
+    kernels_->corner_ranks(ay, py, s, plan.corners_[2].data() + u0, m, ranks[2]);
+    kernels_->corner_ranks(ay, py, s, plan.corners_[3].data() + u0, m, ranks[3]);
     for (int32_t i = 0; i < m; ++i) {
       const int32_t begin = dim_begin[u0 + i], end = dim_begin[u0 + i + 1];
       region_bins(tables, k, ranks[0][i], ranks[1][i], ranks[2][i], ranks[3][i], dim_word, begin, end, out, 1);

@@ -44,6 +44,8 @@
 
 #include "common/camera.h"
 #include "common/context_regions.h"
+#include "common/simd/embedding_kernels.h"
+#include "common/simd/simd_level.h"
 #include "common/types.h"
 
 namespace lmb {
@@ -155,22 +157,28 @@ class DimPlan {
 // keypoints for count_all was measured slower: at (n+1)^2 entries it does not stay in cache.) The DimPlan overloads
 // read only the plan's words of a region and take count_all from a blocked dominance structure of ~n^2 / 6 bytes
 // (48-keypoint bitmasks packed with block prefix counts): 4 reads and popcounts instead of one table lookup per word;
-// bins divide by multiplying with a per-frame table of context_bin_magic.
+// bins divide by multiplying with a per-frame table of context_bin_magic. The DimPlan paths run the
+// rank and column kernels of the SIMD level (common/simd/embedding_kernels.h: AVX2 gathers for the
+// ranks, AVX-512 for 16 keypoints' bins of a region), which give the same values at every level.
 //
 // Usage: construct once per thread (buffers are reused), reset() per frame, then query from one
 // thread; the const query methods are safe to call concurrently after reset().
 class FrameContext {
  public:
-  // The most values one Axis::ranks / keypoint_ranks call ranks (a stack batch).
-  static constexpr int32_t kMaxRankBatch = 64;
+  // The most values one rank kernel call ranks (a stack batch).
+  static constexpr int32_t kMaxRankBatch = detail::kMaxRankBatch;
 
   // Counts are stored as uint16: a frame may hold at most this many keypoints.
   static constexpr int32_t kMaxFrameKeypoints = 65535;
   // Frames up to this size get the dominance structure of the DimPlan path (11 MB at the limit).
   static constexpr int32_t kMaxDominanceKeypoints = 8192;
 
-  // regions must outlive this object. num_words in 1..256.
+  // regions must outlive this object. num_words in 1..256. The kernels are those of the process's
+  // SIMD level (common/simd/simd_level.h), or of `level` (tests; throws lmb::Error when this CPU
+  // cannot run it): every level gives the same values.
   FrameContext(const ContextRegions& regions, int32_t num_words);
+  FrameContext(const ContextRegions& regions, int32_t num_words, SimdLevel level);
+  SimdLevel simd_level() const { return kernels_->level; }
 
   // Builds the index for a frame. Throws lmb::Error (prefixed by `where`) when a word is >=
   // num_words, a scale is not finite and > 0, a coordinate is not finite, or the frame has more
@@ -231,13 +239,8 @@ class FrameContext {
     int32_t cell(float v) const;
     // Number of coordinates < v.
     int32_t rank(float v) const;
-    // out[i] = rank(p + s * corners[i]) (region_bound) for i < m <= 64; corners has m rounded
-    // up to a multiple of 8 readable entries, out as many writable ones. AVX2 gathers where the
-    // CPU has them (the same float operations, so the same ranks).
-    void ranks(float p, float s, const float* corners, int32_t m, int32_t* out) const;
-    // out[i] = rank(p[i] + s[i] * corner) for m <= 64 keypoints (p and s: m rounded up to a
-    // multiple of 8 readable entries).
-    void keypoint_ranks(const float* p, const float* s, float corner, int32_t m, int32_t* out) const;
+    // The axis for the rank kernels (detail::EmbeddingKernels, the same ranks as rank()).
+    detail::AxisView view() const;
   };
   // The frame's tables as plain pointers, for region_bins (dom null without the dominance
   // structure, tables8 null without the byte word tables).
@@ -288,7 +291,7 @@ class FrameContext {
   // plan's words of a region), one 64-bit read each: x order cut into blocks of kDomBlock;
   // dom_[b * (n + 1) + iy] = (keypoints in blocks < b with y rank < iy) << 48 | bit i set when
   // the i-th keypoint of block b has y rank < iy. About n^2 / 6 bytes: stays in L2.
-  static constexpr int32_t kDomBlock = 48;
+  static constexpr int32_t kDomBlock = detail::kDomBlock;
   std::vector<uint64_t> dom_;
   std::vector<int32_t> dom_row_;     // per x rank ix: (ix / kDomBlock) * (n + 1)
   std::vector<uint64_t> dom_below_;  // per x rank ix: the low ix % kDomBlock bits set
@@ -301,6 +304,7 @@ class FrameContext {
   std::vector<int32_t> offset8_, stride8_;
   std::vector<uint64_t> bin_magic_;  // context_bin_magic(t) for t in 0..n
   std::vector<int32_t> order_;       // scratch
+  const detail::EmbeddingKernels* kernels_;
 };
 
 // Reference implementation: the naive loop over every other keypoint of the frame, region by

@@ -1,4 +1,9 @@
-// Run-time choice between an AVX2 build of a hot function and the baseline x86-64 one.
+// Run-time choice between an AVX2 build of a hot function and the baseline x86-64 one (x86-64
+// only: elsewhere the macro is empty). The inference kernels do not use it: they live in the SIMD
+// layer (common/simd/simd_level.h), whose level LMB_SIMD caps. What still does: the learner's
+// screening and scoring loops, and FrameContext::compute_dims / compute_dims_columns, whose clone
+// differs only in the popcount instruction of the dominance counts (integer work, the same
+// values); LMB_SIMD does not cap these clones.
 //
 // LMB_CLONES_AVX2 before a function definition makes GCC compile it twice (target_clones): for
 // AVX2 (which also enables POPCNT, BMI and SSE4.2) and for the default ISA; the dynamic loader
@@ -11,7 +16,9 @@
 // (scripts/tsan.sh) take the baseline code only.
 #pragma once
 
-#if defined(__SANITIZE_THREAD__)
+#if !defined(__x86_64__)
+#define LMB_CLONES_AVX2
+#elif defined(__SANITIZE_THREAD__)
 #define LMB_CLONES_AVX2
 #elif defined(__has_feature)
 #if __has_feature(thread_sanitizer)

@@ -21,8 +21,8 @@ inline int hamming_distance(const uint8_t* a, const uint8_t* b, int num_bytes) {
 }
 
 // out[i] = Hamming distance of q to row i of `rows` (n rows of num_bytes each, contiguous), with
-// the popcnt instruction where the CPU has it (chosen once at run time) and a generic loop
-// otherwise: ~1 ns per 64-byte pair against ~10 ns through libgcc's popcount call.
+// the kernel of the process's SIMD level (common/simd/simd_level.h: popcnt on x86 with AVX2, CNT
+// with NEON): ~1 ns per 64-byte pair against ~10 ns through libgcc's popcount call.
 void hamming_rows(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes, uint16_t* out);
 
 // The smallest Hamming distance of q to the n rows (as hamming_rows; 8 * num_bytes + 1 when n is 0).

@@ -16,7 +16,8 @@
 // candidate class is first screened (below), for two batches of the word at a time; a class kept
 // in some lane is then summed exactly over its own stump list in the 8-lane groups of the batch
 // where its screening passed (SIMD; each lane adds the stump's above or below double as its bit
-// selects). Every score is summed in training order with the same doubles as the trainer's
+// selects). The kernels are those of the process's SIMD level (infer/simd/scoring_kernels.h), all
+// of which give the same bits. Every score is summed in training order with the same doubles as the trainer's
 // BoostModel::scores, so a class's score is bit-identical in both modes, in dense_scores() and
 // class_score(), and to the trainer's.
 //
@@ -52,6 +53,7 @@
 #include "common/types.h"
 #include "infer/export.h"
 #include "infer/model.h"
+#include "infer/simd/scoring_kernels.h"
 
 namespace lmb {
 
@@ -93,21 +95,10 @@ struct KeypointMatches {
   const ClassMatch* of(int32_t k) const { return matches.data() + begin[k]; }
 };
 
-namespace detail {
-// One class's exact sum in one 8-lane group of a batch (accumulate_groups).
-struct GroupItem {
-  double bias;
-  const int32_t* stumps;  // the class's stump list (class_stump_index() entries)
-  int64_t count;
-  int32_t group;  // lanes 8 group .. 8 group + 7
-  double* out;    // 8 sums
-};
-}  // namespace detail
-
 class LMB_INFER_EXPORT Classifier {
  public:
   // Keypoints scored together (one SIMD lane each).
-  static constexpr int32_t kBatch = 32;
+  static constexpr int32_t kBatch = detail::kScoringBatch;
 
   // Throws lmb::Error for a null model or invalid options.
   Classifier(std::shared_ptr<const Model> model, const ClassifierOptions& options = {});
@@ -132,6 +123,10 @@ class LMB_INFER_EXPORT Classifier {
 
   const Model& model() const { return *model_; }
   const ClassifierOptions& options() const { return options_; }
+  // Runs the kernels of `level` (common/simd/simd_level.h) instead of the process's level (tests:
+  // every level gives the same matches). Throws lmb::Error when this CPU cannot run it.
+  void use_simd_level(SimdLevel level);
+  SimdLevel simd_level() const { return kernels_->level; }
   // Candidate classes offered to batches since construction (one per class and batch), and how
   // many of them were scored exactly (the rest were skipped by the screening).
   int64_t classes_screened() const { return classes_screened_; }
@@ -181,40 +176,15 @@ class LMB_INFER_EXPORT Classifier {
   std::vector<std::pair<int32_t, ClassMatch>> pending_;
   const uint8_t* descriptors_ = nullptr;  // the frame's, during classify()
   int64_t classes_screened_ = 0, classes_scored_ = 0;
+  const detail::ScoringKernels* kernels_;
 };
 
 namespace detail {
-// The batch scoring kernels (internal; declared for tests). fire_masks: fire[s] bit j = lane j's
-// value of stump s's dim is above its threshold; values holds kBatch lanes of each used dim u
-// at values[u * stride]. accumulate_lanes: out[j] = bias + the outputs of stumps[0, count) (stump indices,
-// in order) in lane j, each the stump's above or below double as fire bit j says, added in order
-// (the same doubles as the scalar sum); the AVX-512 kernel where the CPU has it, else
-// accumulate_lanes_generic (AVX2 or baseline clone). accumulate_two: two classes at once, each
-// with the same additions as accumulate_lanes. out arrays hold kBatch doubles.
-void fire_masks(const Model::DenseStump* stumps, size_t num_stumps, const uint8_t* values, size_t stride,
-                uint32_t* fire);
-void accumulate_lanes(double bias, const int32_t* stumps, int64_t count, const Model::DenseStump* dense,
-                      const uint32_t* fire, double* out);
-void accumulate_lanes_generic(double bias, const int32_t* stumps, int64_t count, const Model::DenseStump* dense,
-                              const uint32_t* fire, double* out);
-void accumulate_two(double bias0, const int32_t* stumps0, int64_t count0, double bias1, const int32_t* stumps1,
-                    int64_t count1, const Model::DenseStump* dense, const uint32_t* fire, double* out0, double* out1);
-// Screening of class `cls` (Model::screen_step, its screening list and checkpoints) in
-// `batches` (1 or 2) batches at once: bit 32 b + j of the result is set when lane j of batch b is
-// valid (bit j of valid[b]) and the class's integer score bound from the fire masks fire[b] passes
-// the lane's goal goal[b][j] (screen_goals; a lane whose offer() tests could pass always does);
-// 0 as soon as a checkpoint's bound fails in every valid lane. AVX-512BW where the CPU has it,
-// else screen_class_generic (AVX2 or baseline clone) batch by batch; both give the same bits.
-// screen_goals: the goals of kBatch lanes from their background scores and offer()'s min_margin
-// and min_score (see Model::kScreenCheck).
-// The exact sums of n items: out[l] = bias + the outputs of the item's stumps in lane
-// 8 group + l, added in list order (the same doubles as accumulate_lanes); AVX-512 four items
-// at a time where the CPU has it, else accumulate_lanes_generic's clone.
-void accumulate_groups(const GroupItem* items, int32_t n, const Model::DenseStump* dense, const uint32_t* fire);
-uint64_t screen_class(const Model& model, int32_t cls, int32_t batches, const uint32_t* const* fire,
-                      const int32_t* const* goal, const uint32_t* valid);
-uint32_t screen_class_generic(const Model& model, int32_t cls, const uint32_t* fire, const int32_t* goal,
-                              uint32_t valid);
+// Class cls's screening data (Model::screen_step and the screen_* accessors) for the kernels.
+ScreenList screen_list(const Model& model, int32_t cls);
+// The screening goals of kBatch lanes from their background scores and offer()'s min_margin and
+// min_score (see Model::kScreenCheck): a lane whose tests could pass never gets a goal its
+// integer bound fails.
 void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal);
 }  // namespace detail
 

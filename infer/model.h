@@ -47,6 +47,7 @@
 #include "common/vocabulary.h"
 #include "infer/export.h"
 #include "infer/pose_confidence.h"
+#include "infer/simd/scoring_kernels.h"
 
 namespace lmb {
 
@@ -151,13 +152,9 @@ class LMB_INFER_EXPORT Model {
   // used_dims() prepared for FrameContext::compute_dims.
   const DimPlan& used_plan() const { return used_plan_; }
 
-  // Dense scoring: stumps as flat arrays, sharing sets in CSR form.
-  struct DenseStump {
-    int32_t used = 0;  // index into used_dims()
-    uint8_t theta = 0;
-    double above = 0.0;  // a + b
-    double below = 0.0;  // b
-  };
+  // Dense scoring: stumps as flat arrays (used: index into used_dims(); above = a + b, below = b),
+  // sharing sets in CSR form.
+  using DenseStump = detail::DenseStump;
   const std::vector<DenseStump>& dense_stumps() const { return dense_stumps_; }
   const std::vector<int64_t>& stump_class_begin() const { return stump_class_begin_; }  // M + 1
   const std::vector<int32_t>& stump_classes() const { return stump_classes_; }
@@ -222,7 +219,7 @@ class LMB_INFER_EXPORT Model {
   // is never dropped) and |offset_c| at most 2^29 steps, each double rounding moves the test by
   // less than 2^-20 steps, and ceil / floor only loosen it; an offset_c beyond -2^29 steps fails
   // the double test anyway, and one beyond +2^29 steps (or +inf) passes the integer one always.
-  static constexpr int32_t kScreenCheck = 32;
+  static constexpr int32_t kScreenCheck = detail::kScreenCheck;
   static constexpr int32_t kScreenUnitsLimit = 1 << 29;
   static constexpr int32_t kScreenPassAll = -(1 << 29) - 2;  // a goal every lane passes
   double screen_step() const { return screen_step_; }

@@ -274,86 +274,25 @@ TEST(ClassifierTest, SmallWordPlansTakeThePerKeypointPathAndEqualTheReference) {
   }
 }
 
-// The batch kernels against the scalar sum: fire masks against the byte comparisons, and the
-// AVX-512 (where the CPU has it), generic (AVX2 / baseline clone) and two-class kernels against
-// bias + each lane's outputs added in list order: the same doubles, bit for bit.
-TEST(ScoringKernels, FireMasksAndEveryKernelEqualTheScalarSum) {
-  constexpr int32_t B = Classifier::kBatch;
-  Rng rng(21);
-  const int32_t num_used = 50, num_stumps = 300;
-  std::vector<Model::DenseStump> stumps(num_stumps);
-  for (Model::DenseStump& st : stumps) {
-    st.used = static_cast<int32_t>(rng.below(num_used));
-    st.theta = static_cast<uint8_t>(rng.below(255));
-    st.above = rng.uniform(-1, 1);
-    st.below = rng.uniform(-1e-3, 1e-3);  // different magnitudes: order-sensitive sums
+// The SIMD levels this CPU can run (common/simd/simd_level.h), generic first.
+std::vector<SimdLevel> supported_levels() {
+  std::vector<SimdLevel> levels;
+  for (SimdLevel l : compiled_simd_levels()) {
+    if (simd_level_supported(l)) levels.push_back(l);
   }
-  std::vector<uint8_t> values(static_cast<size_t>(num_used) * B);
-  for (uint8_t& v : values) v = static_cast<uint8_t>(rng.below(256));
-  std::vector<uint32_t> fire(num_stumps);
-  detail::fire_masks(stumps.data(), stumps.size(), values.data(), Classifier::kBatch, fire.data());
-  int fired = 0;
-  for (int32_t s = 0; s < num_stumps; ++s) {
-    for (int32_t j = 0; j < B; ++j) {
-      const bool expected = values[stumps[s].used * B + j] > stumps[s].theta;
-      ASSERT_EQ((fire[s] >> j) & 1, expected ? 1u : 0u) << "stump " << s << " lane " << j;
-      fired += expected;
-    }
-  }
-  EXPECT_GT(fired, 0);
-  EXPECT_LT(fired, num_stumps * B);
-  for (int trial = 0; trial < 20; ++trial) {
-    // Random stump lists (repeats allowed) of different lengths, 0 included.
-    auto random_list = [&] {
-      std::vector<int32_t> list(rng.below(200));
-      for (int32_t& s : list) s = static_cast<int32_t>(rng.below(num_stumps));
-      return list;
-    };
-    const std::vector<int32_t> list0 = random_list(), list1 = random_list();
-    const int64_t n0 = static_cast<int64_t>(list0.size()), n1 = static_cast<int64_t>(list1.size());
-    const double bias0 = rng.uniform(-5, 5), bias1 = rng.uniform(-5, 5);
-    auto reference = [&](double bias, const std::vector<int32_t>& list, int32_t j) {
-      double total = bias;
-      for (int32_t s : list) {
-        total += values[stumps[s].used * B + j] > stumps[s].theta ? stumps[s].above : stumps[s].below;
-      }
-      return total;
-    };
-    std::vector<double> a(B), g(B), p0(B), p1(B);
-    detail::accumulate_lanes(bias0, list0.data(), n0, stumps.data(), fire.data(), a.data());
-    detail::accumulate_lanes_generic(bias0, list0.data(), n0, stumps.data(), fire.data(), g.data());
-    detail::accumulate_two(bias0, list0.data(), n0, bias1, list1.data(), n1, stumps.data(), fire.data(), p0.data(),
-                           p1.data());
-    // accumulate_groups: five items (a group of list0, all four of list1), each 8 lanes.
-    std::vector<double> grouped(5 * 8);
-    const int32_t group0 = trial % 4;
-    std::vector<detail::GroupItem> items = {{bias0, list0.data(), n0, group0, grouped.data()}};
-    for (int32_t v = 0; v < 4; ++v) items.push_back({bias1, list1.data(), n1, v, grouped.data() + 8 * (v + 1)});
-    detail::accumulate_groups(items.data(), static_cast<int32_t>(items.size()), stumps.data(), fire.data());
-    for (int32_t l = 0; l < 8; ++l) {
-      ASSERT_EQ(grouped[l], reference(bias0, list0, 8 * group0 + l)) << "trial " << trial << " lane " << l;
-      for (int32_t v = 0; v < 4; ++v) {
-        ASSERT_EQ(grouped[8 * (v + 1) + l], reference(bias1, list1, 8 * v + l)) << "trial " << trial;
-      }
-    }
-    for (int32_t j = 0; j < B; ++j) {
-      const double r0 = reference(bias0, list0, j);
-      ASSERT_EQ(a[j], r0) << "trial " << trial << " lane " << j;
-      ASSERT_EQ(g[j], r0) << "trial " << trial << " lane " << j;
-      ASSERT_EQ(p0[j], r0) << "trial " << trial << " lane " << j;
-      ASSERT_EQ(p1[j], reference(bias1, list1, j)) << "trial " << trial << " lane " << j;
-    }
-  }
+  return levels;
 }
 
-// Screening bounds (Model::build_screen, detail::screen_class) on models of ordinary and of
+// Screening bounds (Model::build_screen, the screen_class kernels) on models of ordinary and of
 // adversarial scales (outputs from 1e-9 to 1e6 mixed, large biases; lists longer than several
 // checkpoints): with each lane's background just below the class's exact score (so the exact
 // score passes the margin test by the smallest step), the screening must keep every valid lane,
 // through every checkpoint; with the background well above, it must drop the class (the bound is
-// tight enough to matter); the AVX-512 and generic kernels return the same bits.
+// tight enough to matter); every level's kernel returns the generic kernel's bits, for a pair of
+// batches and for each batch alone.
 TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
   constexpr int32_t B = Classifier::kBatch;
+  const detail::ScoringKernels& generic = *detail::scoring_kernels(SimdLevel::kGeneric);
   for (int scale = 0; scale < 4; ++scale) {
     ModelData data = random_model_data(40, 700, 30 + scale);
     Rng rng(40 + scale);
@@ -404,8 +343,8 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
         const int64_t n = model.class_stump_begin()[c + 1] - model.class_stump_begin()[c];
         std::vector<double> below(2 * B), above(2 * B), exact(2 * B);
         for (int32_t b = 0; b < 2; ++b) {
-          detail::accumulate_lanes_generic(model.data().bias[c], list, n, model.dense_stumps().data(), fire[b],
-                                           exact.data() + b * B);
+          generic.accumulate_lanes(model.data().bias[c], list, n, model.dense_stumps().data(), fire[b],
+                                   exact.data() + b * B);
         }
         for (int32_t j = 0; j < 2 * B; ++j) {
           below[j] = std::nextafter(exact[j], -inf);
@@ -418,25 +357,26 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
         }
         const int32_t* low_bg[2] = {low_goals.data(), low_goals.data() + B};
         const int32_t* high_bg[2] = {high_goals.data(), high_goals.data() + B};
-        // Kept in every valid lane of both batches, and of each batch alone.
-        const uint64_t kept = detail::screen_class(model, c, 2, fire, low_bg, valid);
-        ASSERT_EQ(kept, valid2) << "scale " << scale << " class " << c << " trial " << trial;
-        for (int32_t b = 0; b < 2; ++b) {
-          ASSERT_EQ(detail::screen_class(model, c, 1, fire + b, low_bg + b, valid + b), valid[b]);
-          ASSERT_EQ(detail::screen_class_generic(model, c, fire[b], low_bg[b], valid[b]), valid[b]);
-        }
-        // min_score: the exact score itself passes score >= min_score (no margin test).
-        const uint32_t one = 1;
+        const detail::ScreenList screen = detail::screen_list(model, c);
         detail::screen_goals(model, below.data(), -inf, exact[0], score_goals.data());
         const int32_t* score_goal = score_goals.data();
-        ASSERT_EQ(detail::screen_class(model, c, 1, fire, &score_goal, &one), 1u);
-        const uint64_t high = detail::screen_class(model, c, 2, fire, high_bg, valid);
-        const uint64_t generic =
-            detail::screen_class_generic(model, c, fire[0], high_bg[0], valid[0]) |
-            static_cast<uint64_t>(detail::screen_class_generic(model, c, fire[1], high_bg[1], valid[1])) << 32;
-        // (A batch's bound only falls from checkpoint to checkpoint: the pair gives each batch's
-        // own bits.)
-        ASSERT_EQ(high, generic);
+        const uint32_t one = 1;
+        const uint64_t high = generic.screen_class(screen, 1, fire, high_bg, valid) |
+                              generic.screen_class(screen, 1, fire + 1, high_bg + 1, valid + 1) << 32;
+        for (SimdLevel level : supported_levels()) {
+          const detail::ScoringKernels& k = *detail::scoring_kernels(level);
+          // Kept in every valid lane of both batches, and of each batch alone.
+          ASSERT_EQ(k.screen_class(screen, 2, fire, low_bg, valid), valid2)
+              << simd_level_name(level) << " scale " << scale << " class " << c << " trial " << trial;
+          for (int32_t b = 0; b < 2; ++b) {
+            ASSERT_EQ(k.screen_class(screen, 1, fire + b, low_bg + b, valid + b), valid[b]) << simd_level_name(level);
+          }
+          // min_score: the exact score itself passes score >= min_score (no margin test).
+          ASSERT_EQ(k.screen_class(screen, 1, fire, &score_goal, &one), 1u) << simd_level_name(level);
+          // (A batch's bound only falls from checkpoint to checkpoint: the pair gives each
+          // batch's own bits.)
+          ASSERT_EQ(k.screen_class(screen, 2, fire, high_bg, valid), high) << simd_level_name(level);
+        }
         dropped += high == 0;
         ++trials;
       }
@@ -545,6 +485,49 @@ TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
       }
     }
     EXPECT_GT(near, 0);
+  }
+}
+
+// Every SIMD level classifies like the generic kernels, match for match and score for score, with
+// and without screening, the inverted file and the descriptor-distance fusion, on frames whose keypoint counts leave
+// partial batches, column chunks and 16-lane tails.
+TEST(ClassifierTest, EverySimdLevelGivesTheGenericMatches) {
+  for (bool fusion : {false, true}) {
+    for (int32_t keypoints : {1, 37, 150}) {
+      const test::TestWorld world = test::make_test_world(300, keypoints, keypoints, 9);
+      ModelData data = random_model_data(300, 400, 33);
+      data.bias[300] += 8.0;
+      if (fusion) add_random_fusion(&data, world.frame, 34);
+      const auto model = std::make_shared<const Model>(std::move(data));
+      std::vector<uint8_t> words;
+      const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
+      for (bool inverted : {false, true}) {
+        for (bool screening : {true, false}) {
+          ClassifierOptions o;
+          o.top_k = 3;
+          o.min_margin = -4.0;
+          o.use_inverted_file = inverted;
+          o.screening = screening;
+          Classifier reference(model, o);
+          reference.use_simd_level(SimdLevel::kGeneric);
+          const KeypointMatches want = reference.classify(frame, world.frame.descriptors.data());
+          EXPECT_GT(want.matches.size(), 0u);
+          for (SimdLevel level : supported_levels()) {
+            Classifier c(model, o);
+            c.use_simd_level(level);
+            ASSERT_EQ(c.simd_level(), level);
+            const KeypointMatches got = c.classify(frame, world.frame.descriptors.data());
+            ASSERT_EQ(got.begin, want.begin) << simd_level_name(level);
+            for (size_t i = 0; i < got.matches.size(); ++i) {
+              ASSERT_EQ(got.matches[i].cls, want.matches[i].cls) << simd_level_name(level);
+              ASSERT_EQ(got.matches[i].score, want.matches[i].score) << simd_level_name(level);
+              ASSERT_EQ(got.matches[i].background_score, want.matches[i].background_score) << simd_level_name(level);
+            }
+            EXPECT_EQ(c.classes_scored(), reference.classes_scored()) << simd_level_name(level);
+          }
+        }
+      }
+    }
   }
 }
 

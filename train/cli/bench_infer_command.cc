@@ -30,6 +30,7 @@
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "common/random.h"
+#include "common/simd/simd_level.h"
 #include "infer/classifier.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
@@ -358,7 +359,8 @@ void print_bench(const BenchInferArgs& a, const Model& m, const BenchFigures& b)
       a.synthetic_paper ? "synthetic" : "trained", m.num_classes(), m.data().stumps.size(),
       static_cast<long long>(m.stump_classes().size()), m.used_dims().size(),
       static_cast<long long>(m.word_classes().size()), b.load_ms);
-  std::printf("  machine: %s\n", machine_info().summary().c_str());
+  std::printf("  machine: %s; SIMD level %s (LMB_SIMD caps it)\n", machine_info().summary().c_str(),
+              simd_level_name(simd_level()));
   std::printf(
       "  %zu %s frames x %d repeats, %.0f keypoints a frame; %d training descriptors; 1 thread; %d RANSAC iterations\n",
       b.frames, a.map.empty() ? "synthetic" : "query", a.repeats, kp_per_frame, b.num_train, a.ransac_iterations);
@@ -399,6 +401,7 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
   const double bf = b.e.bf_ms / nr;
   return {{"model", a.synthetic_paper ? "synthetic" : a.model},
           {"machine", machine_info().summary()},
+          {"simd_level", simd_level_name(simd_level())},
           {"classes", m.num_classes()},
           {"stumps", m.data().stumps.size()},
           {"sharing_entries", m.stump_classes().size()},

@@ -250,12 +250,13 @@ HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const T
   std::vector<uint16_t> scratch, dist;
   std::vector<int64_t> batch;
   frame_t indexed = kInvalidFrameId;
+  const detail::ScoringKernels& kernels = detail::scoring_kernels();
   auto flush = [&]() {
     const int32_t n = static_cast<int32_t>(batch.size());
-    detail::fire_masks(stumps.data(), stumps.size(), values.data(), kBatch, fire.data());
+    kernels.fire_masks(stumps.data(), stumps.size(), values.data(), kBatch, fire.data());
     double lanes[kBatch];
     for (int32_t c = 0; c < C; ++c) {
-      detail::accumulate_lanes(bias[c], index + begin[c], begin[c + 1] - begin[c], stumps.data(), fire.data(), lanes);
+      kernels.accumulate_lanes(bias[c], index + begin[c], begin[c + 1] - begin[c], stumps.data(), fire.data(), lanes);
       for (int32_t j = 0; j < n; ++j) lane_scores[static_cast<size_t>(j) * C + c] = lanes[j];
     }
     for (int32_t j = 0; j < n; ++j) {

@@ -1,0 +1,50 @@
+// hamming_rows for the baseline ISA, and the kernel tables of every level.
+#include "common/simd/hamming_body.h"
+#include "common/simd/hamming_kernels.h"
+
+namespace lmb::detail {
+
+void hamming_rows_generic(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out) {
+  rows_dispatch(q, rows, n, num_bytes, out);
+}
+
+int32_t hamming_min_generic(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes) {
+  return min_dispatch(q, rows, n, num_bytes);
+}
+
+namespace {
+
+HammingKernels make_table(SimdLevel level) {
+  HammingKernels k;
+  k.level = level;
+  k.rows = hamming_rows_generic;
+  k.min = hamming_min_generic;
+#if defined(__x86_64__)
+  if (level == SimdLevel::kAvx2 || level == SimdLevel::kAvx512) {
+    k.rows = hamming_rows_avx2;
+    k.min = hamming_min_avx2;
+  }
+#elif defined(__aarch64__)
+  if (level == SimdLevel::kNeon) {
+    k.rows = hamming_rows_neon;
+    k.min = hamming_min_neon;
+  }
+#endif
+  return k;
+}
+
+}  // namespace
+
+const HammingKernels* hamming_kernels(SimdLevel level) {
+  static const HammingKernels tables[] = {make_table(SimdLevel::kGeneric), make_table(SimdLevel::kAvx2),
+                                          make_table(SimdLevel::kAvx512), make_table(SimdLevel::kNeon)};
+  if (!simd_level_supported(level)) return nullptr;
+  return &tables[static_cast<int32_t>(level)];
+}
+
+const HammingKernels& hamming_kernels() {
+  static const HammingKernels* table = hamming_kernels(simd_level());
+  return *table;
+}
+
+}  // namespace lmb::detail

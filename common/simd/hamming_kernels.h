@@ -1,0 +1,32 @@
+// Hamming kernels of common/hamming.h, one table per SIMD level (common/simd/simd_level.h).
+#pragma once
+
+#include <cstdint>
+
+#include "common/simd/simd_level.h"
+
+namespace lmb::detail {
+
+struct HammingKernels {
+  SimdLevel level = SimdLevel::kGeneric;
+  // out[i] = Hamming distance of q (num_bytes bytes) to row i of `rows` (n contiguous rows of
+  // num_bytes bytes); num_bytes >= 0, n >= 0.
+  void (*rows)(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out) = nullptr;
+  // The smallest of those distances (8 num_bytes + 1 when n is 0).
+  int32_t (*min)(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes) = nullptr;
+};
+
+// The table of this process's level (simd_level()).
+const HammingKernels& hamming_kernels();
+// The table of `level`, or null when this CPU cannot run it.
+const HammingKernels* hamming_kernels(SimdLevel level);
+
+// The per-level kernels (hamming_generic.cc, hamming_avx2.cc, hamming_neon.cc).
+void hamming_rows_generic(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out);
+void hamming_rows_avx2(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out);
+void hamming_rows_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out);
+int32_t hamming_min_generic(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes);
+int32_t hamming_min_avx2(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes);
+int32_t hamming_min_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes);
+
+}  // namespace lmb::detail

@@ -1,0 +1,72 @@
+// hamming_rows and hamming_min of every SIMD level this CPU runs (common/simd/hamming_kernels.h) against the
+// generic kernel and the scalar hamming_distance, bit for bit: every row length from 0 to 130
+// bytes (the 32- and 64-byte specializations and their neighbours), row counts 0 to 9, and the
+// extremes (identical rows, complementary rows).
+#include "common/simd/hamming_kernels.h"
+
+#include <algorithm>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/hamming.h"
+#include "common/random.h"
+#include "common/simd/simd_level.h"
+
+namespace lmb {
+namespace {
+
+TEST(HammingKernels, EveryLevelEqualsTheScalarDistance) {
+  Rng rng(9);
+  const detail::HammingKernels& generic = *detail::hamming_kernels(SimdLevel::kGeneric);
+  int levels = 0;
+  for (int32_t bytes = 0; bytes <= 130; ++bytes) {
+    for (int64_t n : {0, 1, 2, 9}) {
+      std::vector<uint8_t> q(static_cast<size_t>(bytes)), rows(static_cast<size_t>(n * bytes));
+      for (uint8_t& b : q) b = static_cast<uint8_t>(rng.below(256));
+      for (int64_t i = 0; i < n; ++i) {
+        for (int32_t j = 0; j < bytes; ++j) {
+          // Row 0 equals q, row 1 is its complement, the rest random.
+          rows[i * bytes + j] = i == 0   ? q[j]
+                                : i == 1 ? static_cast<uint8_t>(~q[j])
+                                         : static_cast<uint8_t>(rng.below(256));
+        }
+      }
+      std::vector<uint16_t> want(static_cast<size_t>(n) + 1, 0xBEEF);
+      generic.rows(q.data(), rows.data(), n, bytes, want.data());
+      for (int64_t i = 0; i < n; ++i) {
+        ASSERT_EQ(want[i], hamming_distance(q.data(), rows.data() + i * bytes, bytes)) << bytes << " bytes, row " << i;
+      }
+      if (n > 1) {
+        ASSERT_EQ(want[0], 0);
+        ASSERT_EQ(want[1], 8 * bytes);
+      }
+      ASSERT_EQ(want[n], 0xBEEF);
+      int32_t want_min = 8 * bytes + 1;
+      for (int64_t i = 0; i < n; ++i) want_min = std::min<int32_t>(want_min, want[i]);
+      ASSERT_EQ(generic.min(q.data(), rows.data(), n, bytes), want_min) << bytes << " bytes, " << n << " rows";
+      for (SimdLevel level : compiled_simd_levels()) {
+        const detail::HammingKernels* k = detail::hamming_kernels(level);
+        if (k == nullptr) continue;
+        std::vector<uint16_t> got(want.size(), 0xBEEF);
+        k->rows(q.data(), rows.data(), n, bytes, got.data());
+        ASSERT_EQ(got, want) << simd_level_name(level) << ", " << bytes << " bytes, " << n << " rows";
+        ASSERT_EQ(k->min(q.data(), rows.data(), n, bytes), want_min) << simd_level_name(level) << ", " << bytes;
+        ++levels;
+      }
+    }
+  }
+  EXPECT_GT(levels, 0);
+}
+
+TEST(HammingKernels, HammingRowsUsesTheProcessLevel) {
+  EXPECT_EQ(detail::hamming_kernels().level, simd_level());
+  const std::vector<uint8_t> q(64, 0x0F), rows(128, 0xFF);
+  std::vector<uint16_t> out(2);
+  hamming_rows(q.data(), rows.data(), 2, 64, out.data());
+  EXPECT_EQ(out[0], 256);
+  EXPECT_EQ(out[1], 256);
+}
+
+}  // namespace
+}  // namespace lmb
