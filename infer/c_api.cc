@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstddef>
+#include <cstring>
 #include <exception>
 #include <memory>
 #include <new>
@@ -14,6 +16,7 @@
 #include "infer/area_bundle.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
+#include "infer/version.h"
 
 struct lmb_model {
   std::shared_ptr<const lmb::Model> model;
@@ -56,7 +59,13 @@ extern "C" {
 
 const char* lmb_last_error(void) { return last_error.c_str(); }
 
-const char* lmb_version(void) { return "0.1.0"; }
+namespace {
+// sizeof(lmb_localize_options) of its first version (struct_size .. seed): every later version
+// only appends fields.
+constexpr size_t kFirstOptionsSize = offsetof(lmb_localize_options, seed) + sizeof(uint64_t);
+}  // namespace
+
+const char* lmb_version(void) { return LMB_VERSION_STRING; }
 
 lmb_status lmb_model_load(const char* path, lmb_model** out) {
   if (out == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_model_load: out is NULL");
@@ -96,6 +105,7 @@ int lmb_model_is_calibrated(const lmb_model* model) {
 void lmb_localize_options_init(lmb_localize_options* options) {
   if (options == nullptr) return;
   const lmb::LocalizerOptions d;
+  options->struct_size = sizeof(lmb_localize_options);
   options->top_k = d.classifier.top_k;
   options->use_inverted_file = d.classifier.use_inverted_file ? 1 : 0;
   options->min_margin = d.classifier.min_margin;
@@ -139,6 +149,11 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
                                                 " bytes, the model expects " +
                                                 std::to_string(model->model->descriptor_bytes()));
   }
+  if (options != nullptr && options->struct_size < kFirstOptionsSize) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                "lmb_localize: options->struct_size = " + std::to_string(options->struct_size) +
+                    " (call lmb_localize_options_init first)");
+  }
   if (camera->num_params < 0 || (camera->num_params > 0 && camera->params == nullptr)) {
     return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: camera params NULL or num_params < 0");
   }
@@ -151,7 +166,11 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
 
     lmb_localize_options o;
     lmb_localize_options_init(&o);
-    if (options != nullptr) o = *options;
+    if (options != nullptr) {
+      // The caller's fields (its struct_size bytes), the defaults of the rest (c_api.h).
+      std::memcpy(&o, options, std::min(options->struct_size, sizeof(o)));
+      o.struct_size = sizeof(o);
+    }
     lmb::LocalizerOptions lo;
     lo.classifier.top_k = o.top_k;
     lo.classifier.use_inverted_file = o.use_inverted_file != 0;

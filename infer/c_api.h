@@ -70,7 +70,12 @@ typedef struct lmb_keypoint {
   float angle; /* degrees, or -1 */
 } lmb_keypoint;
 
+/* Options of lmb_localize. struct_size is the size of the struct the caller was compiled with
+ * (lmb_localize_options_init sets it to sizeof(lmb_localize_options)): new options are only ever
+ * appended, so a caller built against an older header passes a smaller size and gets the
+ * defaults of the fields it does not know; a size below the first version's is an error. */
 typedef struct lmb_localize_options {
+  size_t struct_size;               /* sizeof(lmb_localize_options), set by lmb_localize_options_init */
   int top_k;                        /* matches kept per keypoint (default 1) */
   int use_inverted_file;            /* 0: score all classes; 1: the word's candidates (default 0) */
   double min_margin;                /* score above the background's (default 0) */
@@ -130,7 +135,7 @@ LMB_INFER_EXPORT int lmb_model_num_classes(const lmb_model* model);
  * not (older models: a pose is trusted by its inlier count alone), -1 for a NULL model. */
 LMB_INFER_EXPORT int lmb_model_is_calibrated(const lmb_model* model);
 
-/* Defaults of every option. */
+/* Defaults of every option, and struct_size. */
 LMB_INFER_EXPORT void lmb_localize_options_init(lmb_localize_options* options);
 
 /* Localizes one frame of n keypoints. options may be NULL (defaults). out_matches may be NULL

@@ -2,6 +2,7 @@
 #include "infer/c_api.h"
 
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +16,7 @@
 
 #include "infer/area_bundle.h"
 #include "infer/localizer.h"
+#include "infer/version.h"
 #include "test/infer/test_models.h"
 
 namespace lmb {
@@ -178,6 +180,54 @@ TEST(CApiTest, ReturnsTheCalibratedProbability) {
   EXPECT_EQ(confidence.localized, 1);
   EXPECT_EQ(pose.success, 1);
   lmb_model_free(model);
+}
+
+// struct_size lets the options grow: a caller compiled against an older, shorter struct gets the
+// defaults of the fields it does not know (here: ransac_iterations onwards), whatever lies past
+// its struct; a size below the first version's is an error.
+TEST(CApiTest, OptionsStructSizeKeepsOlderCallersWorking) {
+  CFixture fx;
+  lmb_model* model = nullptr;
+  ASSERT_EQ(lmb_model_load(fx.path.c_str(), &model), LMB_OK) << lmb_last_error();
+  const Eigen::Vector3d& g = fx.world.frame.gravity_in_cam;
+  const double gravity[3] = {g.x(), g.y(), g.z()};
+  auto run = [&](const lmb_localize_options* o, lmb_pose* pose) {
+    return lmb_localize(model, &fx.camera, fx.keypoints.data(), static_cast<int>(fx.keypoints.size()),
+                        fx.world.frame.descriptors.data(), test::kCodeDescriptorBytes, gravity, o, pose, nullptr, 0,
+                        nullptr);
+  };
+  lmb_localize_options defaults;
+  lmb_localize_options_init(&defaults);
+  EXPECT_EQ(defaults.struct_size, sizeof(lmb_localize_options));
+  lmb_pose want;
+  ASSERT_EQ(run(&defaults, &want), LMB_OK) << lmb_last_error();
+  ASSERT_EQ(want.success, 1);
+  // An older caller's struct ends before ransac_iterations: the garbage after it is ignored.
+  lmb_localize_options older = defaults;
+  older.struct_size = offsetof(lmb_localize_options, ransac_iterations);
+  older.ransac_iterations = 1;
+  older.min_inliers = 1000000;
+  lmb_pose got;
+  ASSERT_EQ(run(&older, &got), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(got.success, 1);
+  EXPECT_EQ(got.num_inliers, want.num_inliers);
+  EXPECT_EQ(got.rotation[0], want.rotation[0]);
+  EXPECT_EQ(got.translation[2], want.translation[2]);
+  // The same fields with the full size are used.
+  older.struct_size = sizeof(lmb_localize_options);
+  ASSERT_EQ(run(&older, &got), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(got.success, 0);
+  lmb_localize_options bad = defaults;
+  bad.struct_size = 0;
+  EXPECT_EQ(run(&bad, &got), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lmb_last_error()).find("struct_size"), std::string::npos) << lmb_last_error();
+  lmb_model_free(model);
+}
+
+TEST(CApiTest, VersionComesFromTheBuild) {
+  EXPECT_STREQ(lmb_version(), LMB_VERSION_STRING);
+  EXPECT_EQ(std::string(lmb_version()), std::to_string(LMB_VERSION_MAJOR) + "." + std::to_string(LMB_VERSION_MINOR) +
+                                            "." + std::to_string(LMB_VERSION_PATCH));
 }
 
 TEST(CApiTest, ErrorsAreStatusesWithMessages) {
