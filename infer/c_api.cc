@@ -63,6 +63,52 @@ namespace {
 // sizeof(lmb_localize_options) of its first version (struct_size .. seed): every later version
 // only appends fields.
 constexpr size_t kFirstOptionsSize = offsetof(lmb_localize_options, seed) + sizeof(uint64_t);
+
+// The caller's options (its struct_size bytes of them, the defaults of the fields a shorter, older
+// struct does not have; NULL: all defaults) as the Localizer's. Throws lmb::Error.
+lmb::LocalizerOptions to_localizer_options(const lmb_localize_options* options) {
+  lmb_localize_options o;
+  lmb_localize_options_init(&o);
+  if (options != nullptr) {
+    LMB_CHECK(options->struct_size >= kFirstOptionsSize,
+              "options->struct_size = " << options->struct_size << " (call lmb_localize_options_init first)");
+    std::memcpy(&o, options, std::min(options->struct_size, sizeof(o)));
+    o.struct_size = sizeof(o);
+  }
+  lmb::LocalizerOptions lo;
+  lo.classifier.top_k = o.top_k;
+  lo.classifier.use_inverted_file = o.use_inverted_file != 0;
+  lo.classifier.min_margin = o.min_margin;
+  lo.pose_top_k = o.pose_top_k;
+  lo.max_correspondences = o.max_correspondences;
+  lo.pose.max_iterations = o.ransac_iterations;
+  lo.pose.max_reprojection_error_px = o.max_reprojection_error_px;
+  lo.pose.min_inliers = o.min_inliers;
+  lo.pose.seed = o.seed;
+  lo.check();
+  return lo;
+}
+
+// The camera and keypoints of a C call in C++ form (the arguments checked for NULL by the caller).
+lmb::Camera to_camera(const lmb_camera& camera) {
+  lmb::Camera cam;
+  cam.model = lmb::camera_model_from_id(camera.model);
+  cam.width = camera.width;
+  cam.height = camera.height;
+  cam.params.assign(camera.params, camera.params + camera.num_params);
+  return cam;
+}
+
+std::vector<lmb::Keypoint> to_keypoints(const lmb_keypoint* keypoints, int n) {
+  std::vector<lmb::Keypoint> kps(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    kps[i].x = keypoints[i].x;
+    kps[i].y = keypoints[i].y;
+    kps[i].scale = keypoints[i].size;
+    kps[i].angle = keypoints[i].angle;
+  }
+  return kps;
+}
 }  // namespace
 
 const char* lmb_version(void) { return LMB_VERSION_STRING; }
@@ -149,46 +195,13 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
                                                 " bytes, the model expects " +
                                                 std::to_string(model->model->descriptor_bytes()));
   }
-  if (options != nullptr && options->struct_size < kFirstOptionsSize) {
-    return fail(LMB_ERROR_INVALID_ARGUMENT,
-                "lmb_localize: options->struct_size = " + std::to_string(options->struct_size) +
-                    " (call lmb_localize_options_init first)");
-  }
   if (camera->num_params < 0 || (camera->num_params > 0 && camera->params == nullptr)) {
     return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_localize: camera params NULL or num_params < 0");
   }
   return guarded(LMB_ERROR_INVALID_ARGUMENT, fn, [&] {
-    lmb::Camera cam;
-    cam.model = lmb::camera_model_from_id(camera->model);
-    cam.width = camera->width;
-    cam.height = camera->height;
-    cam.params.assign(camera->params, camera->params + camera->num_params);
-
-    lmb_localize_options o;
-    lmb_localize_options_init(&o);
-    if (options != nullptr) {
-      // The caller's fields (its struct_size bytes), the defaults of the rest (c_api.h).
-      std::memcpy(&o, options, std::min(options->struct_size, sizeof(o)));
-      o.struct_size = sizeof(o);
-    }
-    lmb::LocalizerOptions lo;
-    lo.classifier.top_k = o.top_k;
-    lo.classifier.use_inverted_file = o.use_inverted_file != 0;
-    lo.classifier.min_margin = o.min_margin;
-    lo.pose_top_k = o.pose_top_k;
-    lo.max_correspondences = o.max_correspondences;
-    lo.pose.max_iterations = o.ransac_iterations;
-    lo.pose.max_reprojection_error_px = o.max_reprojection_error_px;
-    lo.pose.min_inliers = o.min_inliers;
-    lo.pose.seed = o.seed;
-
-    std::vector<lmb::Keypoint> kps(static_cast<size_t>(n));
-    for (int i = 0; i < n; ++i) {
-      kps[i].x = keypoints[i].x;
-      kps[i].y = keypoints[i].y;
-      kps[i].scale = keypoints[i].size;
-      kps[i].angle = keypoints[i].angle;
-    }
+    const lmb::Camera cam = to_camera(*camera);
+    const lmb::LocalizerOptions lo = to_localizer_options(options);
+    const std::vector<lmb::Keypoint> kps = to_keypoints(keypoints, n);
     const Eigen::Vector3d gravity(gravity_in_cam[0], gravity_in_cam[1], gravity_in_cam[2]);
     const lmb::Localizer localizer(model->model, lo);
     const lmb::LocalizeResult r = localizer.localize(cam, kps, descriptors, gravity);
@@ -245,24 +258,6 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
 
 namespace {
 
-lmb::LocalizerOptions to_localizer_options(const lmb_localize_options* options) {
-  lmb_localize_options o;
-  lmb_localize_options_init(&o);
-  if (options != nullptr) o = *options;
-  lmb::LocalizerOptions lo;
-  lo.classifier.top_k = o.top_k;
-  lo.classifier.use_inverted_file = o.use_inverted_file != 0;
-  lo.classifier.min_margin = o.min_margin;
-  lo.pose_top_k = o.pose_top_k;
-  lo.max_correspondences = o.max_correspondences;
-  lo.pose.max_iterations = o.ransac_iterations;
-  lo.pose.max_reprojection_error_px = o.max_reprojection_error_px;
-  lo.pose.min_inliers = o.min_inliers;
-  lo.pose.seed = o.seed;
-  lo.check();
-  return lo;
-}
-
 // A frame's inputs in C++ form, checked as lmb_localize checks them.
 struct BundleFrame {
   lmb::Camera camera;
@@ -294,18 +289,9 @@ lmb_status bundle_call(const char* fn, lmb_bundle* bundle, const lmb_camera* cam
   }
   return guarded(LMB_ERROR_INVALID_ARGUMENT, fn, [&] {
     BundleFrame frame;
-    frame.camera.model = lmb::camera_model_from_id(camera->model);
-    frame.camera.width = camera->width;
-    frame.camera.height = camera->height;
-    frame.camera.params.assign(camera->params, camera->params + camera->num_params);
+    frame.camera = to_camera(*camera);
     frame.camera.check("camera");
-    frame.keypoints.resize(static_cast<size_t>(n));
-    for (int i = 0; i < n; ++i) {
-      frame.keypoints[i].x = keypoints[i].x;
-      frame.keypoints[i].y = keypoints[i].y;
-      frame.keypoints[i].scale = keypoints[i].size;
-      frame.keypoints[i].angle = keypoints[i].angle;
-    }
+    frame.keypoints = to_keypoints(keypoints, n);
     frame.gravity = Eigen::Vector3d(gravity_in_cam[0], gravity_in_cam[1], gravity_in_cam[2]);
     if (bundle->descriptor_bytes < 0) {
       // The first area that loads tells the descriptor length (every area shares the vocabulary).

@@ -1,6 +1,8 @@
 // The C API: same answers as the C++ API, status codes and last-error text, no exception escapes.
 #include "infer/c_api.h"
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstddef>
 #include <cstring>
@@ -25,7 +27,8 @@ namespace {
 struct CFixture {
   test::TestWorld world = test::make_test_world(101, 60, 140, 21);
   Model model{test::make_code_model_data(world.positions)};
-  std::filesystem::path path = std::filesystem::temp_directory_path() / "lmb_c_api_test.lbm";
+  std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("lmb_c_api_test_" + std::to_string(::getpid()) + ".lbm");
   std::vector<lmb_keypoint> keypoints;
   lmb_camera camera{};
 
@@ -132,7 +135,8 @@ TEST(CApiTest, ReturnsTheCalibratedProbability) {
     c.threshold = threshold;
     d.calibration = c;
     const Model calibrated(d);
-    const std::filesystem::path path = std::filesystem::temp_directory_path() / "lmb_c_api_calibrated_test.lbm";
+    const std::filesystem::path path =
+        std::filesystem::temp_directory_path() / ("lmb_c_api_calibrated_test_" + std::to_string(::getpid()) + ".lbm");
     calibrated.save(path);
     lmb_model* model = nullptr;
     ASSERT_EQ(lmb_model_load(path.c_str(), &model), LMB_OK) << lmb_last_error();
@@ -182,9 +186,10 @@ TEST(CApiTest, ReturnsTheCalibratedProbability) {
   lmb_model_free(model);
 }
 
-// struct_size lets the options grow: a caller compiled against an older, shorter struct gets the
-// defaults of the fields it does not know (here: ransac_iterations onwards), whatever lies past
-// its struct; a size below the first version's is an error.
+// struct_size lets the options grow: the library reads the caller's struct_size bytes and gives
+// the fields past them their defaults, so a caller built against an older, shorter struct keeps
+// working; fields of a newer caller's longer struct that this library does not know are ignored; a
+// size below the first version's (every field through seed) is an error.
 TEST(CApiTest, OptionsStructSizeKeepsOlderCallersWorking) {
   CFixture fx;
   lmb_model* model = nullptr;
@@ -202,25 +207,32 @@ TEST(CApiTest, OptionsStructSizeKeepsOlderCallersWorking) {
   lmb_pose want;
   ASSERT_EQ(run(&defaults, &want), LMB_OK) << lmb_last_error();
   ASSERT_EQ(want.success, 1);
-  // An older caller's struct ends before ransac_iterations: the garbage after it is ignored.
-  lmb_localize_options older = defaults;
-  older.struct_size = offsetof(lmb_localize_options, ransac_iterations);
-  older.ransac_iterations = 1;
-  older.min_inliers = 1000000;
+  // A newer caller's longer struct: its extra bytes (here garbage) are not read as options.
+  struct Newer {
+    lmb_localize_options known;
+    unsigned char unknown[64];
+  } newer;
+  newer.known = defaults;
+  newer.known.struct_size = sizeof(Newer);
+  std::memset(newer.unknown, 0xAB, sizeof(newer.unknown));
   lmb_pose got;
-  ASSERT_EQ(run(&older, &got), LMB_OK) << lmb_last_error();
+  ASSERT_EQ(run(&newer.known, &got), LMB_OK) << lmb_last_error();
   EXPECT_EQ(got.success, 1);
   EXPECT_EQ(got.num_inliers, want.num_inliers);
   EXPECT_EQ(got.rotation[0], want.rotation[0]);
   EXPECT_EQ(got.translation[2], want.translation[2]);
-  // The same fields with the full size are used.
-  older.struct_size = sizeof(lmb_localize_options);
-  ASSERT_EQ(run(&older, &got), LMB_OK) << lmb_last_error();
+  // The caller's fields are used.
+  lmb_localize_options strict = defaults;
+  strict.min_inliers = 1000000;
+  ASSERT_EQ(run(&strict, &got), LMB_OK) << lmb_last_error();
   EXPECT_EQ(got.success, 0);
-  lmb_localize_options bad = defaults;
-  bad.struct_size = 0;
-  EXPECT_EQ(run(&bad, &got), LMB_ERROR_INVALID_ARGUMENT);
-  EXPECT_NE(std::string(lmb_last_error()).find("struct_size"), std::string::npos) << lmb_last_error();
+  // Shorter than the first version: an error naming the field.
+  for (size_t size : {size_t{0}, offsetof(lmb_localize_options, seed)}) {
+    lmb_localize_options bad = defaults;
+    bad.struct_size = size;
+    EXPECT_EQ(run(&bad, &got), LMB_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(lmb_last_error()).find("struct_size"), std::string::npos) << lmb_last_error();
+  }
   lmb_model_free(model);
 }
 
@@ -307,7 +319,8 @@ uint32_t reference_crc32(const std::string& bytes) {
 // A two-area bundle: area 0 (x >= 25) holds another world's model moved 50 m away, area 1 (x < 25)
 // the frame's own model.
 struct CBundleFixture : CFixture {
-  std::filesystem::path dir = std::filesystem::temp_directory_path() / "lmb_c_api_bundle_test";
+  std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("lmb_c_api_bundle_test_" + std::to_string(::getpid()));
   std::filesystem::path index = dir / "bundle.txt";
   CBundleFixture() {
     std::filesystem::remove_all(dir);
@@ -394,6 +407,19 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
         << lmb_last_error();
     EXPECT_EQ(area, 1);
     EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers);
+  }
+  // The options as lmb_localize reads them: a size below the first version's is an error.
+  lmb_localize_options older;
+  lmb_localize_options_init(&older);
+  older.struct_size = 0;
+  for (int track = 0; track < 2; ++track) {
+    const lmb_status status =
+        track ? lmb_bundle_track(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                 test::kCodeDescriptorBytes, gravity, 1.0, &older, &pose, &area)
+              : lmb_bundle_localize(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                    test::kCodeDescriptorBytes, gravity, nullptr, &older, &pose, &area);
+    EXPECT_EQ(status, LMB_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(lmb_last_error()).find("struct_size"), std::string::npos) << lmb_last_error();
   }
   lmb_bundle_free(bundle);
   lmb_bundle_free(nullptr);
