@@ -10,6 +10,12 @@
 #    `scontrol update starttime=now`), resumes and finishes; its model.bin must equal the model of
 #    an uninterrupted one-process run, byte for byte.
 # 2. sweep.sbatch as a 2-task job array over --dims-per-round: both tasks finish.
+# 3. train_areas.sbatch as a job array over the areas of a tiny rendered world (lboost world
+#    --preset tiny, map, vocab, areas: 3 areas); one task is killed mid-training (SIGKILL to every
+#    process of the task, listed by `scontrol listpids`: nothing checkpoints on the way out) and
+#    must end FAILED while the others complete; that task rerun alone (`sbatch --array=ID`, the same
+#    arguments) resumes from its newest checkpoint; every area's model.bin must then equal the model
+#    of the same area trained by an uninterrupted one-process `lboost train --area`, byte for byte.
 # Installs slurm-wlm (apt) when missing. Stops only the daemons it started.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/../.." && pwd)
@@ -157,4 +163,70 @@ for v in 100 200; do
   grep -q "dims_per_round = $v" "$work/sweep/dims-per-round-$v/config.toml" || fail "sweep value $v not applied"
 done
 echo "test_one_node: sweep OK"
+
+# 3. Every area of a tiny world as a job array; one task killed, rerun alone, every model identical.
+tiny=$work/tiny
+"$lboost" world --preset tiny --seed 1 --out "$tiny/collection" > "$work/tiny.log" 2>&1 || fail "lboost world"
+"$lboost" map --collection "$tiny/collection" --out "$tiny/map.h5" >> "$work/tiny.log" 2>&1 || fail "lboost map"
+"$lboost" vocab --words 16 --max-descriptors 20000 --images "$tiny/collection/images" --seed 7 \
+  --out "$tiny/vocab.lbv" >> "$work/tiny.log" 2>&1 || fail "lboost vocab"
+"$lboost" areas --map "$tiny/map.h5" --out "$tiny/areas.txt" --min-observations 3 --max-classes 1000 \
+  --overlap 0.2 >> "$work/tiny.log" 2>&1 || fail "lboost areas: $(tail -n 3 "$work/tiny.log")"
+num_areas=$(awk '$1 == "areas" { print $2; exit }' "$tiny/areas.txt")
+[ "$num_areas" -ge 3 ] || fail "expected >= 3 areas of the tiny world, got $num_areas"
+killed=1
+area_args=(--map "$tiny/map.h5" --vocab "$tiny/vocab.lbv" --rounds "${LMB_TEST_AREA_ROUNDS:-100}" \
+  --dims-per-round 64 --checkpoint-interval 20)
+for ((id = 0; id < num_areas; id++)); do
+  "$lboost" train "${area_args[@]}" --area "$tiny/areas.txt:$id" --out "$work/area-reference/area-$id" \
+    > "$work/area-reference-$id.log" 2>&1 || fail "reference run of area $id"
+done
+areas_array=$(LMB_REPO=$here LBOOST=$lboost sbatch --parsable --array=0-$((num_areas - 1)) \
+  --output="$work/areas-%A_%a.out" "$here/jobs/slurm/train_areas.sbatch" "$tiny/areas.txt" "$work/areas" \
+  "${area_args[@]}")
+echo "test_one_node: submitted areas array $areas_array ($num_areas areas)"
+# Kill task $killed for real once it has checkpointed and trained on past that checkpoint.
+metrics=$work/areas/area-$killed/metrics.jsonl
+for _ in $(seq 3000); do
+  [ -f "$metrics" ] && [ "$(wc -l < "$metrics")" -ge 30 ] &&
+    compgen -G "$work/areas/area-$killed/checkpoints/ckpt-*.h5" > /dev/null && break
+  sleep 0.2
+done
+{ [ -f "$metrics" ] && [ "$(wc -l < "$metrics")" -ge 30 ]; } || fail "area $killed did not get past its first checkpoint"
+# For real: SIGKILL to every process of the task at once (batch shell, srun, the ranks), as a crash
+# would; nothing checkpoints or requeues on the way out. (scancel --signal=KILL cancels the job:
+# SIGTERM first, and the ranks checkpoint and requeue.)
+task_job=$(scontrol show job "${areas_array}_$killed" | grep -o '^JobId=[0-9]*' | cut -d= -f2)
+mapfile -t pids < <(scontrol listpids "$task_job" | awk 'NR > 1 && $1 ~ /^[0-9]+$/ { print $1 }')
+[ "$(ps -o comm= -p "$(IFS=,; echo "${pids[*]}")" | grep -c '^lboost$')" -eq 2 ] ||
+  fail "task ${areas_array}_$killed (job $task_job): its 2 lboost ranks are not among its processes ${pids[*]}"
+echo "test_one_node: killing task ${areas_array}_$killed (job $task_job, processes ${pids[*]}) after $(wc -l < "$metrics") rounds"
+kill -KILL "${pids[@]}"
+ended='COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY'
+for ((id = 0; id < num_areas; id++)); do
+  if [ "$id" -eq "$killed" ]; then
+    wait_state "${areas_array}_$id" "$ended|PENDING|REQUEUED" 120
+    s=$(state_of "${areas_array}_$id")
+    [ "$s" = FAILED ] || fail "the killed task ${areas_array}_$id is $s, expected FAILED"
+    [ ! -f "$work/areas/area-$id/model.bin" ] || fail "the killed task wrote a model (killed too late)"
+  else
+    wait_state "${areas_array}_$id" "$ended" 600
+    s=$(state_of "${areas_array}_$id")
+    [ "$s" = COMPLETED ] || fail "task ${areas_array}_$id ended $s"
+  fi
+done
+echo "test_one_node: task ${areas_array}_$killed ended $(state_of "${areas_array}_$killed"), the others COMPLETED"
+rerun=$(LMB_REPO=$here LBOOST=$lboost sbatch --parsable --array="$killed" \
+  --output="$work/areas-%A_%a.out" "$here/jobs/slurm/train_areas.sbatch" "$tiny/areas.txt" "$work/areas" \
+  "${area_args[@]}")
+echo "test_one_node: rerunning area $killed alone as ${rerun}_$killed"
+wait_state "${rerun}_$killed" "$ended" 600
+[ "$(state_of "${rerun}_$killed")" = COMPLETED ] || fail "the rerun ${rerun}_$killed ended $(state_of "${rerun}_$killed")"
+resumed=$(grep -o 'resumed from [^ ]*' "$work/areas/area-$killed/log.txt" | head -n 1)
+[ -n "$resumed" ] || fail "the rerun of area $killed did not resume from a checkpoint"
+for ((id = 0; id < num_areas; id++)); do
+  cmp "$work/areas/area-$id/model.bin" "$work/area-reference/area-$id/model.bin" ||
+    fail "area $id: the job array's model differs from the uninterrupted run's"
+done
+echo "test_one_node: areas array OK (area $killed killed, rerun $resumed), $num_areas models identical"
 echo "test_one_node: PASS"
