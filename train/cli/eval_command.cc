@@ -134,6 +134,10 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--target-precision", o.calibration.target_precision,
                   "Precision on the calibration poses each method's operating point is chosen for, in (0, 1]")
       ->capture_default_str();
+  cmd->add_option("--max-elsewhere-share", o.calibration.max_elsewhere_share,
+                  "Share of the calibration frames, matched as if nothing of their view were in the map, that each "
+                  "method's operating point may still localize, in [0, 1]")
+      ->capture_default_str();
   cmd->add_option("--ratio", o.ratio, "Lowe's ratio of the ratio-test methods: d1 < ratio * d2")->capture_default_str();
   cmd->add_option("--faiss-hnsw-m", o.faiss.m, "faiss_hnsw_ratio: HNSW graph degree M")->capture_default_str();
   cmd->add_option("--faiss-ef-construction", o.faiss.ef_construction, "faiss_hnsw_ratio: efConstruction")

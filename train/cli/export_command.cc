@@ -77,10 +77,12 @@ void add_pose_calibration(const PoseCalibrationOptions& options, const LandmarkM
   }
   data.calibration = fit.calibration;
   spdlog::info(
-      "export: pose calibration on {} map frames: {} poses ({} of them with the frame's own landmarks removed), {} "
-      "right; operating point {:.4f} for precision {} keeps {} poses, {} right",
+      "export: pose calibration on {} map frames: {} poses ({} of them with no landmark of the frame's view in the "
+      "map), {} right; operating point {:.4f} (precision {}: {:.4f}; at most {} of the frames elsewhere: {:.4f}) "
+      "keeps {} poses, {} right, {} of them elsewhere",
       fit.num_frames, fit.num_poses, fit.num_elsewhere, fit.num_right, fit.calibration.threshold,
-      fit.calibration.target_precision, fit.passed, fit.passed_right);
+      fit.calibration.target_precision, fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold,
+      fit.passed, fit.passed_right, fit.elsewhere_passed);
 }
 
 // The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
@@ -211,6 +213,10 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--target-precision", args->options.target_precision,
                   "Precision of reported poses the operating point is chosen for, in (0, 1]")
       ->capture_default_str();
+  cmd->add_option("--max-elsewhere-share", args->options.max_elsewhere_share,
+                  "Share of the calibration frames, matched as if nothing of their view were in the map, that the "
+                  "operating point may still localize, in [0, 1]")
+      ->capture_default_str();
   cmd->callback([args] { run_calibrate(*args); });
 }
 
@@ -242,6 +248,10 @@ void add_export_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--target-precision", args->calibration_options.target_precision,
                   "Precision of reported poses the operating point is chosen for, in (0, 1]")
+      ->capture_default_str();
+  cmd->add_option("--max-elsewhere-share", args->calibration_options.max_elsewhere_share,
+                  "Share of the calibration frames, matched as if nothing of their view were in the map, that the "
+                  "operating point may still localize, in [0, 1]")
       ->capture_default_str();
   cmd->callback([args] { run_export(*args); });
 }

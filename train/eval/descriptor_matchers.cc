@@ -48,12 +48,14 @@ void DescriptorMatcherOptions::check() const {
 
 namespace {
 
-// The Hamming distance of the nearest observation of another landmark than `exclude`, +inf when
-// there is none.
-double nearest_other_landmark(const uint8_t* descriptor, const TrainingObservations& obs, landmark_t exclude) {
+// The Hamming distance of the nearest observation of another landmark than `exclude` (and none
+// for which `excluded` is true, when given), +inf when there is none.
+double nearest_other_landmark(const uint8_t* descriptor, const TrainingObservations& obs, landmark_t exclude,
+                              const std::function<bool(landmark_t)>& excluded) {
   double best = std::numeric_limits<double>::infinity();
   for (int64_t i = 0; i < obs.size(); ++i) {
-    if (obs.landmark[static_cast<size_t>(i)] == exclude) continue;
+    const landmark_t l = obs.landmark[static_cast<size_t>(i)];
+    if (l == exclude || (excluded && excluded(l))) continue;
     best = std::min(best, static_cast<double>(hamming_distance(descriptor, obs.descriptor(i), obs.descriptor_bytes)));
   }
   return best;
@@ -62,7 +64,7 @@ double nearest_other_landmark(const uint8_t* descriptor, const TrainingObservati
 }  // namespace
 
 bool passes_ratio_test(const std::vector<Neighbor>& nn, const uint8_t* descriptor, const KnnIndex& index,
-                       const DescriptorMatcherOptions& options) {
+                       const DescriptorMatcherOptions& options, const std::function<bool(landmark_t)>& excluded) {
   if (nn.empty()) return false;
   if (!options.ratio_test) return true;
   const std::vector<landmark_t>& landmark = index.observations().landmark;
@@ -83,7 +85,8 @@ bool passes_ratio_test(const std::vector<Neighbor>& nn, const uint8_t* descripto
     // Not among the neighbours: farther than all of them, or no other landmark at all.
     const bool truncated = static_cast<int64_t>(nn.size()) < index.observations().size();
     if (!found && truncated) {
-      d2 = index.exact_hamming() ? nearest_other_landmark(descriptor, index.observations(), l1) : nn.back().distance;
+      d2 = index.exact_hamming() ? nearest_other_landmark(descriptor, index.observations(), l1, excluded)
+                                 : nn.back().distance;
     }
   }
   if (std::isinf(d2)) return true;  // no competitor
@@ -127,6 +130,26 @@ FrameMatches DescriptorMatcher::match(const EvalQuery& q) const {
                                         landmark_positions_[static_cast<size_t>(best.landmark)], best.score});
   }
   return r;
+}
+
+std::vector<Correspondence> DescriptorMatcher::accepted_without(const EvalQuery& q,
+                                                                const std::function<bool(landmark_t)>& excluded) const {
+  const int64_t n = static_cast<int64_t>(q.keypoints.size());
+  const int bytes = index_->observations().descriptor_bytes;
+  const std::vector<landmark_t>& landmark = index_->observations().landmark;
+  const std::vector<std::vector<Neighbor>> nn = index_->search(q.descriptors, n, options_.knn_k);
+  std::vector<Correspondence> out;
+  for (int64_t k = 0; k < n && static_cast<size_t>(k) < nn.size(); ++k) {
+    std::vector<Neighbor> kept;
+    for (const Neighbor& x : nn[static_cast<size_t>(k)]) {
+      if (!excluded(landmark[static_cast<size_t>(x.index)])) kept.push_back(x);
+    }
+    if (!passes_ratio_test(kept, q.descriptors + k * bytes, *index_, options_, excluded)) continue;
+    const landmark_t best = landmark[static_cast<size_t>(kept[0].index)];
+    out.push_back(Correspondence{static_cast<int32_t>(k), best, landmark_positions_[static_cast<size_t>(best)],
+                                 -static_cast<double>(kept[0].distance)});
+  }
+  return out;
 }
 
 nlohmann::json DescriptorMatcher::parameters() const {

@@ -23,6 +23,7 @@
 // With no other observation at all (d2 undefined) the match is accepted. d1 = d2 = 0 rejects.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -87,9 +88,12 @@ struct DescriptorMatcherOptions {
 
 // Whether the best match of one keypoint's sorted neighbours (knn_k of them, or fewer when the
 // index holds fewer) is accepted under `options` (the ratio test above, or none); false when there
-// is no neighbour. `index` provides the exact scan for kOtherLandmark. Exposed for tests.
+// is no neighbour. `index` provides the exact scan for kOtherLandmark, which skips the landmarks
+// for which `excluded` is true when it is given (the neighbours are then those of the other
+// landmarks, see DescriptorMatcher::accepted_without). Exposed for tests.
 bool passes_ratio_test(const std::vector<Neighbor>& neighbors, const uint8_t* descriptor, const KnnIndex& index,
-                       const DescriptorMatcherOptions& options);
+                       const DescriptorMatcherOptions& options,
+                       const std::function<bool(landmark_t)>& excluded = nullptr);
 
 class DescriptorMatcher : public Matcher {
  public:
@@ -99,6 +103,10 @@ class DescriptorMatcher : public Matcher {
                     const DescriptorMatcherOptions& options);
 
   FrameMatches match(const EvalQuery& query) const override;
+  // The knn_k nearest observations without those of excluded landmarks decide, as in match(); a
+  // keypoint whose knn_k nearest observations are all of excluded landmarks gets no match.
+  std::vector<Correspondence> accepted_without(const EvalQuery& query,
+                                               const std::function<bool(landmark_t)>& excluded) const override;
   nlohmann::json parameters() const override;
   const KnnIndex& index() const { return *index_; }
 

@@ -53,6 +53,27 @@ FrameMatches LandmarkBoostMatcher::match(const EvalQuery& q) const {
   return r;
 }
 
+std::vector<Correspondence> LandmarkBoostMatcher::accepted_without(
+    const EvalQuery& q, const std::function<bool(landmark_t)>& excluded) const {
+  LMB_CHECK(q.camera != nullptr, "LandmarkBoostMatcher: query frame " << q.frame << " has no camera");
+  // A class's score and the background's do not depend on the other classes, so the best class
+  // left after removing some is the first remaining one of the full ranking under the same
+  // rejection.
+  ClassifierOptions all = options_;
+  all.top_k = model_->num_classes();
+  const KeypointMatches matches = classify(q, all);
+  std::vector<Correspondence> out;
+  for (int32_t k = 0; k < matches.num_keypoints(); ++k) {
+    for (int32_t j = 0; j < matches.count(k); ++j) {
+      const ClassMatch& m = matches.of(k)[j];
+      if (excluded(m.landmark)) continue;
+      out.push_back(Correspondence{k, m.landmark, model_->class_position(m.cls), m.score - m.background_score});
+      break;
+    }
+  }
+  return out;
+}
+
 nlohmann::json LandmarkBoostMatcher::parameters() const {
   return {{"top_k", options_.top_k},
           {"inverted_file", options_.use_inverted_file},

@@ -27,6 +27,8 @@ class LandmarkBoostMatcher : public Matcher {
   LandmarkBoostMatcher(std::shared_ptr<const Model> model, const ClassifierOptions& options, bool rank = true);
 
   FrameMatches match(const EvalQuery& query) const override;
+  std::vector<Correspondence> accepted_without(const EvalQuery& query,
+                                               const std::function<bool(landmark_t)>& excluded) const override;
   nlohmann::json parameters() const override;
 
  private:

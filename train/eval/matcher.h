@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,14 @@ class Matcher {
  public:
   virtual ~Matcher() = default;
   virtual FrameMatches match(const EvalQuery& query) const = 0;
+  // The accepted matches of `query` as if the landmarks for which excluded(landmark) is true were
+  // not in the map: per keypoint, its best remaining landmark under the method's own rejection
+  // (LandmarkBoost: the best class not excluded beating the background by min_margin; a
+  // descriptor baseline: the nearest observation of a landmark not excluded, and its ratio test
+  // among those). Untimed. The pose calibration's "elsewhere" frames
+  // (train/eval/pose_calibration_fit.h) use it.
+  virtual std::vector<Correspondence> accepted_without(const EvalQuery& query,
+                                                       const std::function<bool(landmark_t)>& excluded) const = 0;
   // The method's own parameters for the report (e.g. the ratio, the ANN index's parameters).
   virtual nlohmann::json parameters() const { return nlohmann::json::object(); }
 };

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
 
 #include "common/error.h"
 #include "train/eval/pose_stage.h"
@@ -12,6 +14,8 @@ void PoseCalibrationOptions::check() const {
   LMB_CHECK(max_frames >= 1, "pose calibration: max_frames = " << max_frames << " must be >= 1");
   LMB_CHECK(target_precision > 0.0 && target_precision <= 1.0,
             "pose calibration: target_precision = " << target_precision << " must be in (0, 1]");
+  LMB_CHECK(max_elsewhere_share >= 0.0 && max_elsewhere_share <= 1.0,
+            "pose calibration: max_elsewhere_share = " << max_elsewhere_share << " must be in [0, 1]");
   LMB_CHECK(min_poses >= 1, "pose calibration: min_poses = " << min_poses << " must be >= 1");
 }
 
@@ -30,6 +34,35 @@ std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames) 
   std::vector<frame_t> out;
   for (size_t i = 0; i < all.size(); i += step) out.push_back(all[i]);
   return out;
+}
+
+double pass_share_threshold(std::vector<double> probability, int64_t num_frames, double max_share) {
+  LMB_CHECK(num_frames >= static_cast<int64_t>(probability.size()),
+            "pose calibration: " << probability.size() << " probabilities for " << num_frames << " frames");
+  LMB_CHECK(max_share >= 0.0 && max_share <= 1.0, "pose calibration: share " << max_share << " is outside [0, 1]");
+  // At most `allowed` may pass (the rounding tolerates the share's binary representation).
+  const auto allowed = static_cast<size_t>(std::floor(max_share * static_cast<double>(num_frames) + 1e-9));
+  if (probability.size() <= allowed) return 0.0;
+  std::sort(probability.begin(), probability.end(), std::greater<>());
+  // Above the (allowed + 1)-th highest: it and every probability equal to it fail.
+  return std::nextafter(probability[allowed], std::numeric_limits<double>::infinity());
+}
+
+std::vector<char> landmarks_in_view(const LandmarkMap& map, frame_t f) {
+  LMB_CHECK(f >= 0 && f < map.num_frames(), "pose calibration: frame " << f << " is not in the map");
+  const MapFrame& frame = map.frames[f];
+  const Camera& camera = map.cameras[frame.camera];
+  std::vector<char> view(map.landmarks.size(), 0);
+  for (size_t l = 0; l < map.landmarks.size(); ++l) {
+    Eigen::Vector2d pixel;
+    if (!camera.project(frame.cam_from_world * map.landmarks[l].position, &pixel)) continue;
+    view[l] = pixel.x() >= 0 && pixel.y() >= 0 && pixel.x() < camera.width && pixel.y() < camera.height;
+  }
+  for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+    const landmark_t l = map.keypoint_landmark[k];
+    if (l >= 0 && static_cast<size_t>(l) < view.size()) view[l] = 1;
+  }
+  return view;
 }
 
 std::vector<int64_t> calibration_frame_keypoints(const LandmarkMap& map, const std::vector<frame_t>& frames) {
@@ -63,6 +96,7 @@ nlohmann::json CalibrationFit::to_json() const {
                       {"poses_right", num_right},
                       {"poses_elsewhere", num_elsewhere},
                       {"poses_passed", passed},
+                      {"poses_elsewhere_passed", elsewhere_passed},
                       {"poses_passed_right", passed_right}};
   if (fitted) {
     nlohmann::json weights = nlohmann::json::object();
@@ -72,6 +106,8 @@ nlohmann::json CalibrationFit::to_json() const {
     j["weights"] = weights;
     j["bias"] = calibration.bias;
     j["threshold"] = calibration.threshold;
+    j["precision_threshold"] = precision_threshold;
+    j["elsewhere_threshold"] = elsewhere_threshold;
     j["target_precision"] = calibration.target_precision;
   }
   return j;
@@ -89,20 +125,14 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
   fit.num_frames = static_cast<int64_t>(frames.size());
   std::vector<PoseEvidence> evidence;
   std::vector<char> right;
+  std::vector<char> is_elsewhere;
   for (frame_t f : frames) {
     const EvalQuery q = map_frame_query(map, f);
     const FrameMatches m = matcher.match(q);
-    // The frame's own landmarks, sorted.
-    const MapFrame& frame = map.frames[f];
-    std::vector<landmark_t> own;
-    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
-      if (map.keypoint_landmark[k] != kInvalidLandmarkId) own.push_back(map.keypoint_landmark[k]);
-    }
-    std::sort(own.begin(), own.end());
-    std::vector<Correspondence> elsewhere;
-    for (const Correspondence& c : m.accepted) {
-      if (!std::binary_search(own.begin(), own.end(), c.landmark)) elsewhere.push_back(c);
-    }
+    // "Elsewhere": the frame matched as if no landmark in its view were in the map.
+    const std::vector<char> view = landmarks_in_view(map, f);
+    const std::vector<Correspondence> elsewhere = matcher.accepted_without(
+        q, [&](landmark_t l) { return l >= 0 && static_cast<size_t>(l) < view.size() && view[l] != 0; });
     for (int variant = 0; variant < 2; ++variant) {
       const std::vector<Correspondence>& accepted = variant == 0 ? m.accepted : elsewhere;
       const PoseInput input = select_correspondences(q, accepted, max_correspondences);
@@ -111,6 +141,7 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
       evidence.push_back(
           pose_evidence(*q.camera, input.pixels, input.quality, r, static_cast<int>(q.keypoints.size())));
       right.push_back(pose_within(r.cam_from_world, q.true_cam_from_world, thresholds) ? 1 : 0);
+      is_elsewhere.push_back(static_cast<char>(variant));
       fit.num_elsewhere += variant;
     }
   }
@@ -120,13 +151,20 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
   fit.calibration = fit_pose_calibration(evidence, right);
   std::vector<double> p;
   for (const PoseEvidence& e : evidence) p.push_back(fit.calibration.probability(e));
-  fit.calibration.threshold = precision_threshold(p, right, options.target_precision);
+  fit.precision_threshold = precision_threshold(p, right, options.target_precision);
+  std::vector<double> p_elsewhere;
+  for (size_t i = 0; i < p.size(); ++i) {
+    if (is_elsewhere[i]) p_elsewhere.push_back(p[i]);
+  }
+  fit.elsewhere_threshold = pass_share_threshold(p_elsewhere, fit.num_frames, options.max_elsewhere_share);
+  fit.calibration.threshold = std::max(fit.precision_threshold, fit.elsewhere_threshold);
   fit.calibration.target_precision = options.target_precision;
   fit.calibration.check("pose calibration");
   for (size_t i = 0; i < p.size(); ++i) {
     if (p[i] < fit.calibration.threshold) continue;
     ++fit.passed;
     fit.passed_right += right[i];
+    fit.elsewhere_passed += is_elsewhere[i];
   }
   fit.fitted = true;
   return fit;

@@ -8,15 +8,19 @@
 // the method, and two poses are estimated with the evaluation's pose stage (train/eval/pose_stage.h, same options and
 // seed):
 //   - "as is": the frame's accepted matches;
-//   - "elsewhere": the accepted matches minus those to a landmark the frame itself observes (its
-//     map keypoints' landmarks), i.e. the frame as if taken where its own landmarks are not in
-//     view: what is left are the aliased matches (a door, a poster of another place), which is how
-//     a wrong pose with many inliers arises in an aliased building and how a query from outside
-//     the map looks.
+//   - "elsewhere": the frame matched as if no landmark in its view (landmarks_in_view) were in the
+//     map (Matcher::accepted_without: each keypoint's best remaining landmark under the method's
+//     own rejection), i.e. the frame as if taken in a place the map does not hold: what it matches
+//     are the aliased landmarks (a door, a poster of another place), which is how a wrong pose
+//     with many inliers arises in an aliased building and how a query from outside the map looks.
+//     (Dropping the frame's own matches instead leaves only the keypoints that matched elsewhere
+//     anyway and misses the ones whose next-best landmark is an alias.)
 // A pose enters the fit when the estimator reports success (at least min_inliers inliers): the
 // calibration decides among the poses the inlier rule would report. Label: within the pose
 // thresholds of the frame's map pose. Features: PoseEvidence, the same for every method.
-// The operating point is precision_threshold at target_precision over the fitted poses.
+// The operating point is the higher of precision_threshold at target_precision over the fitted
+// poses and the smallest probability above which at most max_elsewhere_share of the calibration
+// frames' "elsewhere" variants pass.
 //
 // Honesty: no query frame is read. The map frames are frames the methods have seen (LandmarkBoost
 // trained on their observations, except the held-out ones; the descriptor baselines are given
@@ -42,24 +46,39 @@ namespace lmb {
 struct PoseCalibrationOptions {
   int max_frames = 200;            // calibration frames at most, >= 1
   double target_precision = 0.95;  // the operating point's precision on the fitted poses, (0, 1]
-  int min_poses = 10;              // fewer fitted poses: no calibration (CalibrationFit::fitted false)
-  void check() const;              // throws lmb::Error naming the field
+  // The operating point also lets at most this share of the calibration frames' "elsewhere"
+  // variants (the frame where no landmark of its view is in the map) pass, in [0, 1]: the share of
+  // frames from outside the map reported localized. 1 = no such bound.
+  double max_elsewhere_share = 0.01;
+  int min_poses = 10;  // fewer fitted poses: no calibration (CalibrationFit::fitted false)
+  void check() const;  // throws lmb::Error naming the field
 };
 
 // The calibration frames of `map` (see the file comment), ascending.
 std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames);
+// The smallest threshold at which at most floor(max_share * num_frames) of `probability` (one per
+// frame at most, num_frames >= its size) are >= it: 0 when that many or fewer are given, else
+// just above the (allowed + 1)-th highest. Throws lmb::Error on invalid sizes or share.
+double pass_share_threshold(std::vector<double> probability, int64_t num_frames, double max_share);
+// Per landmark of the map, whether it is in view of frame f: one of the frame's keypoints observes
+// it, or its position projects into the image at the frame's map pose (in front of the camera;
+// occlusion is not modelled). Throws lmb::Error for a frame outside the map.
+std::vector<char> landmarks_in_view(const LandmarkMap& map, frame_t f);
 // Their map keypoints, ascending (what the descriptor baselines leave out of their index).
 std::vector<int64_t> calibration_frame_keypoints(const LandmarkMap& map, const std::vector<frame_t>& frames);
 
 struct CalibrationFit {
-  bool fitted = false;          // false: too few poses (num_poses < min_poses)
-  PoseCalibration calibration;  // when fitted (threshold = the operating point)
-  int64_t num_frames = 0;       // calibration frames
-  int64_t num_poses = 0;        // poses fitted on (both variants)
-  int64_t num_right = 0;        // of them right
-  int64_t num_elsewhere = 0;    // of the poses, "elsewhere" ones
-  int64_t passed = 0;           // poses at or above the operating point
-  int64_t passed_right = 0;     // of them right
+  bool fitted = false;               // false: too few poses (num_poses < min_poses)
+  PoseCalibration calibration;       // when fitted (threshold = the operating point)
+  int64_t num_frames = 0;            // calibration frames
+  int64_t num_poses = 0;             // poses fitted on (both variants)
+  int64_t num_right = 0;             // of them right
+  int64_t num_elsewhere = 0;         // of the poses, "elsewhere" ones
+  double precision_threshold = 0.0;  // the operating point for target_precision alone
+  double elsewhere_threshold = 0.0;  // ... for max_elsewhere_share alone
+  int64_t elsewhere_passed = 0;      // "elsewhere" poses at or above the operating point
+  int64_t passed = 0;                // poses at or above the operating point
+  int64_t passed_right = 0;          // of them right
   nlohmann::json to_json() const;
 };
 

@@ -5,6 +5,7 @@
 #include "train/eval/descriptor_matchers.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <memory>
 
@@ -165,6 +166,68 @@ TEST(DescriptorMatcherTest, HammingRatioTestEqualsBruteForce) {
           EXPECT_LT(accepted, 80);
         }
       }
+    }
+  }
+}
+
+// accepted_without against a brute force over the observations of the landmarks not excluded
+// (the nearest of the knn_k nearest observations that is not excluded; the 2nd nearest for
+// kSecondObservation among those; the exact nearest other landmark for kOtherLandmark).
+TEST(DescriptorMatcherTest, AcceptedWithoutEqualsBruteForceWithoutTheExcludedLandmarks) {
+  const Problem p = make_problem(11);
+  // Landmark 0 (30 observations) and landmark 2 (landmark 1's near twin) are excluded.
+  const auto excluded = [](landmark_t l) { return l % 2 == 0; };
+  for (int variant = 0; variant < 3; ++variant) {
+    for (int knn_k : {4, 64}) {
+      SCOPED_TRACE(testing::Message() << "variant " << variant << " knn_k " << knn_k);
+      DescriptorMatcherOptions o =
+          ratio_options(knn_k, variant == 1 ? RatioNeighbor::kSecondObservation : RatioNeighbor::kOtherLandmark);
+      o.ratio_test = variant != 2;
+      const DescriptorMatcher matcher(std::make_unique<HammingKnnIndex>(p.obs, BruteforceHamming::Backend::kPopcount),
+                                      p.positions, o);
+      const std::vector<Correspondence> got = matcher.accepted_without(query_of(p), excluded);
+      size_t next = 0;
+      int accepted = 0, ambiguous_before = 0;
+      for (int64_t k = 0; k < p.num_queries; ++k) {
+        const uint8_t* d = p.queries.data() + k * kBytes;
+        std::vector<std::pair<double, int64_t>> all;
+        for (int64_t i = 0; i < p.obs.size(); ++i)
+          all.emplace_back(hamming_distance(d, p.obs.descriptor(i), kBytes), i);
+        std::sort(all.begin(), all.end());
+        std::vector<std::pair<double, int64_t>> kept;
+        for (int i = 0; i < knn_k; ++i) {
+          if (!excluded(p.obs.landmark[static_cast<size_t>(all[i].second)])) kept.push_back(all[i]);
+        }
+        bool accept = !kept.empty();
+        landmark_t l1 = kInvalidLandmarkId;
+        if (accept) {
+          l1 = p.obs.landmark[static_cast<size_t>(kept[0].second)];
+          double d2 = std::numeric_limits<double>::infinity();
+          if (variant == 1 && kept.size() >= 2) d2 = kept[1].first;
+          if (variant == 0) {
+            for (const auto& [dist, i] : all) {
+              const landmark_t l = p.obs.landmark[static_cast<size_t>(i)];
+              if (l != l1 && !excluded(l)) {
+                d2 = dist;
+                break;
+              }
+            }
+          }
+          if (variant != 2) accept = std::isinf(d2) || kept[0].first < o.ratio * d2;
+        }
+        ambiguous_before += reference(p.obs, d).l1 == 2;
+        const bool has = next < got.size() && got[next].keypoint == k;
+        EXPECT_EQ(has, accept) << "query " << k;
+        if (!has) continue;
+        EXPECT_EQ(got[next].landmark, l1) << "query " << k;
+        EXPECT_EQ(got[next].point_world, p.positions[static_cast<size_t>(l1)]);
+        EXPECT_EQ(got[next].confidence, -kept[0].first);
+        ++next;
+        ++accepted;
+      }
+      EXPECT_EQ(next, got.size());
+      EXPECT_GT(accepted, 10);
+      EXPECT_GT(ambiguous_before, 0);
     }
   }
 }

@@ -4,8 +4,11 @@
 // the Localizer's without rejection.
 #include "train/eval/landmarkboost_matcher.h"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <memory>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -36,7 +39,7 @@ TEST(LandmarkBoostMatcherTest, PoseEqualsTheLocalizers) {
   const Fixture fx;
   const EvalQuery q = fx.query();
   for (bool inverted : {false, true}) {
-    for (double margin : {0.0, -3.0}) {
+    for (double margin : {0.0, -std::numeric_limits<double>::infinity()}) {
       for (int cap : {0, 25}) {
         SCOPED_TRACE(testing::Message() << "inverted " << inverted << " margin " << margin << " cap " << cap);
         LocalizerOptions o;
@@ -91,6 +94,68 @@ TEST(LandmarkBoostMatcherTest, RankingIsTheLocalizersWithoutRejection) {
   }
   EXPECT_EQ(static_cast<int>(m.accepted.size()), accepted);
   EXPECT_GE(accepted, 60);
+}
+
+// accepted_without: per keypoint, the best class of the full ranking (every class, the same
+// rejection) whose landmark is not excluded; nothing excluded = match()'s accepted matches.
+TEST(LandmarkBoostMatcherTest, AcceptedWithoutIsTheBestRemainingClassOfTheFullRanking) {
+  const Fixture fx;
+  const EvalQuery q = fx.query();
+  for (bool inverted : {false, true}) {
+    for (double margin : {0.0, -std::numeric_limits<double>::infinity()}) {
+      SCOPED_TRACE(testing::Message() << "inverted " << inverted << " margin " << margin);
+      LocalizerOptions o;
+      o.classifier.use_inverted_file = inverted;
+      o.classifier.min_margin = margin;
+      const LandmarkBoostMatcher matcher(fx.model, o.classifier);
+      const FrameMatches m = matcher.match(q);
+      const std::vector<Correspondence> same = matcher.accepted_without(q, [](landmark_t) { return false; });
+      ASSERT_EQ(same.size(), m.accepted.size());
+      for (size_t i = 0; i < same.size(); ++i) {
+        EXPECT_EQ(same[i].keypoint, m.accepted[i].keypoint);
+        EXPECT_EQ(same[i].landmark, m.accepted[i].landmark);
+        EXPECT_EQ(same[i].point_world, m.accepted[i].point_world);
+        EXPECT_EQ(same[i].confidence, m.accepted[i].confidence);
+      }
+      // Exclude every landmark some keypoint matched best: each keypoint falls back to its best
+      // class outside that set, if one beats the background.
+      std::set<landmark_t> best;
+      for (const Correspondence& c : m.accepted) best.insert(c.landmark);
+      const auto excluded = [&](landmark_t l) { return best.count(l) > 0; };
+      o.classifier.top_k = fx.model->num_classes();
+      const LocalizeResult full =
+          Localizer(fx.model, o).localize(*q.camera, q.keypoints, q.descriptors, q.gravity_in_cam);
+      std::vector<Correspondence> expected;
+      for (int32_t k = 0; k < full.matches.num_keypoints(); ++k) {
+        for (int32_t j = 0; j < full.matches.count(k); ++j) {
+          const ClassMatch& c = full.matches.of(k)[j];
+          if (excluded(c.landmark)) continue;
+          expected.push_back(
+              Correspondence{k, c.landmark, fx.model->class_position(c.cls), c.score - c.background_score});
+          break;
+        }
+      }
+      const std::vector<Correspondence> got = matcher.accepted_without(q, excluded);
+      ASSERT_EQ(got.size(), expected.size());
+      int moved = 0;
+      for (size_t i = 0; i < got.size(); ++i) {
+        EXPECT_EQ(got[i].keypoint, expected[i].keypoint);
+        EXPECT_EQ(got[i].landmark, expected[i].landmark);
+        EXPECT_EQ(got[i].point_world, expected[i].point_world);
+        EXPECT_EQ(got[i].confidence, expected[i].confidence);
+        EXPECT_FALSE(excluded(got[i].landmark));
+        moved += std::any_of(m.accepted.begin(), m.accepted.end(),
+                             [&](const Correspondence& c) { return c.keypoint == got[i].keypoint; });
+      }
+      // The case the pose calibration needs: keypoints matched before keep a (weaker) match;
+      // without rejection every one (this code model's keypoints beat the background with one
+      // class at most, so with margin 0 they lose theirs).
+      if (std::isinf(margin)) {
+        EXPECT_EQ(moved, static_cast<int>(m.accepted.size()));
+      }
+      EXPECT_TRUE(matcher.accepted_without(q, [](landmark_t) { return true; }).empty());
+    }
+  }
 }
 
 }  // namespace
