@@ -23,15 +23,7 @@ PYBIND11_MODULE(_cv, m) {
   using namespace lmb;
   using namespace lmb::python;
   m.doc() = "LandmarkBoost's OpenCV front-end (landmarkboost._cv; use landmarkboost.cv)";
-  const py::module_ core = py::module_::import("landmarkboost._core");
-  static py::object error = core.attr("Error");
-  py::register_exception_translator([](std::exception_ptr p) {
-    try {
-      if (p) std::rethrow_exception(p);
-    } catch (const Error& e) {
-      PyErr_SetString(error.ptr(), e.what());
-    }
-  });
+  translate_errors_to_core_error();
 
   m.def(
       "detect_features",

@@ -47,16 +47,8 @@ PYBIND11_MODULE(_io, m) {
   using namespace lmb;
   using namespace lmb::python;
   m.doc() = "LandmarkBoost map files (landmarkboost._io; use landmarkboost.io)";
-  // Camera, Rigid3d and Error come from landmarkboost._core.
-  const py::module_ core = py::module_::import("landmarkboost._core");
-  static py::object error = core.attr("Error");
-  py::register_exception_translator([](std::exception_ptr p) {
-    try {
-      if (p) std::rethrow_exception(p);
-    } catch (const Error& e) {
-      PyErr_SetString(error.ptr(), e.what());
-    }
-  });
+  // Camera, Rigid3d and Error come from landmarkboost._core (imported here).
+  translate_errors_to_core_error();
 
   py::class_<MapFrame>(m, "Frame", "One frame of a map: its image name, camera, pose, gravity and keypoint range.")
       .def_readonly("name", &MapFrame::name)

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <exception>
 #include <string>
 #include <utility>
 #include <vector>
@@ -11,9 +12,24 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include "common/error.h"
+
 namespace lmb::python {
 
 namespace py = pybind11;
+
+// Makes lmb::Error thrown in this extension module raise landmarkboost._core.Error (for the
+// modules other than _core, which defines it).
+inline void translate_errors_to_core_error() {
+  static py::object error = py::module_::import("landmarkboost._core").attr("Error");
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Error& e) {
+      PyErr_SetString(error.ptr(), e.what());
+    }
+  });
+}
 
 // A read-only array over `data` (shape and byte strides given) that keeps `owner` alive.
 template <class T>
