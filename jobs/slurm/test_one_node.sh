@@ -8,7 +8,8 @@
 # 1. train.sbatch on 2 tasks (srun --mpi=pmix) is signalled mid-training with
 #    `scancel --signal=USR1 --batch`, checkpoints, is requeued (its ~2 min BeginTime is cut with
 #    `scontrol update starttime=now`), resumes and finishes; its model.bin must equal the model of
-#    an uninterrupted one-process run, byte for byte.
+#    an uninterrupted one-process run, byte for byte. A plain scancel of another: checkpointed,
+#    CANCELLED, not requeued.
 # 2. sweep.sbatch as a 2-task job array over --dims-per-round: both tasks finish.
 # 3. train_areas.sbatch as a job array over the areas of a tiny rendered world (lboost world
 #    --preset tiny, map, vocab, areas: 3 areas); one task is killed mid-training (SIGKILL to every
@@ -151,6 +152,24 @@ grep -q "resumed from" "$work/run/log.txt" || fail "the requeued job did not res
 cmp "$work/run/model.bin" "$work/reference/model.bin" || fail "the requeued job's model differs from the uninterrupted one"
 restarts=$(scontrol show job "$job" | grep -o 'Restarts=[0-9]*')
 echo "test_one_node: train job OK ($restarts, $(grep -o 'resumed from [^ ]*' "$work/run/log.txt" | head -n 1)), model identical"
+
+# 1b. A plain scancel (SIGTERM) of a running train job: the ranks checkpoint, the job stays
+# cancelled (not requeued).
+job=$(LMB_REPO=$here LBOOST=$lboost sbatch --parsable --ntasks=2 --output="$work/cancel-%j.out" \
+  "$here/jobs/slurm/train.sbatch" "${args[@]}" --out "$work/cancelled")
+wait_state "$job" RUNNING 120
+for _ in $(seq 300); do
+  [ -f "$work/cancelled/metrics.jsonl" ] && [ "$(wc -l < "$work/cancelled/metrics.jsonl")" -ge 10 ] && break
+  sleep 0.2
+done
+[ -f "$work/cancelled/metrics.jsonl" ] || fail "cancel: no training progress"
+scancel "$job"
+wait_state "$job" 'CANCELLED|COMPLETED|FAILED|PENDING|REQUEUED' 120
+sleep 5
+[ "$(state_of "$job")" = CANCELLED ] || fail "cancel: job $job is $(state_of "$job") after scancel, expected CANCELLED"
+compgen -G "$work/cancelled/checkpoints/ckpt-*.h5" > /dev/null || fail "cancel: no checkpoint after scancel"
+grep -q "not requeueing" "$work/cancel-$job.out" || fail "cancel: the job did not say it stays cancelled"
+echo "test_one_node: scancel OK (job $job CANCELLED with $(ls "$work/cancelled/checkpoints" | tail -n 1), not requeued)"
 
 # 2. A job array sweep over --dims-per-round.
 array=$(LMB_REPO=$here LBOOST=$lboost LMB_SWEEP_FLAG=--dims-per-round LMB_SWEEP_VALUES="100 200" \

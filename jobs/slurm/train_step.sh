@@ -6,17 +6,21 @@
 #   (a rank that dies ends the step at once). --signal=B:USR1@N signals only this batch shell: the
 #   trap forwards SIGUSR1 to srun, which passes it to every rank; the ranks agree, checkpoint and
 #   exit 75, and the job is requeued (it resumes from the newest checkpoint of its --out folder).
-#   On preemption or time limit Slurm sends SIGTERM to the ranks themselves, with the same result.
+#   SIGTERM (a plain `scancel`, or the end of the time limit after the USR1 warning) also makes the
+#   ranks checkpoint and exit 75, but the job is not requeued: a cancelled job stays cancelled, and
+#   resubmitting the same job resumes it. (Preemption with PreemptMode=REQUEUE is requeued by
+#   Slurm itself.)
 run_train_step() {
   local lboost=${LBOOST:-lboost}
   local requeue_code=75
   local step_pid=
+  local requeue=0 cancelled=0
   forward_stop() {
     echo "$(date +%T) train_step: $1 received, asking the ranks to checkpoint"
     [ -n "$step_pid" ] && kill -USR1 "$step_pid" 2> /dev/null
   }
-  trap 'forward_stop USR1' USR1
-  trap 'forward_stop TERM' TERM
+  trap 'requeue=1; forward_stop USR1' USR1
+  trap 'cancelled=1; forward_stop TERM' TERM
   echo "$(date +%T) train_step: job ${SLURM_JOB_ID:-?} restart ${SLURM_RESTART_COUNT:-0} on ${SLURM_NTASKS:-1} task(s): $lboost train $*"
   srun --mpi=pmix --kill-on-bad-exit=1 "$lboost" train "$@" &
   step_pid=$!
@@ -26,6 +30,10 @@ run_train_step() {
     status=0
     wait "$step_pid" || status=$?
   done
+  if [ "$status" -eq "$requeue_code" ] && [ "$cancelled" -eq 1 ] && [ "$requeue" -eq 0 ]; then
+    echo "$(date +%T) train_step: checkpointed; cancelled (SIGTERM), not requeueing job $SLURM_JOB_ID (resubmit it to resume)"
+    exit 0
+  fi
   if [ "$status" -eq "$requeue_code" ]; then
     # The requeued job reuses this step's id: let the step's slurmstepd finish (and remove its
     # PMIx socket) before requeueing, or the next launch of step 0 may fail.
