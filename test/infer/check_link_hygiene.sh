@@ -23,8 +23,12 @@ if [ -n "$bad" ]; then
   status=1
 fi
 
-deps=$(ldd "$lib") || { echo "FAIL: ldd failed on $lib"; exit 1; }
-echo "ldd $lib:"
+# LMB_LDD: the command that lists a library's dependencies (a cross build: the target's loader
+# under qemu, --list); default ldd.
+ldd_command=${LMB_LDD:-ldd}
+# shellcheck disable=SC2086  # the command is words
+deps=$($ldd_command "$lib") || { echo "FAIL: $ldd_command failed on $lib"; exit 1; }
+echo "$ldd_command $lib:"
 echo "$deps" | sed 's/^/  /'
 bad=$(echo "$deps" | grep -i -E "$forbidden")
 if [ -n "$bad" ]; then
