@@ -13,32 +13,20 @@ case "$arch" in
   *) echo "install_cross_deps: unsupported architecture '$arch' (supported: aarch64)" >&2; exit 2 ;;
 esac
 
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-
+source "$(dirname "$0")/apt_packages.sh"
 packages=(
   "crossbuild-essential-$deb_arch" qemu-user
   cmake ninja-build pkg-config libeigen3-dev libcereal-dev
   "libopengv-dev:$deb_arch" "libgtest-dev:$deb_arch"
 )
-
-missing=()
-for p in "${packages[@]}"; do
-  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
-    missing+=("$p")
-  fi
-done
+mapfile -t missing < <(missing_packages "${packages[@]}")
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install_cross_deps: all ${#packages[@]} packages for $deb_arch present"
   exit 0
 fi
-
 if ! dpkg --print-foreign-architectures | grep -qx "$deb_arch"; then
   echo "install_cross_deps: dpkg --add-architecture $deb_arch"
-  $SUDO dpkg --add-architecture "$deb_arch"
+  if [ "$(id -u)" -ne 0 ]; then sudo dpkg --add-architecture "$deb_arch"; else dpkg --add-architecture "$deb_arch"; fi
 fi
-echo "install_cross_deps: installing ${missing[*]}"
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+apt_install install_cross_deps "${missing[@]}"
 echo "install_cross_deps: done"
