@@ -53,8 +53,8 @@ std::vector<double> pose_numbers(const std::string& line) {
 
 TEST(CrossArch, LocalizationEqualsTheWritingBuildsTranscript) {
   const char* dir_env = std::getenv("LMB_CROSS_CASE");
-  const bool required = std::getenv("LMB_CROSS_CASE_REQUIRED") != nullptr &&
-                        std::string(std::getenv("LMB_CROSS_CASE_REQUIRED")) == "1";
+  const bool required =
+      std::getenv("LMB_CROSS_CASE_REQUIRED") != nullptr && std::string(std::getenv("LMB_CROSS_CASE_REQUIRED")) == "1";
   const std::filesystem::path dir = dir_env ? dir_env : "";
   if (dir_env == nullptr || !std::filesystem::exists(dir / "expected.txt")) {
     if (required) FAIL() << "LMB_CROSS_CASE=" << (dir_env ? dir_env : "") << " holds no case (expected.txt)";
@@ -68,8 +68,8 @@ TEST(CrossArch, LocalizationEqualsTheWritingBuildsTranscript) {
   for (const auto& [setting, options] : test::case_settings()) {
     const Localizer localizer(model, options);
     for (const test::CaseFrame& f : frames) {
-      actual += test::transcript(f.name, setting, localizer.localize(f.camera, f.keypoints, f.descriptors.data(),
-                                                                     f.gravity_in_cam));
+      actual += test::transcript(f.name, setting,
+                                 localizer.localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam));
     }
   }
   const std::string out_name = std::string("actual-") + kArchitecture + "-" + simd_level_name(simd_level()) + ".txt";
@@ -99,10 +99,11 @@ TEST(CrossArch, LocalizationEqualsTheWritingBuildsTranscript) {
     match_lines += want[i].rfind("match ", 0) == 0;
     successes += want[i].rfind("pose success 1", 0) == 0;
   }
-  std::printf("%s, SIMD level %s: %zu frames x %zu settings, %d matches identical; %d of %d poses found, %d of %d "
-              "pose lines bit-identical, largest difference %.3g\n",
-              kArchitecture, simd_level_name(simd_level()), frames.size(), test::case_settings().size(), match_lines,
-              successes, poses, identical_poses, poses, max_difference);
+  std::printf(
+      "%s, SIMD level %s: %zu frames x %zu settings, %d matches identical; %d of %d poses found, %d of %d "
+      "pose lines bit-identical, largest difference %.3g\n",
+      kArchitecture, simd_level_name(simd_level()), frames.size(), test::case_settings().size(), match_lines, successes,
+      poses, identical_poses, poses, max_difference);
   EXPECT_GT(match_lines, 100) << "the case should exercise the classifier";
   EXPECT_GT(successes, 0) << "the case should exercise the pose estimator";
 }

@@ -54,7 +54,8 @@ T get(std::istream& in, const std::string& path) {
 }
 }  // namespace detail_case
 
-inline void write_case_frames(const std::string& path, const std::vector<CaseFrame>& frames, uint32_t descriptor_bytes) {
+inline void write_case_frames(const std::string& path, const std::vector<CaseFrame>& frames,
+                              uint32_t descriptor_bytes) {
   using detail_case::put;
   std::ofstream out(path, std::ios::binary);
   LMB_CHECK(out.good(), path << ": cannot write");

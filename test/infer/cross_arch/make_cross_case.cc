@@ -34,8 +34,9 @@ int main(int argc, char** argv) {
       c.gravity_in_cam = f.gravity_in_cam;
       c.keypoints.assign(map.keypoints.begin() + f.first_keypoint,
                          map.keypoints.begin() + f.first_keypoint + f.num_keypoints);
-      c.descriptors.assign(map.descriptor(f.first_keypoint),
-                           map.descriptor(f.first_keypoint) + static_cast<int64_t>(f.num_keypoints) * map.descriptor_bytes);
+      c.descriptors.assign(
+          map.descriptor(f.first_keypoint),
+          map.descriptor(f.first_keypoint) + static_cast<int64_t>(f.num_keypoints) * map.descriptor_bytes);
       frames.push_back(std::move(c));
     }
     LMB_CHECK(!frames.empty(), argv[1] << ": no query frames");
@@ -54,7 +55,8 @@ int main(int argc, char** argv) {
       }
     }
     expected.close();
-    LMB_CHECK(expected.good(), out / "expected.txt" << ": write failed");
+    LMB_CHECK(expected.good(), out / "expected.txt"
+                                   << ": write failed");
     std::printf("lmb_cross_case: %zu query frames, %zu matches, %d poses -> %s\n", frames.size(), matches, poses,
                 out.c_str());
     return 0;
