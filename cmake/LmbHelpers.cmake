@@ -84,6 +84,16 @@ function(lmb_fp_exact target)
 endfunction()
 set(LMB_SIMD_FLAGS_avx2 -mavx2 -mpopcnt)
 set(LMB_SIMD_FLAGS_avx512 -mavx512f -mavx512bw -mavx512dq -mavx512vl -mavx2 -mpopcnt)
+# GCC's generic tuning splits every unaligned 256-bit load and store into two 128-bit halves. A
+# kernel that copies a 32-byte vector from memory (std::memcpy into a GCC vector type) then
+# stores the halves to the stack and reloads them as one 256-bit value: a store-forwarding stall
+# on every load (any_lane_passes ran ~10x slower than with whole loads; docs/inference.md). The
+# kernels' loads are whole vectors, as on every AVX2 CPU of the last ten years.
+if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  foreach(isa avx2 avx512)
+    list(APPEND LMB_SIMD_FLAGS_${isa} -mmove-max=256 -mstore-max=256)
+  endforeach()
+endif()
 
 # lmb_simd_sources(<out var> <path prefix> ISAS <avx2|avx512|neon>... [AVX512_FLAGS <flag>...])
 # Sets <out var> to <prefix>_generic.cc plus <prefix>_<isa>.cc for each ISA of this architecture,

@@ -18,19 +18,25 @@ struct Lanes512 {
   __m512d acc[4];
 };
 
+// Byte v of a stump's fire bits (lanes 8 v .. 8 v + 7; x86 is little-endian), read from memory
+// straight into a mask register. Shifting the uint32 instead lets GCC keep it in a mask register
+// and shift there (kshiftrd), a chain of dependent mask operations that made accumulate_two ~5%
+// slower than these independent loads.
+[[gnu::always_inline]] inline __mmask8 fire_byte(const uint32_t* fire, int32_t s, int32_t v) {
+  return reinterpret_cast<const uint8_t*>(fire + s)[v];
+}
+
 [[gnu::always_inline]] inline void add_stump(Lanes512& l, int32_t s, const DenseStump* dense, const uint32_t* fire) {
-  const uint32_t f = fire[s];
   const __m512d a = _mm512_set1_pd(dense[s].above), b = _mm512_set1_pd(dense[s].below);
   for (int32_t v = 0; v < 4; ++v) {
-    const __mmask8 bits = static_cast<__mmask8>(f >> (8 * v));
-    l.acc[v] = _mm512_add_pd(l.acc[v], _mm512_mask_blend_pd(bits, b, a));
+    l.acc[v] = _mm512_add_pd(l.acc[v], _mm512_mask_blend_pd(fire_byte(fire, s, v), b, a));
   }
 }
 
 [[gnu::always_inline]] inline __m512d add_group(__m512d acc, const GroupItem& item, int64_t e, const DenseStump* dense,
                                                 const uint32_t* fire) {
   const int32_t s = item.stumps[e];
-  const __mmask8 bits = static_cast<__mmask8>(fire[s] >> (8 * item.group));
+  const __mmask8 bits = fire_byte(fire, s, item.group);
   return _mm512_add_pd(acc, _mm512_mask_blend_pd(bits, _mm512_set1_pd(dense[s].below), _mm512_set1_pd(dense[s].above)));
 }
 
