@@ -211,7 +211,7 @@ TEST(PoseEstimator, SameSeedGivesBitIdenticalResults) {
   EXPECT_GE(differing, 6);
 }
 
-TEST(PoseEstimator, ConcurrentCallsMatchSerialOnes) {
+TEST(PoseEstimator, ConcurrentThreadsMatchSerialCalls) {
   const Camera camera = distorted_camera();
   constexpr int kThreads = 4, kScenes = 8;
   std::vector<Scene> scenes;
