@@ -243,14 +243,28 @@ void AreaBundle::release_except(const std::vector<int32_t>& keep) {
 BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
                                         const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                                         const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
-                                        const LocalizerOptions& options) {
+                                        const LocalizerOptions& options, AreaSearch search) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point start = Clock::now();
   options.check();
+  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
+            "localize_in_bundle: unknown area search " << static_cast<int32_t>(search));
   BundleLocalizeResult out;
-  const std::vector<int32_t> selected = bundle.select(prior);
+  std::vector<int32_t> selected = bundle.select(prior);
   out.selected = static_cast<int32_t>(selected.size());
   out.prior_used = prior != nullptr;
+  const bool nearest_first = prior != nullptr && search == AreaSearch::kNearestFirst;
+  if (nearest_first) {
+    const std::vector<BundleArea>& areas = bundle.areas();
+    std::stable_sort(selected.begin(), selected.end(), [&](int32_t a, int32_t b) {
+      return areas[a].distance(prior->position) < areas[b].distance(prior->position);
+    });
+  }
+  // The winner so far: the successful pose with the most inliers (ties: the smaller id).
+  const auto better = [&](int32_t id, int inliers) {
+    return out.area < 0 || inliers > out.result.pose.num_inliers ||
+           (inliers == out.result.pose.num_inliers && id < out.area);
+  };
   for (int32_t id : selected) {
     std::shared_ptr<const Model> model;
     const int64_t loads_before = bundle.loads();
@@ -267,7 +281,12 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
     const int inliers = r.pose.success ? r.pose.num_inliers : 0;
     out.scored.push_back(id);
     out.inliers.push_back(inliers);
-    if (r.pose.success && (out.area < 0 || inliers > out.result.pose.num_inliers)) {
+    if (nearest_first && r.calibrated && r.localized) {
+      out.area = id;
+      out.result = std::move(r);
+      break;
+    }
+    if (r.pose.success && better(id, inliers)) {
       out.area = id;
       out.result = std::move(r);
     }
@@ -280,6 +299,8 @@ void BundleLocalizerOptions::check() const {
   localizer.check();
   LMB_CHECK(std::isfinite(tracking_radius) && tracking_radius >= 0.0,
             "bundle localizer options: tracking_radius = " << tracking_radius << " must be finite and >= 0");
+  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
+            "bundle localizer options: unknown search " << static_cast<int32_t>(search));
 }
 
 BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options)
@@ -291,7 +312,8 @@ BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const Bundl
 BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
                                                const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
                                                const PositionPrior* prior) const {
-  return localize_in_bundle(*bundle_, camera, keypoints, descriptors, gravity_in_cam, prior, options_.localizer);
+  return localize_in_bundle(*bundle_, camera, keypoints, descriptors, gravity_in_cam, prior, options_.localizer,
+                            options_.search);
 }
 
 BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,

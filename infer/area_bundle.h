@@ -14,9 +14,11 @@
 // are comments.
 //
 // Localizing with a prior (position within `radius` metres): the areas whose cell lies within
-// radius + reach of the position are scored, each with its own model; without a prior, every area.
-// The pose with the most inliers wins (ties: the smaller area id): the areas compete, their matches
-// are not merged (docs/areas.md says why).
+// radius + reach of the position are candidates, each localized with its own model, nearest first;
+// the first whose calibrated confidence reaches its operating point wins and the others are not
+// scored (AreaSearch). When none does, or without a prior (every area, in id order), the
+// successful pose with the most inliers wins (ties: the smaller area id): the areas compete, their matches are not
+// merged (docs/areas.md says why).
 //
 // Memory: set_cache_limits() bounds the loaded areas (a count and/or their model bytes); when a
 // load would exceed a limit, the least recently used other areas are freed first.
@@ -132,16 +134,32 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
   double total_ms = 0.0;            // the whole call, steady clock (loads included)
 };
 
+// How the areas a prior selects compete.
+enum class AreaSearch : int32_t {
+  // The selected areas in the order of their cell's distance from the prior's position (the cell
+  // holding it first; ties: the smaller id); the first area whose model is calibrated and whose
+  // pose is localized (its confidence reaches the operating point) wins and the rest are not
+  // scored. An uncalibrated model's pose never stops the search (its inlier count alone is not
+  // trusted: wrong poses with dozens of inliers are common where areas cut a view). When no area
+  // stops it, every selected area has been scored and the rule of kAll decides. Without a
+  // prior: kAll.
+  kNearestFirst = 0,
+  // Every selected area is scored; the successful pose with the most inliers wins (ties: the
+  // smaller area id).
+  kAll = 1,
+};
+
 // Localizes a frame in the areas `prior` selects (every area when prior is null), each through
-// its own model with `options`; the successful pose with the most inliers wins (ties: the smaller
-// area id). Areas that fail to load are reported in `errors` and skipped. Arguments as
-// Localizer::localize.
-LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(
-    AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
-    const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior, const LocalizerOptions& options = {});
+// its own model with `options`, the winner chosen by `search`. Areas that fail to load are
+// reported in `errors` and skipped. Arguments as Localizer::localize.
+LMB_INFER_EXPORT BundleLocalizeResult
+localize_in_bundle(AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints,
+                   const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
+                   const LocalizerOptions& options = {}, AreaSearch search = AreaSearch::kNearestFirst);
 
 struct LMB_INFER_EXPORT BundleLocalizerOptions {
   LocalizerOptions localizer;
+  AreaSearch search = AreaSearch::kNearestFirst;  // with a prior (and in track()): see AreaSearch
   // track(): the prior is the last tracked camera centre within this many metres (how far the
   // camera may move between two tracked frames; the bundle's reach is added by the selection).
   double tracking_radius = 1.0;
@@ -159,7 +177,7 @@ class LMB_INFER_EXPORT BundleLocalizer {
   // Throws lmb::Error for a null bundle or invalid options.
   explicit BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options = {});
 
-  // The areas `prior` selects (every area when null) compete; see localize_in_bundle.
+  // The areas `prior` selects (every area when null) compete (options.search); see localize_in_bundle.
   BundleLocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
                                 const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
                                 const PositionPrior* prior) const;

@@ -185,8 +185,10 @@ LMB_INFER_EXPORT int lmb_bundle_num_loaded(const lmb_bundle* bundle);
 /* At most max_areas areas and max_bytes model bytes loaded (0 = no limit); applied at once. */
 LMB_INFER_EXPORT lmb_status lmb_bundle_set_cache(lmb_bundle* bundle, int max_areas, uint64_t max_bytes);
 
-/* Localizes one frame in the areas the prior selects (prior NULL: every area); the pose with the
- * most inliers wins. Arguments as lmb_localize; *out_area (may be NULL) receives the winning area
+/* Localizes one frame in the areas the prior selects, nearest first: the first area whose model is
+ * calibrated and whose pose reaches its operating point wins and the rest are not scored; when
+ * none does, and without a prior (every area), the pose with the most inliers wins
+ * (lmb::AreaSearch::kNearestFirst). Arguments as lmb_localize; *out_area (may be NULL) receives the winning area
  * (-1 without a pose). Areas that cannot be loaded are skipped; when every selected area fails,
  * the call returns LMB_ERROR_MODEL_FILE naming them. */
 LMB_INFER_EXPORT lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_camera* camera,

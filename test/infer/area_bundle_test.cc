@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -36,12 +37,14 @@ class AreaBundleTest : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   // Writes `model` as FILE in the bundle folder; the index entry with the given cell along x.
-  BundleArea add(const Model& model, int32_t id, double x_lo, double x_hi) {
+  // Saves `model` as area `id` of a bundle in `folder` (default: the test's folder).
+  BundleArea add(const Model& model, int32_t id, double x_lo, double x_hi, const fs::path& folder = {}) {
+    const fs::path dir = folder.empty() ? dir_ : folder;
     BundleArea a;
     a.id = id;
     a.file = "area-" + std::to_string(id) + ".lbm";
-    model.save(dir_ / a.file);
-    const std::string image = read_file(dir_ / a.file);
+    model.save(dir / a.file);
+    const std::string image = read_file(dir / a.file);
     a.bytes = image.size();
     a.crc32 = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
     a.landmarks = model.num_classes();
@@ -271,6 +274,90 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   const BundleLocalizeResult far_only =
       localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
   EXPECT_EQ(far_only.scored, std::vector<int32_t>{0});
+}
+
+// A calibration whose probability is sigmoid(bias) for every pose with an inlier: bias +8 accepts
+// every pose at the threshold 0.5, bias -8 none.
+PoseCalibration constant_calibration(double bias) {
+  PoseCalibration c;
+  c.bias = bias;
+  c.threshold = 0.5;
+  return c;
+}
+
+TEST_F(AreaBundleTest, NearestFirstStopsAtTheFirstCalibratedLocalizedArea) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  std::vector<Eigen::Vector3d> far_positions = test::make_test_world(101, 60, 140, 99).positions;
+  for (auto& p : far_positions) p += Eigen::Vector3d(50, 0, 0);
+  const test::TestFrame& f = world.frame;
+  // Area 0: the far model, cell x >= 25; area 1: the frame's own model, cell x < 25. Each as an
+  // uncalibrated model, one whose calibration accepts every pose and one that accepts none.
+  const auto model = [](ModelData d, std::optional<double> bias) {
+    if (bias) d.calibration = constant_calibration(*bias);
+    return std::make_shared<const Model>(std::move(d));
+  };
+  const ModelData own_data = test::make_code_model_data(world.positions);
+  const ModelData far_data = test::make_code_model_data(far_positions, 7);
+  const auto localize = [&](const std::shared_ptr<const Model>& m) {
+    return Localizer(m).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  };
+  const LocalizeResult own = localize(model(own_data, std::nullopt));
+  const LocalizeResult far = localize(model(far_data, std::nullopt));
+  ASSERT_TRUE(own.pose.success);
+  const int far_inliers = far.pose.success ? far.pose.num_inliers : 0;
+  // Under kAll, the most inliers win (ties: the smaller id).
+  const int32_t all_winner = far.pose.success && far_inliers >= own.pose.num_inliers ? 0 : 1;
+  int case_id = 0;
+  // (Each case writes its own area files: a bundle reads an area on first use.)
+  const auto run_with = [&](std::optional<double> own_bias, std::optional<double> far_bias, const Eigen::Vector3d* at,
+                            AreaSearch search) {
+    const fs::path folder = dir_ / ("case-" + std::to_string(case_id++));
+    fs::create_directories(folder);
+    write_bundle_index(folder / "bundle.txt", 1.0,
+                       {add(*model(far_data, far_bias), 0, 25.0, kInf, folder),
+                        add(*model(own_data, own_bias), 1, -kInf, 25.0, folder)});
+    const auto two = AreaBundle::open(folder / "bundle.txt");
+    PositionPrior prior;
+    if (at != nullptr) prior.position = *at;
+    prior.radius = 30.0;  // both areas selected
+    return localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
+                              at != nullptr ? &prior : nullptr, {}, search);
+  };
+  const auto run = [&](std::optional<double> own_bias, std::optional<double> far_bias, const Eigen::Vector3d& at,
+                       AreaSearch search) { return run_with(own_bias, far_bias, &at, search); };
+  const Eigen::Vector3d in_own(0, 0, 0), in_far(30, 0, 0);
+  // The prior in the own area's cell, its calibration accepting: it is scored first and wins; the
+  // far area is not scored.
+  const BundleLocalizeResult near = run(8.0, 8.0, in_own, AreaSearch::kNearestFirst);
+  EXPECT_EQ(near.selected, 2);
+  EXPECT_EQ(near.scored, std::vector<int32_t>{1});
+  EXPECT_EQ(near.area, 1);
+  EXPECT_EQ(near.result.pose.num_inliers, own.pose.num_inliers);
+  EXPECT_EQ(near.result.pose.cam_from_world.translation, own.pose.cam_from_world.translation);
+  // kAll scores both, in id order.
+  const BundleLocalizeResult all = run(8.0, 8.0, in_own, AreaSearch::kAll);
+  EXPECT_EQ(all.scored, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(all.inliers, (std::vector<int32_t>{far_inliers, own.pose.num_inliers}));
+  EXPECT_EQ(all.area, all_winner);
+  // The prior in the far cell: the far area first. Its calibration rejecting: the own area is
+  // scored too and kAll's rule decides; accepting (with a pose): the far area wins alone.
+  const BundleLocalizeResult far_rejects = run(8.0, -8.0, in_far, AreaSearch::kNearestFirst);
+  EXPECT_EQ(far_rejects.scored, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(far_rejects.area, all_winner);
+  const BundleLocalizeResult far_accepts = run(8.0, 8.0, in_far, AreaSearch::kNearestFirst);
+  const std::vector<int32_t> want = far.pose.success ? std::vector<int32_t>{0} : std::vector<int32_t>{0, 1};
+  EXPECT_EQ(far_accepts.scored, want);
+  EXPECT_EQ(far_accepts.area, far.pose.success ? 0 : 1);
+  // Uncalibrated models never stop the search (a pose's inlier count alone is not trusted): every
+  // selected area is scored, nearest first, and kAll's rule decides.
+  const BundleLocalizeResult uncalibrated = run(std::nullopt, std::nullopt, in_own, AreaSearch::kNearestFirst);
+  EXPECT_EQ(uncalibrated.scored, (std::vector<int32_t>{1, 0}));
+  EXPECT_EQ(uncalibrated.area, all_winner);
+  // Without a prior: kAll's search whatever the option.
+  const BundleLocalizeResult none = run_with(8.0, 8.0, nullptr, AreaSearch::kNearestFirst);
+  EXPECT_EQ(none.scored, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(none.area, all_winner);
+  EXPECT_THROW(run(8.0, 8.0, in_own, static_cast<AreaSearch>(7)), Error);
 }
 
 TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne) {

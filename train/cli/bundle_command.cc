@@ -90,6 +90,10 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
                   "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
                   "radius METRES (repeatable)");
   cmd->add_flag("--no-prior", options->no_prior, "--bundle: localize in every area, without a prior");
+  cmd->add_flag_function(
+      "--all-areas", [options](int64_t) { options->search = AreaSearch::kAll; },
+      "--bundle: with a prior, score every selected area and keep the pose with most inliers (default: nearest "
+      "area first, the first localized pose wins)");
   cmd->add_option("--prior-seed", options->prior_seed, "--bundle: seed of the prior's direction")
       ->capture_default_str();
   cmd->add_option("--cache-areas", options->cache.max_areas,

@@ -155,7 +155,7 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
       prior.radius = mode.noise;
     }
     BundleLocalizeResult r = localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                                                mode.has_prior ? &prior : nullptr, lo);
+                                                mode.has_prior ? &prior : nullptr, lo, c.options.search);
     o.success = r.area >= 0;
     o.pose = r.result.pose.cam_from_world;
     o.inliers = r.result.pose.num_inliers;
@@ -274,6 +274,7 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["seeds"] = options.seeds;
   report["first_seed"] = options.localizer.pose.seed;
   report["prior_seed"] = options.prior_seed;
+  report["area_search"] = options.search == AreaSearch::kAll ? "all" : "nearest_first";
   report["reach_m"] = bundle->reach();
   report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
                           {"rotation_deg", options.thresholds.max_rotation_error_deg}};

@@ -21,17 +21,18 @@
 namespace lmb {
 
 struct BundleEvalOptions {
-  std::string bundle;               // bundle.txt
-  std::string map;                  // map.h5 with the query frames
-  std::string model;                // optional: the single model, localized on the same frames
-  std::vector<double> prior_noise;  // one mode per value (metres, >= 0)
-  bool no_prior = false;            // a mode scoring every area
-  uint64_t prior_seed = 1;          // the prior's direction draw
-  LocalizerOptions localizer;       // pose.seed is the first RANSAC seed
-  int seeds = 5;                    // RANSAC seeds: localizer.pose.seed + 0 .. seeds - 1
-  PoseThresholds thresholds;        // a frame is correct within these
-  BundleCacheLimits cache;          // areas kept loaded (0 = no limit)
-  bool memory_per_area = true;      // load each area once alone first, measuring its resident memory
+  std::string bundle;                             // bundle.txt
+  std::string map;                                // map.h5 with the query frames
+  std::string model;                              // optional: the single model, localized on the same frames
+  std::vector<double> prior_noise;                // one mode per value (metres, >= 0)
+  bool no_prior = false;                          // a mode scoring every area
+  AreaSearch search = AreaSearch::kNearestFirst;  // how the areas a prior selects compete
+  uint64_t prior_seed = 1;                        // the prior's direction draw
+  LocalizerOptions localizer;                     // pose.seed is the first RANSAC seed
+  int seeds = 5;                                  // RANSAC seeds: localizer.pose.seed + 0 .. seeds - 1
+  PoseThresholds thresholds;                      // a frame is correct within these
+  BundleCacheLimits cache;                        // areas kept loaded (0 = no limit)
+  bool memory_per_area = true;                    // load each area once alone first, measuring its resident memory
   // Throws lmb::Error naming the flag.
   void check() const;
 };
