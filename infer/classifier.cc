@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "common/error.h"
+#include "infer/detail/scoring_index.h"
 
 namespace lmb {
 
@@ -32,7 +33,7 @@ Classifier::Classifier(std::shared_ptr<const Model> model, const ClassifierOptio
       context_(checked(model_).regions(), checked(model_).num_words()),
       kernels_(&detail::scoring_kernels()) {
   options_.check();
-  const size_t U = model_->used_dims().size();
+  const size_t U = model_->scoring().used_dims().size();
   values_.assign(U * kBatch, 0);
   word_values_.resize(U);
   class_out_.resize(2 * kBatch);
@@ -53,18 +54,19 @@ void Classifier::use_simd_level(SimdLevel level) {
 void Classifier::index_frame(const FrameKeypoints& frame, const std::string& where) { context_.reset(frame, where); }
 
 void Classifier::compute_used_values(int32_t k, const uint8_t* descriptor, uint8_t* values) const {
-  context_.compute_dims(k, model_->used_plan(), descriptor, values);
+  context_.compute_dims(k, model_->scoring().used_plan(), descriptor, values);
 }
 
 void Classifier::dense_scores(const uint8_t* values, double* scores) const {
   const Model& m = *model_;
+  const detail::ScoringIndex& idx = m.scoring();
   const std::vector<double>& bias = m.data().bias;
   std::copy(bias.begin(), bias.end(), scores);
-  const std::vector<Model::DenseStump>& stumps = m.dense_stumps();
-  const int64_t* begin = m.stump_class_begin().data();
-  const int32_t* classes = m.stump_classes().data();
+  const std::vector<detail::DenseStump>& stumps = idx.dense_stumps();
+  const int64_t* begin = idx.stump_class_begin().data();
+  const int32_t* classes = idx.stump_classes().data();
   for (size_t s = 0; s < stumps.size(); ++s) {
-    const Model::DenseStump& st = stumps[s];
+    const detail::DenseStump& st = stumps[s];
     const double h = values[st.used] > st.theta ? st.above : st.below;
     for (int64_t e = begin[s]; e < begin[s + 1]; ++e) scores[classes[e]] += h;
   }
@@ -72,10 +74,11 @@ void Classifier::dense_scores(const uint8_t* values, double* scores) const {
 
 double Classifier::class_score(const uint8_t* values, int32_t cls) const {
   const Model& m = *model_;
+  const detail::ScoringIndex& idx = m.scoring();
   double total = m.data().bias[cls];
-  const Model::DenseStump* st = m.class_stumps().data();
-  const int64_t end = m.class_stump_begin()[cls + 1];
-  for (int64_t e = m.class_stump_begin()[cls]; e < end; ++e) {
+  const detail::DenseStump* st = idx.class_stumps().data();
+  const int64_t end = idx.class_stump_begin()[cls + 1];
+  for (int64_t e = idx.class_stump_begin()[cls]; e < end; ++e) {
     total += values[st[e].used] > st[e].theta ? st[e].above : st[e].below;
   }
   return total;
@@ -84,27 +87,28 @@ double Classifier::class_score(const uint8_t* values, int32_t cls) const {
 namespace detail {
 
 ScreenList screen_list(const Model& model, int32_t cls) {
+  const ScoringIndex& idx = model.scoring();
   ScreenList v;
-  v.q = model.screen_q().data();
-  v.list = model.screen_list().data() + model.class_stump_begin()[cls];
-  v.count = model.class_stump_begin()[cls + 1] - model.class_stump_begin()[cls];
-  v.check_low = model.screen_check_low().data() + model.screen_check_begin()[cls];
-  v.check_add = model.screen_check_add().data() + model.screen_check_begin()[cls];
-  v.end_low = model.screen_low()[cls];
-  v.units = model.screen_units()[cls];
+  v.q = idx.screen_q().data();
+  v.list = idx.screen_list().data() + idx.class_stump_begin()[cls];
+  v.count = idx.class_stump_begin()[cls + 1] - idx.class_stump_begin()[cls];
+  v.check_low = idx.screen_check_low().data() + idx.screen_check_begin()[cls];
+  v.check_add = idx.screen_check_add().data() + idx.screen_check_begin()[cls];
+  v.end_low = idx.screen_low()[cls];
+  v.units = idx.screen_units()[cls];
   return v;
 }
 
 void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal) {
-  const double step = model.screen_step();
-  const double safe = step * double{Model::kScreenUnitsLimit / 4};  // 2^27 steps
+  const double step = model.scoring().screen_step();
+  const double safe = step * double{ScoringIndex::kScreenUnitsLimit / 4};  // 2^27 steps
   const double inf = std::numeric_limits<double>::infinity();
   const bool margin_safe = min_margin == -inf || std::fabs(min_margin) <= safe;
   const bool score_safe = min_score == -inf || std::fabs(min_score) <= safe;
   for (int32_t j = 0; j < Classifier::kBatch; ++j) {
     const double target = std::max(min_margin == -inf ? -inf : background[j] + min_margin, min_score);
     const bool usable = margin_safe && score_safe && std::fabs(background[j]) <= safe && target != -inf;
-    goal[j] = usable ? static_cast<int32_t>(std::floor(target / step)) : Model::kScreenPassAll;
+    goal[j] = usable ? static_cast<int32_t>(std::floor(target / step)) : ScoringIndex::kScreenPassAll;
   }
 }
 
@@ -134,17 +138,18 @@ void Classifier::offer(int32_t j, int32_t cls, double score, double bg) {
 
 void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) {
   const Model& m = *model_;
+  const detail::ScoringIndex& idx = m.scoring();
   // Fire masks of every stump (stale value rows of lanes >= count, or of dims the word does not
   // need, give bits no scored class reads).
-  const std::vector<Model::DenseStump>& stumps = m.dense_stumps();
+  const std::vector<detail::DenseStump>& stumps = idx.dense_stumps();
   const size_t M = stumps.size();
   if (fire_.size() < (b + 1) * M) fire_.resize((b + 1) * M);
   if (background_.size() < static_cast<size_t>(b + 1) * kBatch) background_.resize(static_cast<size_t>(b + 1) * kBatch);
   uint32_t* fire = fire_.data() + b * M;
   kernels_->fire_masks(stumps.data(), M, values, stride, fire);
-  const int64_t* begin = m.class_stump_begin().data();
+  const int64_t* begin = idx.class_stump_begin().data();
   const int32_t C = m.num_classes();
-  kernels_->accumulate_lanes(m.data().bias[C], m.class_stump_index().data() + begin[C], begin[C + 1] - begin[C],
+  kernels_->accumulate_lanes(m.data().bias[C], idx.class_stump_index().data() + begin[C], begin[C + 1] - begin[C],
                              stumps.data(), fire, background_.data() + static_cast<size_t>(b) * kBatch);
   if (goal_.size() < background_.size()) goal_.resize(background_.size());
   const double* background = background_.data() + static_cast<size_t>(b) * kBatch;
@@ -153,7 +158,7 @@ void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) 
   if (m.has_fusion()) {
     // A fused score is H plus a term of at most fusion_max(): the bound of H need only reach the
     // goals lowered by that much (one screening step more covers the roundings of the sums).
-    const double lift = m.fusion_max() + m.screen_step();
+    const double lift = idx.fusion_max() + idx.screen_step();
     for (int32_t j = 0; j < kBatch; ++j) lowered[j] = background[j] - lift;
     if (min_score != -std::numeric_limits<double>::infinity()) min_score -= lift;
     background = lowered;
@@ -167,7 +172,8 @@ constexpr int32_t kScreenProbe = 64;
 
 void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints) {
   const Model& m = *model_;
-  const size_t M = m.dense_stumps().size();
+  const detail::ScoringIndex& idx = m.scoring();
+  const size_t M = idx.dense_stumps().size();
   if (kept_.size() < static_cast<size_t>(batches)) kept_.resize(static_cast<size_t>(batches));
   for (int32_t b = 0; b < batches; ++b) kept_[b].clear();
   if (!options_.screening) {
@@ -209,12 +215,13 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
 
 void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   const Model& m = *model_;
-  const std::vector<Model::DenseStump>& stumps = m.dense_stumps();
+  const detail::ScoringIndex& idx = m.scoring();
+  const std::vector<detail::DenseStump>& stumps = idx.dense_stumps();
   const uint32_t* fire = fire_.data() + b * stumps.size();
   const double* background = background_.data() + static_cast<size_t>(b) * kBatch;
   const std::vector<double>& bias = m.data().bias;
-  const int64_t* begin = m.class_stump_begin().data();
-  const int32_t* index = m.class_stump_index().data();
+  const int64_t* begin = idx.class_stump_begin().data();
+  const int32_t* index = idx.class_stump_index().data();
   for (int32_t j = 0; j < count; ++j) {
     lanes_[j].clear();
     cutoff_[j] = {-std::numeric_limits<double>::infinity(), std::numeric_limits<int32_t>::max()};
@@ -259,7 +266,7 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   }
   kernels_->accumulate_groups(groups_.data(), static_cast<int32_t>(groups_.size()), stumps.data(), fire);
   const bool fusion = m.has_fusion();
-  const double fusion_max = m.fusion_max();
+  const double fusion_max = idx.fusion_max();
   for (int32_t i = 0; i < num; ++i) {
     const int32_t c = kept[i].cls;
     double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
@@ -275,7 +282,7 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
       for (int32_t j = 0; j < count; ++j) {
         const double s = lifted[j];
         if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
-          out[j] += m.fusion_term(c, descriptors_ + static_cast<int64_t>(ids[j]) * m.descriptor_bytes());
+          out[j] += detail::fusion_term(m, c, descriptors_ + static_cast<int64_t>(ids[j]) * m.descriptor_bytes());
         } else {
           out[j] = -std::numeric_limits<double>::infinity();
         }
@@ -312,6 +319,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
                                      double* embedding_ms) {
   using Clock = std::chrono::steady_clock;
   const Model& m = *model_;
+  const detail::ScoringIndex& idx = m.scoring();
   const int32_t n = frame.size();
   LMB_CHECK(n == 0 || descriptors != nullptr, where << ": null descriptors for " << n << " keypoints");
   Clock::duration embedding{0};
@@ -331,7 +339,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
     for (int32_t k = 0; k < n; ++k) order_[fill[inverted ? frame.word[k] : 0]++] = k;
   }
 
-  const size_t U = m.used_dims().size();
+  const size_t U = idx.used_dims().size();
   const int32_t bytes = m.descriptor_bytes();
   descriptors_ = descriptors;
   pending_.clear();
@@ -341,7 +349,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   // contiguous (frame_stride keeps kBatch readable bytes past the last keypoint).
   int64_t planned = 0;
   for (int32_t g = 0; g < groups; ++g) {
-    const int64_t dims = inverted ? m.word_plan(g).size() : static_cast<int64_t>(U);
+    const int64_t dims = inverted ? idx.word_plan(g).size() : static_cast<int64_t>(U);
     planned += dims * (word_begin_[g + 1] - word_begin_[g]);
   }
   const bool columns = 4 * planned >= 3 * static_cast<int64_t>(U) * n;
@@ -349,15 +357,15 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   if (columns) {
     if (embedding_ms) t0 = Clock::now();
     if (frame_values_.size() < U * frame_stride) frame_values_.resize(U * frame_stride);
-    context_.compute_dims_columns(m.used_plan(), order_.data(), n, descriptors, frame_values_.data(), frame_stride);
+    context_.compute_dims_columns(idx.used_plan(), order_.data(), n, descriptors, frame_values_.data(), frame_stride);
     if (embedding_ms) embedding += Clock::now() - t0;
   }
   for (int32_t g = 0; g < groups; ++g) {
     const int32_t* classes = all_classes_.data();
     int32_t num = m.num_classes();
     if (inverted) {
-      classes = m.word_classes().data() + m.word_class_begin()[g];
-      num = m.word_class_begin()[g + 1] - m.word_class_begin()[g];
+      classes = idx.word_classes().data() + idx.word_class_begin()[g];
+      num = idx.word_class_begin()[g + 1] - idx.word_class_begin()[g];
     }
     // The group's batches: values, fire masks and background scores of each, then the screening
     // of every candidate class over all of them, then each batch's exact scores and ranking.
@@ -378,9 +386,9 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
         const int32_t k = order_[b + j];
         const uint8_t* desc = descriptors + static_cast<int64_t>(k) * bytes;
         uint8_t* lane = values_.data() + j;  // dim-major: value of used dim u at lane[u * kBatch]
-        context_.compute_dims(k, m.word_plan(g), desc, word_values_.data());
-        const int32_t u0 = m.word_used_begin()[g], u1 = m.word_used_begin()[g + 1];
-        const int32_t* used = m.word_used().data() + u0;
+        context_.compute_dims(k, idx.word_plan(g), desc, word_values_.data());
+        const int32_t u0 = idx.word_used_begin()[g], u1 = idx.word_used_begin()[g + 1];
+        const int32_t* used = idx.word_used().data() + u0;
         for (int32_t i = 0; i < u1 - u0; ++i) lane[used[i] * kBatch] = word_values_[i];
       }
       if (embedding_ms) embedding += Clock::now() - t0;

@@ -1,4 +1,5 @@
-// Landmark classification of a frame's keypoints with an inference Model.
+// Landmark classification of a frame's keypoints with an inference Model (internal: not installed;
+// apps classify through the Localizer, infer/localizer.h).
 //
 // Per keypoint: the feature values of the model's used dims (common/context_embedding.h), then
 // the class scores
@@ -10,7 +11,7 @@
 // keypoints would be (always in dense mode; in the trained `paper` model every word needs every
 // used dim), every used dim of every keypoint at once, region by region
 // (FrameContext::compute_dims_columns: about twice as fast on the paper model); else keypoint by keypoint,
-// only its word's dims (FrameContext::compute_dims with Model::word_plan).
+// only its word's dims (FrameContext::compute_dims with ScoringIndex::word_plan).
 // classify() works on batches of kBatch keypoints of the same word: which stumps fire in which
 // lane is tabulated once for the batch (one 32-bit mask a stump: the table stays in L1). Each
 // candidate class is first screened (below), for two batches of the word at a time; a class kept
@@ -23,18 +24,19 @@
 //
 // Screening (on by default, ClassifierOptions::screening): each candidate class gets an upper
 // bound of its score in every lane from one 16-bit masked addition a stump (32 lanes in one
-// AVX-512 register; Model::screen_step), its stumps taken by decreasing step, with a bound on the
-// rest at every Model::kScreenCheck stumps; a class whose bound fails the ranking tests below in
-// every lane (most classes: their scores lie well below the background's) is skipped there. The
-// bound is rigorous (model.cc), so the matches are exactly those of the unscreened path. When a
-// word's first classes are nearly all kept (a background that rarely wins), the rest of the word
-// is scored without screening.
+// AVX-512 register; ScoringIndex::screen_step, infer/detail/scoring_index.h), its stumps taken by
+// decreasing step, with a bound on the rest at every ScoringIndex::kScreenCheck stumps; a class
+// whose bound fails the ranking tests below in every lane (most classes: their scores lie well
+// below the background's) is skipped there. The bound is rigorous (scoring_index.cc), so the
+// matches are exactly those of the unscreened path. When a word's first classes are nearly all
+// kept (a background that rarely wins), the rest of the word is scored without screening.
 //
 // Descriptor-distance fusion (a model with Model::has_fusion()): a landmark class's score is its
-// stump sum plus Model::fusion_term of the keypoint's descriptor (Hamming distance to the class's
-// exemplars), added once after the exact sum; the screening bounds and the ranking tests take
-// fusion_max() in its place first, so the distances are computed only where a class could pass.
-// dense_scores() and class_score() stay the stump sums (add Model::fusion_term for the fused one).
+// stump sum plus detail::fusion_term of the keypoint's descriptor (Hamming distance to the
+// class's exemplars), added once after the exact sum; the screening bounds and the ranking tests
+// take ScoringIndex::fusion_max() in its place first, so the distances are computed only where a
+// class could pass. dense_scores() and class_score() stay the stump sums (add detail::fusion_term
+// for the fused one).
 //
 // Ranking and rejection: the landmark classes (never the background) whose score exceeds the
 // background's score by more than min_margin and is at least min_score, best first (ties: smaller
@@ -51,49 +53,13 @@
 
 #include "common/context_embedding.h"
 #include "common/types.h"
+#include "infer/classifier_options.h"
+#include "infer/detail/scoring_index.h"
 #include "infer/export.h"
 #include "infer/model.h"
 #include "infer/simd/scoring_kernels.h"
 
 namespace lmb {
-
-struct LMB_INFER_EXPORT ClassifierOptions {
-  int top_k = 1;                   // matches kept per keypoint, >= 1
-  bool use_inverted_file = false;  // score only the keypoint word's candidate classes
-  // A landmark class is a match only when its score exceeds the background's by more than this.
-  // 0 = "better than the background"; negative values keep classes a little below the background
-  // (recall for RANSAC); -inf = no background rejection.
-  double min_margin = 0.0;
-  // ... and is at least this (-inf = no bound).
-  double min_score = -std::numeric_limits<double>::infinity();
-  // Screening: a class is scored exactly only when the upper bound of its score from 16-bit sums
-  // (Model::screen_step) could pass the tests above in some lane of the batch. The matches are
-  // the same either way (the bound is never below the exact score); false = score every class
-  // exactly (tests, benchmarks).
-  bool screening = true;
-
-  // Throws lmb::Error naming the field.
-  void check() const;
-};
-
-// One ranked candidate of a keypoint.
-struct ClassMatch {
-  int32_t cls = -1;                          // landmark class, 0..C-1
-  landmark_t landmark = kInvalidLandmarkId;  // its map landmark id
-  double score = 0.0;                        // its class score
-  double background_score = 0.0;             // the keypoint's background score
-};
-
-// The ranked matches of n keypoints in CSR form: keypoint k's matches, best first, are
-// matches[begin[k] .. begin[k + 1]).
-struct KeypointMatches {
-  std::vector<int32_t> begin;  // n + 1 entries
-  std::vector<ClassMatch> matches;
-
-  int32_t num_keypoints() const { return begin.empty() ? 0 : static_cast<int32_t>(begin.size()) - 1; }
-  int32_t count(int32_t k) const { return begin[k + 1] - begin[k]; }
-  const ClassMatch* of(int32_t k) const { return matches.data() + begin[k]; }
-};
 
 class LMB_INFER_EXPORT Classifier {
  public:
@@ -113,7 +79,7 @@ class LMB_INFER_EXPORT Classifier {
 
   // Lower-level steps (tests, benchmarks), valid after index_frame(frame):
   void index_frame(const FrameKeypoints& frame, const std::string& where = "frame");
-  // Values of all used dims of keypoint k (model.used_dims().size() entries).
+  // Values of all used dims of keypoint k (model.scoring().used_dims().size() entries).
   void compute_used_values(int32_t k, const uint8_t* descriptor, uint8_t* values) const;
   // Dense scores of all C + 1 classes from the used values (the stump sums, without the fusion
   // term). scores: C + 1 entries.
@@ -180,10 +146,11 @@ class LMB_INFER_EXPORT Classifier {
 };
 
 namespace detail {
-// Class cls's screening data (Model::screen_step and the screen_* accessors) for the kernels.
+// Class cls's screening data (ScoringIndex::screen_step and the screen_* accessors) for the
+// kernels.
 ScreenList screen_list(const Model& model, int32_t cls);
 // The screening goals of kBatch lanes from their background scores and offer()'s min_margin and
-// min_score (see Model::kScreenCheck): a lane whose tests could pass never gets a goal its
+// min_score (see ScoringIndex::kScreenCheck): a lane whose tests could pass never gets a goal its
 // integer bound fails.
 void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal);
 }  // namespace detail

@@ -7,6 +7,7 @@
 
 #include "common/context_embedding.h"
 #include "common/error.h"
+#include "infer/classifier.h"
 
 namespace lmb {
 

@@ -37,7 +37,7 @@
 
 #include "common/camera.h"
 #include "common/types.h"
-#include "infer/classifier.h"
+#include "infer/classifier_options.h"
 #include "infer/export.h"
 #include "infer/model.h"
 #include "infer/pose_confidence.h"

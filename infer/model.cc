@@ -10,7 +10,8 @@
 #include "common/bounded_reader.h"
 #include "common/error.h"
 #include "common/file_container.h"
-#include "common/hamming.h"
+#include "infer/detail/model_format.h"
+#include "infer/detail/scoring_index.h"
 
 namespace lmb {
 
@@ -87,7 +88,7 @@ void ModelData::check(const std::string& where) const {
             where << ": vocabulary has " << vocabulary.descriptor_bytes() << "-byte words, descriptors have "
                   << descriptor_bytes << " bytes");
   regions.validate(where + ": regions");
-  const EmbeddingLayout l = layout();
+  const EmbeddingLayout l = detail::layout_of(*this);
   l.check();
   LMB_CHECK(num_classes >= 1, where << ": num_classes = " << num_classes << " must be >= 1");
   const size_t C = static_cast<size_t>(num_classes);
@@ -286,202 +287,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
 
 Model::Model(ModelData data) : data_(std::move(data)) {
   data_.check("model");
-  layout_ = data_.layout();
-  const int32_t C = data_.num_classes;
-  const size_t M = data_.stumps.size();
-
-  for (const SharedStump& s : data_.stumps) used_dims_.push_back(s.dim);
-  std::sort(used_dims_.begin(), used_dims_.end());
-  used_dims_.erase(std::unique(used_dims_.begin(), used_dims_.end()), used_dims_.end());
-
-  dense_stumps_.resize(M);
-  stump_class_begin_.assign(M + 1, 0);
-  std::vector<int64_t> class_count(static_cast<size_t>(C) + 1, 0);
-  for (size_t m = 0; m < M; ++m) {
-    const SharedStump& s = data_.stumps[m];
-    DenseStump& d = dense_stumps_[m];
-    d.used = static_cast<int32_t>(std::lower_bound(used_dims_.begin(), used_dims_.end(), s.dim) - used_dims_.begin());
-    d.theta = s.theta;
-    d.above = s.a + s.b;  // BoostModel: (fires ? a : 0.0) + b, the same double
-    d.below = s.b;
-    stump_class_begin_[m + 1] = stump_class_begin_[m] + static_cast<int64_t>(s.classes.size());
-    stump_classes_.insert(stump_classes_.end(), s.classes.begin(), s.classes.end());
-    for (int32_t c : s.classes) ++class_count[c];
-  }
-
-  class_stump_begin_.assign(static_cast<size_t>(C) + 2, 0);
-  for (int32_t c = 0; c <= C; ++c) class_stump_begin_[c + 1] = class_stump_begin_[c] + class_count[c];
-  class_stumps_.resize(static_cast<size_t>(class_stump_begin_[C + 1]));
-  class_stump_index_.resize(class_stumps_.size());
-  std::vector<int64_t> fill(class_stump_begin_.begin(), class_stump_begin_.end() - 1);
-  for (size_t m = 0; m < M; ++m) {
-    for (int32_t c : data_.stumps[m].classes) {
-      class_stump_index_[fill[c]] = static_cast<int32_t>(m);
-      class_stumps_[fill[c]++] = dense_stumps_[m];
-    }
-  }
-
-  const int32_t W = data_.vocabulary.num_words();
-  word_class_begin_.assign(static_cast<size_t>(W) + 1, 0);
-  word_used_begin_.assign(static_cast<size_t>(W) + 1, 0);
-  std::vector<uint8_t> mark(used_dims_.size());
-  for (int32_t w = 0; w < W; ++w) {
-    const std::vector<int32_t>& list = data_.inverted_file[w];
-    word_classes_.insert(word_classes_.end(), list.begin(), list.end());
-    word_class_begin_[w + 1] = static_cast<int32_t>(word_classes_.size());
-    std::fill(mark.begin(), mark.end(), 0);
-    auto mark_class = [&](int32_t c) {
-      for (int64_t e = class_stump_begin_[c]; e < class_stump_begin_[c + 1]; ++e) {
-        mark[class_stumps_[e].used] = 1;
-      }
-    };
-    for (int32_t c : list) mark_class(c);
-    mark_class(C);  // the background is always scored
-    for (size_t u = 0; u < mark.size(); ++u) {
-      if (mark[u]) {
-        word_used_.push_back(static_cast<int32_t>(u));
-        word_used_dims_.push_back(used_dims_[u]);
-      }
-    }
-    word_used_begin_[w + 1] = static_cast<int32_t>(word_used_.size());
-    word_plans_.emplace_back(
-        data_.regions, layout_,
-        std::vector<int32_t>(word_used_dims_.begin() + word_used_begin_[w], word_used_dims_.end()));
-  }
-  used_plan_ = DimPlan(data_.regions, layout_, used_dims_);
-  if (data_.fusion.enabled()) {
-    fusion_max_ = *std::max_element(data_.fusion.distance_score.begin(), data_.fusion.distance_score.end());
-  }
-  build_screen();
-}
-
-double Model::fusion_term(int32_t cls, const uint8_t* descriptor) const {
-  if (!data_.fusion.enabled()) return 0.0;
-  const DescriptorFusion& f = data_.fusion;
-  const int32_t bytes = data_.descriptor_bytes;
-  const int64_t first = f.exemplar_begin[cls];
-  const int d = hamming_min(descriptor, f.exemplars.data() + first * bytes, f.exemplar_begin[cls + 1] - first, bytes);
-  return f.distance_score[d];
-}
-
-// Why offset_c + step * x bounds the exact score F of class c from above, x = t at the end, or
-// t_k + add_ck at checkpoint k (u = 2^-53, n = the class's stumps, h_i = above_i or below_i its
-// outputs in training order):
-//   F is the chain F_0 = bias, F_i = fl(F_{i-1} + h_i); every |F_i| <= G (1 + u)^n with
-//   G = |bias| + sum (|above_i| + |below_i|), so F <= S + 2 n u G, S the exact real sum.
-//   S = bias + sum below_i + sum fires_i (step q_i + r_i), r_i = above_i - below_i - step q_i
-//     <= bias + sum below_i + sum max(0, r_i) + step Q, and Q = low + t; at checkpoint k,
-//   Q <= Q_k + (the positive q of the remaining stumps) = low + t_k + add_ck.
-//   offset_c is bias + sum below_i + sum max(0, r_i) + step low computed in doubles (n + 3 terms,
-//   each within 3u of its real value relative to its magnitude) plus a slack; the run-time sum
-//   offset + step x (x < 2^17, step x exact) rounds once more. Every error is at most
-//   (4 n + 16) u H with H = G + sum (|below_i| + 2 step |q_i| + max(0, r_i)) + step 2^17 +
-//   |offset terms| (`magnitude`), so the slack 2 (8 n + 32) u H covers them with room (H is a sum
-//   of non-negative doubles, within (n + 8) u of exact).
-void Model::build_screen() {
-  const int32_t C = data_.num_classes;
-  const size_t M = dense_stumps_.size();
-  std::vector<double> step_of(M);
-  double max_class_sum = 0.0;
-  for (size_t m = 0; m < M; ++m) step_of[m] = std::fabs(dense_stumps_[m].above - dense_stumps_[m].below);
-  for (int32_t c = 0; c < C; ++c) {
-    double sum = 0.0;
-    for (int64_t e = class_stump_begin_[c]; e < class_stump_begin_[c + 1]; ++e) {
-      sum += step_of[class_stump_index_[e]];
-    }
-    max_class_sum = std::max(max_class_sum, sum);
-  }
-  // The smallest power of two with every |q_m| <= 32767 and every class's sum of |q| <= 65535
-  // (all q = 0 when the steps overflow: then every bound is +inf and nothing is skipped).
-  int exponent = -1000;
-  if (max_class_sum > 0.0) exponent = std::max(exponent, std::ilogb(max_class_sum / 65000.0));
-  std::vector<int64_t> q(M, 0);
-  for (; std::isfinite(max_class_sum) && exponent <= 1023; ++exponent) {
-    const double step = std::ldexp(1.0, exponent);
-    bool fits = true;
-    for (size_t m = 0; m < M && fits; ++m) {
-      // Only stumps of some landmark class are screened (the background is always scored exactly).
-      const std::vector<int32_t>& members = data_.stumps[m].classes;
-      const double r =
-          members.front() < C ? std::nearbyint((dense_stumps_[m].above - dense_stumps_[m].below) / step) : 0.0;
-      fits = std::fabs(r) <= 32767.0;
-      q[m] = fits ? static_cast<int64_t>(r) : 0;
-    }
-    for (int32_t c = 0; c < C && fits; ++c) {
-      int64_t sum = 0;
-      for (int64_t e = class_stump_begin_[c]; e < class_stump_begin_[c + 1]; ++e) {
-        sum += std::abs(q[class_stump_index_[e]]);
-      }
-      fits = sum <= 65535;
-    }
-    if (fits) break;
-  }
-  const bool usable = std::isfinite(max_class_sum) && exponent <= 1023 && M <= 65536;
-  if (!usable) std::fill(q.begin(), q.end(), 0);
-  screen_step_ = usable ? std::ldexp(1.0, exponent) : 1.0;
-  screen_q_.assign(q.begin(), q.end());
-  screen_offset_.resize(static_cast<size_t>(C));
-  screen_units_.resize(static_cast<size_t>(C));
-  screen_low_.resize(static_cast<size_t>(C));
-  // The screening lists: every class's stumps by decreasing |q| (ties: training order), filled
-  // from one global order of the stumps.
-  std::vector<int32_t> by_step(M);
-  for (size_t m = 0; m < M; ++m) by_step[m] = static_cast<int32_t>(m);
-  std::stable_sort(by_step.begin(), by_step.end(),
-                   [&](int32_t x, int32_t y) { return std::abs(q[x]) > std::abs(q[y]); });
-  std::vector<int32_t> list_of(class_stump_index_.size());
-  {
-    std::vector<int64_t> fill(class_stump_begin_.begin(), class_stump_begin_.end() - 1);
-    for (int32_t m : by_step) {
-      for (int32_t c : data_.stumps[m].classes) list_of[fill[c]++] = m;
-    }
-  }
-  screen_list_.resize(list_of.size());
-  for (size_t e = 0; e < list_of.size(); ++e) screen_list_[e] = usable ? static_cast<uint16_t>(list_of[e]) : 0;
-  screen_check_begin_.assign(static_cast<size_t>(C) + 1, 0);
-  const double u = std::ldexp(1.0, -53);
-  for (int32_t c = 0; c < C; ++c) {
-    const int64_t first = class_stump_begin_[c], n = class_stump_begin_[c + 1] - first;
-    const double bias = data_.bias[c];
-    // The run-time multiple of step is below 2 * 65536 (t_k < 2^16, add_ck <= sum of |q| <= 65535).
-    double constant = bias, magnitude = std::fabs(bias) + screen_step_ * 131072.0;
-    int64_t low = 0, high = 0;
-    for (int64_t e = first; e < first + n; ++e) {
-      const int32_t m = class_stump_index_[e];
-      const DenseStump& st = dense_stumps_[m];
-      const double stepped = screen_step_ * static_cast<double>(q[m]);
-      const double rest = std::max(0.0, st.above - st.below - stepped);
-      constant += st.below + rest;
-      magnitude += std::fabs(st.above) + 2.0 * std::fabs(st.below) + 2.0 * std::fabs(stepped) + rest;
-      low += std::min<int64_t>(0, q[m]);
-      high += std::max<int64_t>(0, q[m]);
-    }
-    // The checkpoints of the screening list: prefix sums of the negative q, suffix sums of the
-    // positive ones.
-    const int32_t* list = list_of.data() + first;
-    int64_t prefix_low = 0, suffix_high = high;
-    for (int64_t k = 1; k * kScreenCheck < n; ++k) {
-      for (int64_t i = (k - 1) * kScreenCheck; i < k * kScreenCheck; ++i) {
-        prefix_low += std::min<int64_t>(0, q[list[i]]);
-        suffix_high -= std::max<int64_t>(0, q[list[i]]);
-      }
-      screen_check_low_.push_back(static_cast<uint16_t>(prefix_low & 0xFFFF));
-      screen_check_add_.push_back(static_cast<int32_t>(prefix_low - low + suffix_high));
-    }
-    screen_check_begin_[c + 1] = static_cast<int64_t>(screen_check_low_.size());
-    const double stepped_low = screen_step_ * static_cast<double>(low);
-    constant += stepped_low;
-    magnitude += std::fabs(constant) + std::fabs(stepped_low);
-    const double slack = 2.0 * static_cast<double>(8 * n + 32) * u * magnitude;
-    // A non-finite bound (overflow) is +inf: the class is always scored exactly.
-    const double bound = constant + slack;
-    screen_offset_[c] = usable && std::isfinite(bound) ? bound : std::numeric_limits<double>::infinity();
-    screen_low_[c] = static_cast<uint16_t>(low & 0xFFFF);
-    // offset_c in steps, rounded up and clamped (see screen_units() in model.h; +inf and every
-    // offset above the clamp give the largest value, whose test always passes).
-    const double units = std::ceil(screen_offset_[c] / screen_step_);
-    screen_units_[c] = static_cast<int32_t>(std::clamp(units, -double{kScreenUnitsLimit}, double{kScreenUnitsLimit}));
-  }
+  scoring_ = std::make_shared<const detail::ScoringIndex>(data_);
 }
 
 std::shared_ptr<const Model> Model::load(const std::filesystem::path& path) {

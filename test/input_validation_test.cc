@@ -27,6 +27,8 @@
 #include "common/io/gravity_file.h"
 #include "common/io/map_h5.h"
 #include "common/vocabulary.h"
+#include "infer/detail/model_format.h"
+#include "infer/detail/scoring_index.h"
 #include "infer/model.h"
 #include "test/common/io/test_maps.h"
 #include "test/infer/test_models.h"
@@ -270,7 +272,7 @@ std::vector<Row> rows() {
                }),
                "DIR/model.lbm: stump 2: non-finite a or b"});
   r.push_back({"model.lbm", "stump on a dimension past the layout", model_with([] {
-                 const int32_t num_dims = good_model_data().layout().num_dims();
+                 const int32_t num_dims = detail::layout_of(good_model_data()).num_dims();
                  return patched_model_file([](ModelData& d) { d.stumps[0].a = kMark; }, 2.0, num_dims);
                }),
                "DIR/model.lbm: stump 0: dim 76 outside [0, 76)"});

@@ -13,10 +13,11 @@ namespace lmb::detail {
 
 // Keypoints scored together, one lane each: a stump's fire bits of a batch are one uint32.
 constexpr int32_t kScoringBatch = 32;
-// Screening checkpoints: after every this many entries of a class's screening list (model.h).
+// Screening checkpoints: after every this many entries of a class's screening list
+// (infer/detail/scoring_index.h).
 constexpr int32_t kScreenCheck = 32;
 
-// One stump of the inference model as the kernels read it (Model::dense_stumps()).
+// One stump of the inference model as the kernels read it (ScoringIndex::dense_stumps()).
 struct DenseStump {
   int32_t used = 0;    // index into the model's used dims
   uint8_t theta = 0;   // fires when the value is > theta
@@ -33,10 +34,10 @@ struct GroupItem {
   double* out;    // 8 sums
 };
 
-// One class's screening data (Model::screen_step and the screen_* arrays, model.h): its
-// screening list (uint16 stump indices) with the stumps' 16-bit steps q, and per checkpoint the
-// residue base low_ck and the added steps add_ck; at the end of the list low_c (end_low); the
-// class's units_c.
+// One class's screening data (ScoringIndex::screen_step and the screen_* arrays,
+// infer/detail/scoring_index.h): its screening list (uint16 stump indices) with the stumps' 16-bit
+// steps q, and per checkpoint the residue base low_ck and the added steps add_ck; at the end of the
+// list low_c (end_low); the class's units_c.
 struct ScreenList {
   const int16_t* q = nullptr;      // per stump of the model
   const uint16_t* list = nullptr;  // count entries

@@ -14,6 +14,7 @@
 #include "common/error.h"
 #include "common/hamming.h"
 #include "common/random.h"
+#include "infer/detail/scoring_index.h"
 #include "test/infer/test_models.h"
 
 namespace lmb {
@@ -33,11 +34,11 @@ ModelData random_model_data(int32_t C, int32_t M, uint64_t seed) {
     d.class_position.emplace_back(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(2, 5));
   }
   for (int32_t c = 0; c <= C; ++c) d.bias.push_back(rng.uniform(-1, 1));
-  const int32_t num_dims = d.layout().num_dims();
+  const int32_t num_dims = detail::layout_of(d).num_dims();
   for (int32_t m = 0; m < M; ++m) {
     SharedStump s;
     s.dim = static_cast<int32_t>(rng.below(static_cast<uint64_t>(num_dims)));
-    s.theta = d.layout().is_context(s.dim) ? static_cast<uint8_t>(rng.below(255)) : 0;
+    s.theta = detail::layout_of(d).is_context(s.dim) ? static_cast<uint8_t>(rng.below(255)) : 0;
     s.a = rng.uniform(-1, 1);
     s.b = rng.uniform(-0.5, 0.5);
     for (int32_t c = 0; c <= C; ++c) {
@@ -57,7 +58,7 @@ ModelData random_model_data(int32_t C, int32_t M, uint64_t seed) {
 
 // Reference: the dense feature vector of keypoint k (brute-force context + descriptor bits).
 std::vector<uint8_t> reference_vector(const Model& m, const FrameKeypoints& frame, int32_t k, const uint8_t* desc) {
-  const EmbeddingLayout l = m.layout();
+  const EmbeddingLayout l = m.scoring().layout();
   std::vector<uint8_t> v(static_cast<size_t>(l.num_dims()));
   embed_context_brute_force(m.regions(), l.num_words, frame, k, v.data());
   for (int32_t b = 0; b < 8 * l.descriptor_bytes; ++b)
@@ -138,7 +139,7 @@ TEST(ClassifierTest, ValuesAndScoresEqualTheReference) {
   const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
   Classifier classifier(model);
   classifier.index_frame(frame);
-  std::vector<uint8_t> values(model->used_dims().size());
+  std::vector<uint8_t> values(model->scoring().used_dims().size());
   std::vector<double> scores(static_cast<size_t>(d.num_classes) + 1);
   int nonzero_context = 0;
   for (int32_t k = 0; k < frame.size(); ++k) {
@@ -146,8 +147,9 @@ TEST(ClassifierTest, ValuesAndScoresEqualTheReference) {
     const std::vector<uint8_t> v = reference_vector(*model, frame, k, desc);
     classifier.compute_used_values(k, desc, values.data());
     for (size_t u = 0; u < values.size(); ++u) {
-      ASSERT_EQ(values[u], v[model->used_dims()[u]]) << "keypoint " << k << " dim " << model->used_dims()[u];
-      if (model->layout().is_context(model->used_dims()[u]) && values[u] > 0) ++nonzero_context;
+      ASSERT_EQ(values[u], v[model->scoring().used_dims()[u]])
+          << "keypoint " << k << " dim " << model->scoring().used_dims()[u];
+      if (model->scoring().layout().is_context(model->scoring().used_dims()[u]) && values[u] > 0) ++nonzero_context;
     }
     classifier.dense_scores(values.data(), scores.data());
     for (int32_t c = 0; c <= d.num_classes; ++c) {
@@ -260,8 +262,8 @@ TEST(ClassifierTest, SmallWordPlansTakeThePerKeypointPathAndEqualTheReference) {
   const FrameKeypoints frame = frame_of(world.frame, model->vocabulary(), &words);
   // classify()'s rule: the frame's columns only when the words' dims are >= 3/4 of all used dims.
   int64_t planned = 0;
-  for (uint8_t w : words) planned += model->word_plan(w).size();
-  const int64_t all = static_cast<int64_t>(model->used_dims().size()) * frame.size();
+  for (uint8_t w : words) planned += model->scoring().word_plan(w).size();
+  const int64_t all = static_cast<int64_t>(model->scoring().used_dims().size()) * frame.size();
   ASSERT_LT(4 * planned, 3 * all) << "the words' plans should be small";
   for (int top_k : {1, 4}) {
     for (double margin : {-std::numeric_limits<double>::infinity(), 0.0}) {
@@ -322,13 +324,13 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
     }
     const Model model(std::move(data));
     if (scale == 2) {
-      EXPECT_LT(model.screen_step(), 1e-2);
+      EXPECT_LT(model.scoring().screen_step(), 1e-2);
     }
     if (scale == 3) {
-      ASSERT_LE(model.screen_step(), 1.0 / 64);
+      ASSERT_LE(model.scoring().screen_step(), 1.0 / 64);
     }
-    ASSERT_GT(model.screen_check_low().size(), 0u) << "scale " << scale << ": no checkpoints";
-    const size_t M = model.dense_stumps().size();
+    ASSERT_GT(model.scoring().screen_check_low().size(), 0u) << "scale " << scale << ": no checkpoints";
+    const size_t M = model.scoring().dense_stumps().size();
     std::vector<uint32_t> fire0(M), fire1(M);
     const double inf = std::numeric_limits<double>::infinity();
     int dropped = 0, trials = 0;
@@ -339,11 +341,11 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
       const uint64_t valid2 = valid[0] | static_cast<uint64_t>(valid[1]) << 32;
       const uint32_t* fire[2] = {fire0.data(), fire1.data()};
       for (int32_t c = 0; c < model.num_classes(); ++c) {
-        const int32_t* list = model.class_stump_index().data() + model.class_stump_begin()[c];
-        const int64_t n = model.class_stump_begin()[c + 1] - model.class_stump_begin()[c];
+        const int32_t* list = model.scoring().class_stump_index().data() + model.scoring().class_stump_begin()[c];
+        const int64_t n = model.scoring().class_stump_begin()[c + 1] - model.scoring().class_stump_begin()[c];
         std::vector<double> below(2 * B), above(2 * B), exact(2 * B);
         for (int32_t b = 0; b < 2; ++b) {
-          generic.accumulate_lanes(model.data().bias[c], list, n, model.dense_stumps().data(), fire[b],
+          generic.accumulate_lanes(model.data().bias[c], list, n, model.scoring().dense_stumps().data(), fire[b],
                                    exact.data() + b * B);
         }
         for (int32_t j = 0; j < 2 * B; ++j) {
@@ -444,11 +446,12 @@ TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
     const auto model = std::make_shared<const Model>(std::move(data));
     ASSERT_TRUE(model->has_fusion());
     const ModelData& d = model->data();
-    EXPECT_EQ(model->fusion_max(), *std::max_element(d.fusion.distance_score.begin(), d.fusion.distance_score.end()));
+    EXPECT_EQ(model->scoring().fusion_max(),
+              *std::max_element(d.fusion.distance_score.begin(), d.fusion.distance_score.end()));
     for (size_t k = 0; k < world.frame.keypoints.size(); ++k) {
       const uint8_t* desc = world.frame.descriptors.data() + k * d.descriptor_bytes;
       for (int32_t c = 0; c < d.num_classes; c += 7) {
-        ASSERT_EQ(model->fusion_term(c, desc), reference_fusion(d, desc, c));
+        ASSERT_EQ(detail::fusion_term(*model, c, desc), reference_fusion(d, desc, c));
       }
     }
     std::vector<uint8_t> words;
@@ -476,7 +479,8 @@ TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
           }
           for (int32_t k = 0; k < a.num_keypoints(); ++k) {
             if (a.count(k) == 0) continue;
-            near += model->fusion_term(a.of(k)[0].cls, world.frame.descriptors.data() + k * d.descriptor_bytes) > 1.0;
+            near += detail::fusion_term(*model, a.of(k)[0].cls,
+                                        world.frame.descriptors.data() + k * d.descriptor_bytes) > 1.0;
           }
           if (margin == 0.0 && shift > 0) {  // the lifted bounds still skip classes
             EXPECT_LT(screened.classes_scored(), screened.classes_screened()) << "top_k " << top_k;
@@ -537,19 +541,19 @@ TEST(ClassifierTest, InvertedFileComputesOnlyTheWordsDims) {
     std::vector<int32_t> expected;
     std::vector<int32_t> classes = model.data().inverted_file[w];
     classes.push_back(model.background_class());
-    for (size_t u = 0; u < model.used_dims().size(); ++u) {
+    for (size_t u = 0; u < model.scoring().used_dims().size(); ++u) {
       bool needed = false;
       for (int32_t c : classes) {
-        for (int64_t e = model.class_stump_begin()[c]; e < model.class_stump_begin()[c + 1]; ++e) {
-          needed |= model.class_stumps()[e].used == static_cast<int32_t>(u);
+        for (int64_t e = model.scoring().class_stump_begin()[c]; e < model.scoring().class_stump_begin()[c + 1]; ++e) {
+          needed |= model.scoring().class_stumps()[e].used == static_cast<int32_t>(u);
         }
       }
       if (needed) expected.push_back(static_cast<int32_t>(u));
     }
-    const std::vector<int32_t> got(model.word_used().begin() + model.word_used_begin()[w],
-                                   model.word_used().begin() + model.word_used_begin()[w + 1]);
+    const std::vector<int32_t> got(model.scoring().word_used().begin() + model.scoring().word_used_begin()[w],
+                                   model.scoring().word_used().begin() + model.scoring().word_used_begin()[w + 1]);
     EXPECT_EQ(got, expected) << "word " << w;
-    EXPECT_LE(got.size(), model.used_dims().size());
+    EXPECT_LE(got.size(), model.scoring().used_dims().size());
   }
 }
 

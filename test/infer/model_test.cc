@@ -1,5 +1,7 @@
 // model.lbm: round trip, and rejection of damaged files with bounded memory.
 #include "infer/model.h"
+#include "infer/detail/model_format.h"
+#include "infer/detail/scoring_index.h"
 
 #include <atomic>
 #include <cstdlib>
@@ -116,7 +118,7 @@ TEST(ModelTest, FusionRoundTripAndFileVersions) {
   const ModelData d = code_model_with_fusion(6);
   const Model m(d);
   EXPECT_TRUE(m.has_fusion());
-  EXPECT_EQ(m.fusion_max(), 2.0);
+  EXPECT_EQ(m.scoring().fusion_max(), 2.0);
   const std::vector<uint8_t> bytes = m.to_bytes();
   EXPECT_EQ(bytes[8], kModelVersionWithFusion);  // version 2: the fusion follows the inverted file
   const auto back = Model::from_bytes(bytes.data(), bytes.size());
@@ -143,8 +145,8 @@ TEST(ModelTest, FusionRoundTripAndFileVersions) {
   }
   // The term: the table at the nearest exemplar's distance.
   const uint8_t* e = d.fusion.exemplars.data() + d.fusion.exemplar_begin[4] * d.descriptor_bytes;
-  EXPECT_EQ(m.fusion_term(4, e), 2.0);
-  EXPECT_EQ(Model(plain).fusion_term(4, e), 0.0);
+  EXPECT_EQ(detail::fusion_term(m, 4, e), 2.0);
+  EXPECT_EQ(detail::fusion_term(Model(plain), 4, e), 0.0);
 }
 
 PoseCalibration some_calibration() {
@@ -299,7 +301,7 @@ TEST(ModelTest, IndicesMatchTheStumps) {
   for (const SharedStump& s : d.stumps) dims.push_back(s.dim);
   std::sort(dims.begin(), dims.end());
   dims.erase(std::unique(dims.begin(), dims.end()), dims.end());
-  EXPECT_EQ(m.used_dims(), dims);
+  EXPECT_EQ(m.scoring().used_dims(), dims);
   // Per-class lists hold each class's stumps in training order.
   for (int32_t c = 0; c <= d.num_classes; ++c) {
     std::vector<int32_t> expected;
@@ -307,8 +309,8 @@ TEST(ModelTest, IndicesMatchTheStumps) {
       if (std::binary_search(s.classes.begin(), s.classes.end(), c)) expected.push_back(s.dim);
     }
     std::vector<int32_t> got;
-    for (int64_t e = m.class_stump_begin()[c]; e < m.class_stump_begin()[c + 1]; ++e) {
-      got.push_back(m.used_dims()[m.class_stumps()[e].used]);
+    for (int64_t e = m.scoring().class_stump_begin()[c]; e < m.scoring().class_stump_begin()[c + 1]; ++e) {
+      got.push_back(m.scoring().used_dims()[m.scoring().class_stumps()[e].used]);
     }
     EXPECT_EQ(got, expected) << "class " << c;
   }
@@ -420,7 +422,7 @@ TEST(ModelTest, CheckRejectsInconsistentData) {
   }
   {
     ModelData x = d;
-    x.stumps[0].dim = x.layout().num_dims();
+    x.stumps[0].dim = detail::layout_of(x).num_dims();
     EXPECT_THROW(Model{x}, Error);
   }
   {

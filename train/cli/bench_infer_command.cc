@@ -32,6 +32,7 @@
 #include "common/random.h"
 #include "common/simd/simd_level.h"
 #include "infer/classifier.h"
+#include "infer/detail/scoring_index.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
@@ -313,7 +314,7 @@ Unbatched time_unbatched(const std::shared_ptr<const Model>& model, const BenchF
       frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n, f.gravity_in_cam, "bench");
   Classifier c(model);
   c.index_frame(fk);
-  std::vector<uint8_t> values(model->used_dims().size());
+  std::vector<uint8_t> values(model->scoring().used_dims().size());
   std::vector<double> scores(static_cast<size_t>(model->num_classes()) + 1);
   double sink = 0;
   for (int k = 0; k < n; ++k) {
@@ -324,8 +325,8 @@ Unbatched time_unbatched(const std::shared_ptr<const Model>& model, const BenchF
     u.dense_ms += ms_since(t);
     t = Clock::now();
     const int32_t w = fk.word[k];
-    for (int32_t i = model->word_class_begin()[w]; i < model->word_class_begin()[w + 1]; ++i) {
-      sink += c.class_score(values.data(), model->word_classes()[i]);
+    for (int32_t i = model->scoring().word_class_begin()[w]; i < model->scoring().word_class_begin()[w + 1]; ++i) {
+      sink += c.class_score(values.data(), model->scoring().word_classes()[i]);
     }
     sink += c.class_score(values.data(), model->background_class());
     u.inverted_ms += ms_since(t);
@@ -357,8 +358,8 @@ void print_bench(const BenchInferArgs& a, const Model& m, const BenchFigures& b)
       "bench infer: %s model: %d classes, %zu stumps, %lld sharing entries, %zu used dims, %lld inverted-file "
       "entries (built/loaded in %.0f ms)\n",
       a.synthetic_paper ? "synthetic" : "trained", m.num_classes(), m.data().stumps.size(),
-      static_cast<long long>(m.stump_classes().size()), m.used_dims().size(),
-      static_cast<long long>(m.word_classes().size()), b.load_ms);
+      static_cast<long long>(m.scoring().stump_classes().size()), m.scoring().used_dims().size(),
+      static_cast<long long>(m.scoring().word_classes().size()), b.load_ms);
   std::printf("  machine: %s; SIMD level %s (LMB_SIMD caps it)\n", machine_info().summary().c_str(),
               simd_level_name(simd_level()));
   std::printf(
@@ -404,9 +405,9 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
           {"simd_level", simd_level_name(simd_level())},
           {"classes", m.num_classes()},
           {"stumps", m.data().stumps.size()},
-          {"sharing_entries", m.stump_classes().size()},
-          {"used_dims", m.used_dims().size()},
-          {"inverted_file_entries", m.word_classes().size()},
+          {"sharing_entries", m.scoring().stump_classes().size()},
+          {"used_dims", m.scoring().used_dims().size()},
+          {"inverted_file_entries", m.scoring().word_classes().size()},
           {"frames", b.frames},
           {"repeats", a.repeats},
           {"keypoints_per_frame", static_cast<double>(b.e.keypoints_total) / nr},

@@ -21,6 +21,7 @@
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/landmark_map.h"
+#include "infer/detail/scoring_index.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
@@ -280,7 +281,7 @@ void run_localize(const LocalizeArgs& a) {
   const Localizer localizer(model, a.options);
   const std::vector<frame_t> frames = select_frames(map, a.queries);
   spdlog::info("localize: {} frames, model {} classes, {} stumps, {} used dims, {} scoring, {} thread(s)",
-               frames.size(), model->num_classes(), model->data().stumps.size(), model->used_dims().size(),
+               frames.size(), model->num_classes(), model->data().stumps.size(), model->scoring().used_dims().size(),
                a.options.classifier.use_inverted_file ? "inverted-file" : "dense", a.threads);
   const std::vector<FrameOutcome> outcomes = localize_all(localizer, map, is_class, frames, a.threads);
 

@@ -9,6 +9,7 @@
 #include "common/hamming.h"
 #include "common/random.h"
 #include "infer/classifier.h"
+#include "infer/detail/scoring_index.h"
 #include "train/features/build_features.h"
 
 namespace lmb {
@@ -236,10 +237,10 @@ HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const T
   const std::shared_ptr<const Model> view(&model, [](const Model*) {});
   Classifier classifier(view);
   constexpr int32_t kBatch = Classifier::kBatch;
-  const size_t U = model.used_dims().size();
-  const std::vector<Model::DenseStump>& stumps = model.dense_stumps();
-  const int64_t* begin = model.class_stump_begin().data();
-  const int32_t* index = model.class_stump_index().data();
+  const size_t U = model.scoring().used_dims().size();
+  const std::vector<detail::DenseStump>& stumps = model.scoring().dense_stumps();
+  const int64_t* begin = model.scoring().class_stump_begin().data();
+  const int32_t* index = model.scoring().class_stump_index().data();
   const std::vector<double>& bias = model.data().bias;
   std::vector<uint8_t> values(U * kBatch, 0), one(U);
   std::vector<uint32_t> fire(stumps.size());

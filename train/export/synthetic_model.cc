@@ -5,6 +5,7 @@
 
 #include "common/error.h"
 #include "common/random.h"
+#include "infer/detail/scoring_index.h"
 
 namespace lmb {
 
@@ -49,7 +50,7 @@ ModelData make_synthetic_model(const SyntheticModelOptions& o, SyntheticModelSta
   }
   for (int32_t c = 0; c <= C; ++c) d.bias.push_back(rng.normal());
 
-  const EmbeddingLayout layout = d.layout();
+  const EmbeddingLayout layout = detail::layout_of(d);
   std::vector<int32_t> all(static_cast<size_t>(C));
   for (int32_t c = 0; c < C; ++c) all[c] = c;
   SyntheticModelStats st;

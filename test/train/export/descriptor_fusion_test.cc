@@ -3,6 +3,7 @@
 // weight equals a brute-force reference (dense stump sums of every class + the table at the
 // nearest other exemplar, ranked with the classifier's tie rule).
 #include "train/export/descriptor_fusion.h"
+#include "infer/detail/scoring_index.h"
 
 #include <algorithm>
 #include <limits>
@@ -121,7 +122,7 @@ TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
   Classifier classifier(t.model);
   const std::vector<uint8_t> words = keypoint_words(t.map, t.model->vocabulary());
   const std::vector<frame_t> frame_of = keypoint_frames(t.map);
-  std::vector<uint8_t> values(t.model->used_dims().size());
+  std::vector<uint8_t> values(t.model->scoring().used_dims().size());
   std::vector<double> scores(static_cast<size_t>(C) + 1);
   std::vector<std::vector<double>> h;
   std::vector<std::vector<int>> dist;

@@ -2,6 +2,7 @@
 // lists the classes of each word, and (with the tiny world) a query frame is localized within
 // 5 cm / 1 deg.
 #include "train/export/model_export.h"
+#include "infer/detail/scoring_index.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -90,7 +91,7 @@ TEST(ModelExportTest, ExportedScoresEqualTheTrainersScores) {
   ClassifierOptions inverted_options;
   inverted_options.use_inverted_file = true;
   Classifier dense(loaded, dense_options), inverted(loaded, inverted_options);
-  std::vector<uint8_t> row(static_cast<size_t>(D)), values(loaded->used_dims().size());
+  std::vector<uint8_t> row(static_cast<size_t>(D)), values(loaded->scoring().used_dims().size());
   std::vector<double> trainer(static_cast<size_t>(C) + 1), ours(static_cast<size_t>(C) + 1);
   const std::vector<uint8_t> words = keypoint_words(t.map, t.vocabulary);
   int64_t compared = 0;

@@ -2,6 +2,8 @@
 // valid, deterministic, sharing sets shrinking over the rounds, an inverted file covering every
 // class; and a smoke run of the benchmark command at a small scale.
 #include "train/export/synthetic_model.h"
+#include "infer/detail/model_format.h"
+#include "infer/detail/scoring_index.h"
 
 #include <unistd.h>
 
@@ -28,11 +30,11 @@ TEST(SyntheticModelTest, HasThePaperShape) {
   EXPECT_EQ(d.stumps.size(), 2000u);
   EXPECT_EQ(d.regions.size(), 1000);
   EXPECT_EQ(d.vocabulary.num_words(), 16);
-  EXPECT_EQ(d.layout().num_dims(), 1000 * 16 + 512);
+  EXPECT_EQ(detail::layout_of(d).num_dims(), 1000 * 16 + 512);
   int context = 0;
   int64_t first = 0, last = 0;
   for (size_t m = 0; m < d.stumps.size(); ++m) {
-    context += d.layout().is_context(d.stumps[m].dim);
+    context += detail::layout_of(d).is_context(d.stumps[m].dim);
     if (m < 100) first += static_cast<int64_t>(d.stumps[m].classes.size());
     if (m >= d.stumps.size() - 100) last += static_cast<int64_t>(d.stumps[m].classes.size());
   }
