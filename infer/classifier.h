@@ -55,13 +55,12 @@
 #include "common/types.h"
 #include "infer/classifier_options.h"
 #include "infer/detail/scoring_index.h"
-#include "infer/export.h"
 #include "infer/model.h"
 #include "infer/simd/scoring_kernels.h"
 
 namespace lmb {
 
-class LMB_INFER_EXPORT Classifier {
+class Classifier {
  public:
   // Keypoints scored together (one SIMD lane each).
   static constexpr int32_t kBatch = detail::kScoringBatch;

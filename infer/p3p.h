@@ -1,6 +1,7 @@
 // The minimal solver of the absolute pose (the first of the pose tiers: minimal solver ->
 // ransac<Estimator> (infer/ransac.h) -> estimate_absolute_pose (infer/pose_estimator.h)):
-// Kneip's P3P, through OpenGV, from three bearing vectors and their world points.
+// Kneip's P3P, through OpenGV, from three bearing vectors and their world points. Internal: not
+// installed, not exported from liblmb_infer.so (estimate_absolute_pose is the public way in).
 //
 // Conventions: bearings are unit vectors in the camera frame (x right, y down, z forward); points
 // are in the world frame; the solutions are cam_from_world (x_cam = R x_world + t), OpenGV's
@@ -10,8 +11,6 @@
 #include <vector>
 
 #include <Eigen/Core>
-
-#include "infer/export.h"
 
 namespace lmb {
 
@@ -29,7 +28,6 @@ struct CameraPose {
 // gives the real parts of complex roots, and a point may land behind the camera), which the
 // caller's scoring rejects. Degenerate input (collinear points, repeated bearings) gives 0
 // solutions or poses that fit nothing; never throws. Thread-safe.
-LMB_INFER_EXPORT int p3p(const Eigen::Vector3d bearings[3], const Eigen::Vector3d points[3],
-                         std::vector<CameraPose>* solutions);
+int p3p(const Eigen::Vector3d bearings[3], const Eigen::Vector3d points[3], std::vector<CameraPose>* solutions);
 
 }  // namespace lmb

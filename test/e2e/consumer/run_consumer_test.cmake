@@ -1,6 +1,6 @@
 # Driver of the ctest e2e/consumer_test (cmake -P). Installs the inference component of a build
-# tree into a fresh prefix and checks that exactly the public headers are installed and that they
-# include only each other; then builds and runs the consumer project against it twice: through
+# tree into a fresh prefix and checks that exactly the public headers are installed, that they
+# include only each other and that the library exports only names they declare; then builds and runs the consumer project against it twice: through
 # find_package(LandmarkBoost CONFIG) (which also compiles every installed header alone,
 # header_check in CMakeLists.txt) and through pkg-config; then the optional OpenCV front-end
 # (component infer_cv) through find_package(... COMPONENTS infer_cv) and pkg-config.
@@ -89,6 +89,46 @@ function(check_installed_headers component)
 endfunction()
 
 check_installed_headers(infer ${infer_headers})
+
+# The shared library exports only what the installed headers declare: every lmb:: name (function or
+# class) and every C function among its dynamic symbols appears in them.
+file(GLOB_RECURSE infer_libs ${prefix}/*/liblmb_infer.so)
+list(LENGTH infer_libs count)
+if(NOT count EQUAL 1)
+  message(FATAL_ERROR "consumer test: expected one installed liblmb_infer.so, found '${infer_libs}'")
+endif()
+find_program(NM nm REQUIRED)
+execute_process(COMMAND ${NM} -D -C --defined-only ${infer_libs} OUTPUT_VARIABLE symbols RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "consumer test: nm -D -C failed on ${infer_libs}")
+endif()
+set(header_text "")
+foreach(file ${infer_headers})
+  file(READ ${include_dir}/${file} text)
+  string(APPEND header_text " ${text} ")
+endforeach()
+# "<address> <type> <name>": each name's first lmb:: component (after "typeinfo for " and the
+# like), and the C functions lmb_*. (Matched in the text: demangled names hold brackets, which
+# CMake lists do not split well.)
+string(REGEX MATCHALL "[ \t][A-Za-z] ([a-zA-Z ]+ for )?lmb(::|_)[A-Za-z_0-9]+" matches "${symbols}")
+set(exported_names)
+foreach(match ${matches})
+  string(REGEX REPLACE "^.*lmb::" "" name "${match}")
+  string(REGEX REPLACE "^.* (lmb_)" "\\1" name "${name}")
+  list(APPEND exported_names ${name})
+endforeach()
+list(REMOVE_DUPLICATES exported_names)
+list(LENGTH exported_names count)
+if(count LESS 10)
+  message(FATAL_ERROR "consumer test: only ${count} LandmarkBoost names among the exported symbols: '${exported_names}'")
+endif()
+foreach(name ${exported_names})
+  if(NOT header_text MATCHES "[^A-Za-z_0-9]${name}[^A-Za-z_0-9]")
+    message(FATAL_ERROR "consumer test: liblmb_infer.so exports lmb::${name} (or ${name}), "
+                        "which no installed header declares")
+  endif()
+endforeach()
+message(STATUS "consumer test: the ${count} names liblmb_infer.so exports are all in the installed headers")
 
 # The optional OpenCV front-end (component infer_cv) into the same prefix: its header and
 # pkg-config file are the only installed files that may name OpenCV.
