@@ -151,24 +151,29 @@ inline bool any_lane_passes_body(const double* score, const double* background, 
 }  // namespace
 }  // namespace lmb::detail
 
-// The portable bodies under one ISA's names (scoring_generic.cc, scoring_avx2.cc).
-#define LMB_DEFINE_SCORING_KERNELS(isa)                                                                              \
+// The portable bodies under one ISA's names (scoring_generic.cc, scoring_avx2.cc): the
+// accumulations (LMB_DEFINE_SCORING_ACCUMULATIONS) and the rest (LMB_DEFINE_SCORING_KERNELS_REST).
+#define LMB_DEFINE_SCORING_KERNELS(isa) \
+  LMB_DEFINE_SCORING_ACCUMULATIONS(isa) \
+  LMB_DEFINE_SCORING_KERNELS_REST(isa)
+#define LMB_DEFINE_SCORING_ACCUMULATIONS(isa)                                                                      \
+  void accumulate_lanes_##isa(double bias, const int32_t* stumps, int64_t count, const DenseStump* dense,          \
+                              const uint32_t* fire, double* out) {                                                 \
+    accumulate_lanes_body(bias, stumps, count, dense, fire, out);                                                  \
+  }                                                                                                                \
+  void accumulate_two_##isa(double bias0, const int32_t* stumps0, int64_t count0, double bias1,                    \
+                            const int32_t* stumps1, int64_t count1, const DenseStump* dense, const uint32_t* fire, \
+                            double* out0, double* out1) {                                                          \
+    accumulate_lanes_body(bias0, stumps0, count0, dense, fire, out0);                                              \
+    accumulate_lanes_body(bias1, stumps1, count1, dense, fire, out1);                                              \
+  }                                                                                                                \
+  void accumulate_groups_##isa(const GroupItem* items, int32_t n, const DenseStump* dense, const uint32_t* fire) { \
+    accumulate_groups_body(items, n, dense, fire);                                                                 \
+  }
+#define LMB_DEFINE_SCORING_KERNELS_REST(isa)                                                                         \
   void fire_masks_##isa(const DenseStump* stumps, size_t num_stumps, const uint8_t* values, size_t stride,           \
                         uint32_t* fire) {                                                                            \
     fire_masks_body(stumps, num_stumps, values, stride, fire);                                                       \
-  }                                                                                                                  \
-  void accumulate_lanes_##isa(double bias, const int32_t* stumps, int64_t count, const DenseStump* dense,            \
-                              const uint32_t* fire, double* out) {                                                   \
-    accumulate_lanes_body(bias, stumps, count, dense, fire, out);                                                    \
-  }                                                                                                                  \
-  void accumulate_two_##isa(double bias0, const int32_t* stumps0, int64_t count0, double bias1,                      \
-                            const int32_t* stumps1, int64_t count1, const DenseStump* dense, const uint32_t* fire,   \
-                            double* out0, double* out1) {                                                            \
-    accumulate_lanes_body(bias0, stumps0, count0, dense, fire, out0);                                                \
-    accumulate_lanes_body(bias1, stumps1, count1, dense, fire, out1);                                                \
-  }                                                                                                                  \
-  void accumulate_groups_##isa(const GroupItem* items, int32_t n, const DenseStump* dense, const uint32_t* fire) {   \
-    accumulate_groups_body(items, n, dense, fire);                                                                   \
   }                                                                                                                  \
   uint64_t screen_class_##isa(const ScreenList& list, int32_t batches, const uint32_t* const* fire,                  \
                               const int32_t* const* goal, const uint32_t* valid) {                                   \
