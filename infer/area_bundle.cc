@@ -19,6 +19,11 @@ namespace lmb {
 
 namespace {
 
+void check_area_search(AreaSearch search, const char* where) {
+  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
+            where << ": unknown area search " << static_cast<int32_t>(search));
+}
+
 uint64_t parse_unsigned(const std::string& token, const std::string& where, const std::string& field, int base,
                         uint64_t max) {
   const char* begin = token.c_str();
@@ -247,8 +252,7 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
   using Clock = std::chrono::steady_clock;
   const Clock::time_point start = Clock::now();
   options.check();
-  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
-            "localize_in_bundle: unknown area search " << static_cast<int32_t>(search));
+  check_area_search(search, "localize_in_bundle");
   BundleLocalizeResult out;
   std::vector<int32_t> selected = bundle.select(prior);
   out.selected = static_cast<int32_t>(selected.size());
@@ -299,8 +303,7 @@ void BundleLocalizerOptions::check() const {
   localizer.check();
   LMB_CHECK(std::isfinite(tracking_radius) && tracking_radius >= 0.0,
             "bundle localizer options: tracking_radius = " << tracking_radius << " must be finite and >= 0");
-  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
-            "bundle localizer options: unknown search " << static_cast<int32_t>(search));
+  check_area_search(search, "bundle localizer options");
 }
 
 BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options)

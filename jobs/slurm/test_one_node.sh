@@ -107,6 +107,13 @@ wait_state() {  # job, regex, seconds
   done
   fail "job $1 is $(state_of "$1"), expected $2 within $3 s"
 }
+wait_rounds() {  # run folder, failure message: up to 60 s for 10 rounds in its metrics.jsonl
+  for _ in $(seq 300); do
+    [ -f "$1/metrics.jsonl" ] && [ "$(wc -l < "$1/metrics.jsonl")" -ge 10 ] && return 0
+    sleep 0.2
+  done
+  [ -f "$1/metrics.jsonl" ] || fail "$2"
+}
 
 export OMPI_MCA_btl_vader_single_copy_mechanism=none
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
@@ -121,11 +128,7 @@ job=$(LMB_REPO=$here LBOOST=$lboost sbatch --parsable --ntasks=2 --output="$work
   "$here/jobs/slurm/train.sbatch" "${args[@]}" --out "$work/run")
 echo "test_one_node: submitted train job $job"
 wait_state "$job" RUNNING 120
-for _ in $(seq 300); do
-  [ -f "$work/run/metrics.jsonl" ] && [ "$(wc -l < "$work/run/metrics.jsonl")" -ge 10 ] && break
-  sleep 0.2
-done
-[ -f "$work/run/metrics.jsonl" ] || fail "no training progress"
+wait_rounds "$work/run" "no training progress"
 echo "test_one_node: signalling job $job after $(wc -l < "$work/run/metrics.jsonl") rounds"
 scancel --signal=USR1 --batch "$job"
 # Requeued: PENDING again (or briefly REQUEUED) with a BeginTime; start it now.
@@ -158,11 +161,7 @@ echo "test_one_node: train job OK ($restarts, $(grep -o 'resumed from [^ ]*' "$w
 job=$(LMB_REPO=$here LBOOST=$lboost sbatch --parsable --ntasks=2 --output="$work/cancel-%j.out" \
   "$here/jobs/slurm/train.sbatch" "${args[@]}" --out "$work/cancelled")
 wait_state "$job" RUNNING 120
-for _ in $(seq 300); do
-  [ -f "$work/cancelled/metrics.jsonl" ] && [ "$(wc -l < "$work/cancelled/metrics.jsonl")" -ge 10 ] && break
-  sleep 0.2
-done
-[ -f "$work/cancelled/metrics.jsonl" ] || fail "cancel: no training progress"
+wait_rounds "$work/cancelled" "cancel: no training progress"
 scancel "$job"
 wait_state "$job" 'CANCELLED|COMPLETED|FAILED|PENDING|REQUEUED' 120
 sleep 5

@@ -12,6 +12,7 @@
 
 #include "common/error.h"
 #include "common/random.h"
+#include "test/infer/test_models.h"
 
 namespace lmb {
 namespace {
@@ -44,19 +45,10 @@ TEST(PassShareThresholdTest, KnownAnswers) {
 constexpr int kRoom = 60;
 constexpr double kCopyZ = -30.0;
 
-Camera test_camera() {
-  Camera c;
-  c.model = CameraModel::kPinhole;
-  c.width = 640;
-  c.height = 480;
-  c.params = {500.0, 500.0, 320.0, 240.0};
-  return c;
-}
-
 LandmarkMap room_and_copy(int num_frames) {
   LandmarkMap map;
   map.descriptor_bytes = 8;
-  map.cameras.push_back(test_camera());
+  map.cameras.push_back(test::test_camera());
   map.sessions.push_back(MapSession{"map", SessionKind::kMap});
   for (int copy = 0; copy < 2; ++copy) {
     Rng room(5);  // the same room twice
