@@ -14,4 +14,9 @@ int hamming_min(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes)
   return detail::hamming_kernels().min(q, rows, n, num_bytes);
 }
 
+void hamming_min_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int num_bytes,
+                       int32_t* out) {
+  detail::hamming_kernels().min_lanes(queries, lanes, rows, n, num_bytes, out);
+}
+
 }  // namespace lmb

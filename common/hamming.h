@@ -28,6 +28,11 @@ void hamming_rows(const uint8_t* q, const uint8_t* rows, int64_t n, int num_byte
 // The smallest Hamming distance of q to the n rows (as hamming_rows; 8 * num_bytes + 1 when n is 0).
 int hamming_min(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes);
 
+// out[j] = hamming_min(queries + j * num_bytes, rows, n, num_bytes) for every set bit j of `lanes`
+// (up to 32 queries; the other entries untouched), in one kernel call (the rows stay in cache).
+void hamming_min_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int num_bytes,
+                       int32_t* out);
+
 // Bit `bit` of a descriptor (LSB-first within each byte, as OpenCV packs BRISK/ORB).
 inline int descriptor_bit(const uint8_t* desc, int bit) { return (desc[bit >> 3] >> (bit & 7)) & 1; }
 

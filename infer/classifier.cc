@@ -99,15 +99,18 @@ ScreenList screen_list(const Model& model, int32_t cls) {
   return v;
 }
 
-void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal) {
+void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal,
+                  const double* lift) {
   const double step = model.scoring().screen_step();
   const double safe = step * double{ScoringIndex::kScreenUnitsLimit / 4};  // 2^27 steps
   const double inf = std::numeric_limits<double>::infinity();
   const bool margin_safe = min_margin == -inf || std::fabs(min_margin) <= safe;
   const bool score_safe = min_score == -inf || std::fabs(min_score) <= safe;
   for (int32_t j = 0; j < Classifier::kBatch; ++j) {
-    const double target = std::max(min_margin == -inf ? -inf : background[j] + min_margin, min_score);
-    const bool usable = margin_safe && score_safe && std::fabs(background[j]) <= safe && target != -inf;
+    const double l = lift ? lift[j] : 0.0;
+    const double target = std::max(min_margin == -inf ? -inf : background[j] + min_margin, min_score) - l;
+    const bool usable =
+        margin_safe && score_safe && std::fabs(background[j]) <= safe && std::fabs(l) <= safe && target != -inf;
     goal[j] = usable ? static_cast<int32_t>(std::floor(target / step)) : ScoringIndex::kScreenPassAll;
   }
 }
@@ -153,60 +156,107 @@ void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) 
                              stumps.data(), fire, background_.data() + static_cast<size_t>(b) * kBatch);
   if (goal_.size() < background_.size()) goal_.resize(background_.size());
   const double* background = background_.data() + static_cast<size_t>(b) * kBatch;
-  double min_score = options_.min_score;
-  double lowered[kBatch];
+  double lift[kBatch];
   if (m.has_fusion()) {
-    // A fused score is H plus a term of at most fusion_max(): the bound of H need only reach the
-    // goals lowered by that much (one screening step more covers the roundings of the sums).
-    const double lift = idx.fusion_max() + idx.screen_step();
-    for (int32_t j = 0; j < kBatch; ++j) lowered[j] = background[j] - lift;
-    if (min_score != -std::numeric_limits<double>::infinity()) min_score -= lift;
-    background = lowered;
+    // A fused score is fl(H + t) with a term t of at most fusion_max(): the bound of H need only
+    // reach the goals lowered by that much (one screening step more covers the rounding of the
+    // addition). screen_word lowers them by each class's own terms.
+    std::fill(lift, lift + kBatch, idx.fusion_max() + idx.screen_step());
   }
-  detail::screen_goals(m, background, options_.min_margin, min_score, goal_.data() + static_cast<size_t>(b) * kBatch);
+  detail::screen_goals(m, background, options_.min_margin, options_.min_score,
+                       goal_.data() + static_cast<size_t>(b) * kBatch, m.has_fusion() ? lift : nullptr);
 }
 
 namespace {
 constexpr int32_t kScreenProbe = 64;
 }  // namespace
 
-void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints) {
+void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints,
+                             const int32_t* ids) {
   const Model& m = *model_;
   const detail::ScoringIndex& idx = m.scoring();
   const size_t M = idx.dense_stumps().size();
+  const bool fusion = m.has_fusion();
   if (kept_.size() < static_cast<size_t>(batches)) kept_.resize(static_cast<size_t>(batches));
-  for (int32_t b = 0; b < batches; ++b) kept_[b].clear();
-  if (!options_.screening) {
-    for (int32_t b = 0; b < batches; ++b) {
-      for (int32_t i = 0; i < num; ++i) kept_[b].push_back({classes[i], ~0u});
-    }
-    classes_screened_ += static_cast<int64_t>(num) * batches;
-    classes_scored_ += static_cast<int64_t>(num) * batches;
-    return;
+  if (kept_terms_.size() < static_cast<size_t>(batches)) kept_terms_.resize(static_cast<size_t>(batches));
+  for (int32_t b = 0; b < batches; ++b) {
+    kept_[b].clear();
+    kept_terms_[b].clear();
   }
   // Class by class over the word's batches, two at a time: a class's screening list is read once
   // for two batches. The cutoff test of offer() is left out (the cutoff starts at -inf).
+  // With the fusion, a class kept by the bound lifted by fusion_max() gets its terms in the lanes
+  // kept, and is screened again with the goals lowered by them (the terms are kept for
+  // finish_batch).
   for (int32_t b = 0; b < batches; b += 2) {
+    int32_t kept_count = 0, kept_fused = 0;
+    int32_t probed = 0, probed_fused = 0;
     const int32_t pair = std::min(2, batches - b);
     const uint32_t* fire[2] = {fire_.data() + b * M, fire_.data() + (b + pair - 1) * M};
     const int32_t* goal[2] = {goal_.data() + static_cast<size_t>(b) * kBatch,
                               goal_.data() + static_cast<size_t>(b + pair - 1) * kBatch};
+    const double* background[2] = {background_.data() + static_cast<size_t>(b) * kBatch,
+                                   background_.data() + static_cast<size_t>(b + pair - 1) * kBatch};
     uint32_t valid[2];
     for (int32_t h = 0; h < pair; ++h) {
       const int32_t count = std::min(kBatch, keypoints - (b + h) * kBatch);
       valid[h] = count == kBatch ? ~0u : (1u << count) - 1;
     }
-    // When the screening keeps most classes (a background that rarely wins), it only costs: after
-    // kScreenProbe classes with more than 3/4 of them kept, the rest are kept unscreened.
-    int32_t kept_count = 0;
-    for (int32_t i = 0; i < num; ++i) {
-      uint64_t bits = ~0ull;
-      if (i < kScreenProbe || 4 * kept_count <= 3 * i) {
-        bits = kernels_->screen_class(detail::screen_list(m, classes[i]), pair, fire, goal, valid);
+    const uint64_t valid_bits = valid[0] | (pair > 1 ? uint64_t{valid[1]} << 32 : 0);
+    // With the fusion, the lanes' descriptors side by side (one kernel call per class and batch).
+    const int32_t bytes = m.descriptor_bytes();
+    int32_t filled[2] = {0, 0};
+    if (fusion) {
+      lane_descriptors_.resize(static_cast<size_t>(2 * kBatch * bytes));
+      for (int32_t h = 0; h < pair; ++h) {
+        filled[h] = std::min(kBatch, keypoints - (b + h) * kBatch);
+        for (int32_t j = 0; j < filled[h]; ++j) {
+          std::memcpy(lane_descriptors_.data() + static_cast<size_t>((h * kBatch + j) * bytes),
+                      descriptors_ + static_cast<int64_t>(ids[(b + h) * kBatch + j]) * bytes,
+                      static_cast<size_t>(bytes));
+        }
       }
-      kept_count += bits != 0;
-      if (bits & 0xFFFFFFFFull) kept_[b].push_back({classes[i], static_cast<uint32_t>(bits)});
-      if (pair > 1 && (bits >> 32)) kept_[b + 1].push_back({classes[i], static_cast<uint32_t>(bits >> 32)});
+    }
+    for (int32_t i = 0; i < num; ++i) {
+      // When the screening keeps most classes (a background that rarely wins), it only costs:
+      // after kScreenProbe classes with more than 3/4 of them kept, the rest are kept unscreened.
+      uint64_t bits = valid_bits;
+      if (options_.screening && (probed < kScreenProbe || 4 * kept_count <= 3 * probed)) {
+        bits = kernels_->screen_class(detail::screen_list(m, classes[i]), pair, fire, goal, valid) & valid_bits;
+        ++probed;
+        kept_count += bits != 0;
+      }
+      if (bits == 0) continue;
+      double terms[2][kBatch];
+      if (fusion) {
+        for (int32_t h = 0; h < pair; ++h) {
+          std::fill(terms[h], terms[h] + kBatch, 0.0);
+          const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
+          if (lanes == 0) continue;
+          int32_t distance[kBatch];
+          detail::fusion_terms(m, classes[i], lane_descriptors_.data() + static_cast<size_t>(h * kBatch * bytes), lanes,
+                               distance, terms[h]);
+        }
+        if (options_.screening && (probed_fused < kScreenProbe || 4 * kept_fused <= 3 * probed_fused)) {
+          int32_t class_goal[2][kBatch];
+          double lift[kBatch];
+          for (int32_t h = 0; h < pair; ++h) {
+            for (int32_t j = 0; j < kBatch; ++j) lift[j] = terms[h][j] + idx.screen_step();
+            detail::screen_goals(m, background[h], options_.min_margin, options_.min_score, class_goal[h], lift);
+          }
+          const int32_t* goals[2] = {class_goal[0], class_goal[pair - 1]};
+          bits &= kernels_->screen_class(detail::screen_list(m, classes[i]), pair, fire, goals, valid);
+          ++probed_fused;
+          kept_fused += bits != 0;
+          if (bits == 0) continue;
+        }
+      }
+      for (int32_t h = 0; h < pair; ++h) {
+        const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
+        if (lanes == 0) continue;
+        kept_[b + h].push_back({classes[i], lanes});
+        if (fusion) kept_terms_[b + h].insert(kept_terms_[b + h].end(), terms[h], terms[h] + kBatch);
+      }
     }
   }
   classes_screened_ += static_cast<int64_t>(num) * batches;
@@ -266,26 +316,14 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   }
   kernels_->accumulate_groups(groups_.data(), static_cast<int32_t>(groups_.size()), stumps.data(), fire);
   const bool fusion = m.has_fusion();
-  const double fusion_max = idx.fusion_max();
   for (int32_t i = 0; i < num; ++i) {
     const int32_t c = kept[i].cls;
     double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
     if (fusion) {
-      // H + fusion_max() bounds the fused score from above (rounding is monotone): the descriptor
-      // distance is computed only in lanes where that bound passes offer()'s tests.
-      double lifted[kBatch];
-      for (int32_t j = 0; j < kBatch; ++j) lifted[j] = out[j] + fusion_max;
-      if (!kernels_->any_lane_passes(lifted, background, cutoff_score_.data(), options_.min_margin,
-                                     options_.min_score)) {
-        continue;
-      }
-      for (int32_t j = 0; j < count; ++j) {
-        const double s = lifted[j];
-        if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
-          out[j] += detail::fusion_term(m, c, descriptors_ + static_cast<int64_t>(ids[j]) * m.descriptor_bytes());
-        } else {
-          out[j] = -std::numeric_limits<double>::infinity();
-        }
+      // The terms screen_word computed in the lanes it kept; the other lanes cannot pass.
+      const double* terms = kept_terms_[b].data() + static_cast<size_t>(i) * kBatch;
+      for (int32_t j = 0; j < kBatch; ++j) {
+        out[j] = (kept[i].lanes >> j) & 1 ? out[j] + terms[j] : -std::numeric_limits<double>::infinity();
       }
     }
     if (!kernels_->any_lane_passes(out, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {
@@ -394,7 +432,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
       if (embedding_ms) embedding += Clock::now() - t0;
       prepare_batch(batch, values_.data(), kBatch);
     }
-    screen_word(classes, num, batches, keypoints);
+    screen_word(classes, num, batches, keypoints, order_.data() + word_begin_[g]);
     for (int32_t batch = 0; batch < batches; ++batch) {
       const int32_t b = word_begin_[g] + batch * kBatch;
       finish_batch(order_.data() + b, std::min(kBatch, word_begin_[g + 1] - b), batch);

@@ -33,10 +33,12 @@
 //
 // Descriptor-distance fusion (a model with Model::has_fusion()): a landmark class's score is its
 // stump sum plus detail::fusion_term of the keypoint's descriptor (Hamming distance to the
-// class's exemplars), added once after the exact sum; the screening bounds and the ranking tests
-// take ScoringIndex::fusion_max() in its place first, so the distances are computed only where a
-// class could pass. dense_scores() and class_score() stay the stump sums (add detail::fusion_term
-// for the fused one).
+// class's exemplars), added once after the exact sum. The screening runs twice: first with
+// ScoringIndex::fusion_max() in place of the term (no distance computed), then, in the lanes a
+// class kept, with its own terms, so that only classes whose fused score could pass are summed
+// exactly (with a large fusion weight the first pass keeps nearly every class; the second keeps
+// about as few as the screening of a model without fusion). dense_scores() and class_score() stay
+// the stump sums (add detail::fusion_term for the fused one).
 //
 // Ranking and rejection: the landmark classes (never the background) whose score exceeds the
 // background's score by more than min_margin and is at least min_score, best first (ties: smaller
@@ -111,7 +113,7 @@ class Classifier {
   // exactly and appends its keypoints' (`ids`, count of them) ranked matches to pending_ as
   // (keypoint, match).
   void prepare_batch(int32_t b, const uint8_t* values, size_t stride);
-  void screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints);
+  void screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints, const int32_t* ids);
   void finish_batch(const int32_t* ids, int32_t count, int32_t b);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
   void offer(int32_t j, int32_t cls, double score, double bg);
@@ -128,8 +130,10 @@ class Classifier {
     int32_t cls;
     uint32_t lanes;  // lanes where its screening bound passed
   };
-  std::vector<std::vector<Kept>> kept_;  // per batch of the group: classes kept by screening
-  std::vector<double> kept_out_;         // kBatch exact scores of each kept class of a batch
+  std::vector<std::vector<Kept>> kept_;          // per batch of the group: classes kept by screening
+  std::vector<std::vector<double>> kept_terms_;  // with the fusion: kBatch terms of each kept class
+  std::vector<uint8_t> lane_descriptors_;        // with the fusion: two batches' descriptors (rows)
+  std::vector<double> kept_out_;                 // kBatch exact scores of each kept class of a batch
   std::vector<detail::GroupItem> groups_;
   std::vector<double> background_;             // per batch of the group: kBatch background scores
   std::vector<int32_t> goal_;                  // per batch of the group: kBatch screening goals
@@ -151,7 +155,10 @@ ScreenList screen_list(const Model& model, int32_t cls);
 // The screening goals of kBatch lanes from their background scores and offer()'s min_margin and
 // min_score (see ScoringIndex::kScreenCheck): a lane whose tests could pass never gets a goal its
 // integer bound fails.
-void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal);
+// With `lift` (kBatch values, or null for 0): the goals of lanes whose score gets lift[j] added
+// before the tests (target - lift[j]).
+void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal,
+                  const double* lift = nullptr);
 }  // namespace detail
 
 }  // namespace lmb

@@ -13,5 +13,10 @@ int32_t hamming_min_avx2(const uint8_t* q, const uint8_t* rows, int64_t n, int32
   return min_dispatch(q, rows, n, num_bytes);
 }
 
+void hamming_min_lanes_avx2(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                            int32_t* out) {
+  min_lanes_dispatch(queries, lanes, rows, n, num_bytes, out);
+}
+
 }  // namespace lmb::detail
 #endif

@@ -83,5 +83,25 @@ inline int32_t min_dispatch(const uint8_t* q, const uint8_t* rows, int64_t n, in
   }
 }
 
+// min_body of the queries of the set bits of `lanes`, the query loop inside the kernel (no call
+// per query).
+template <int kWords>
+inline void min_lanes_body(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t bytes,
+                           int32_t* out) {
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const int j = __builtin_ctz(lanes);
+    out[j] = min_body<kWords>(queries + int64_t{j} * bytes, rows, n, bytes);
+  }
+}
+
+inline void min_lanes_dispatch(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t bytes,
+                               int32_t* out) {
+  switch (bytes) {
+    case 32: return min_lanes_body<4>(queries, lanes, rows, n, bytes, out);
+    case 64: return min_lanes_body<8>(queries, lanes, rows, n, bytes, out);
+    default: return min_lanes_body<0>(queries, lanes, rows, n, bytes, out);
+  }
+}
+
 }  // namespace
 }  // namespace lmb::detail

@@ -12,6 +12,11 @@ int32_t hamming_min_generic(const uint8_t* q, const uint8_t* rows, int64_t n, in
   return min_dispatch(q, rows, n, num_bytes);
 }
 
+void hamming_min_lanes_generic(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n,
+                               int32_t num_bytes, int32_t* out) {
+  min_lanes_dispatch(queries, lanes, rows, n, num_bytes, out);
+}
+
 namespace {
 
 HammingKernels make_table(SimdLevel level) {
@@ -19,15 +24,18 @@ HammingKernels make_table(SimdLevel level) {
   k.level = level;
   k.rows = hamming_rows_generic;
   k.min = hamming_min_generic;
+  k.min_lanes = hamming_min_lanes_generic;
 #if defined(__x86_64__)
   if (level == SimdLevel::kAvx2 || level == SimdLevel::kAvx512) {
     k.rows = hamming_rows_avx2;
     k.min = hamming_min_avx2;
+    k.min_lanes = hamming_min_lanes_avx2;
   }
 #elif defined(__aarch64__)
   if (level == SimdLevel::kNeon) {
     k.rows = hamming_rows_neon;
     k.min = hamming_min_neon;
+    k.min_lanes = hamming_min_lanes_neon;
   }
 #endif
   return k;

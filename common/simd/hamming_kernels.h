@@ -14,6 +14,10 @@ struct HammingKernels {
   void (*rows)(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out) = nullptr;
   // The smallest of those distances (8 num_bytes + 1 when n is 0).
   int32_t (*min)(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes) = nullptr;
+  // out[j] = min of query j (queries: contiguous rows of num_bytes bytes) for every set bit j of
+  // `lanes` (the other entries untouched).
+  void (*min_lanes)(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                    int32_t* out) = nullptr;
 };
 
 // The table of this process's level (simd_level()).
@@ -28,5 +32,11 @@ void hamming_rows_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t
 int32_t hamming_min_generic(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes);
 int32_t hamming_min_avx2(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes);
 int32_t hamming_min_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes);
+void hamming_min_lanes_generic(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n,
+                               int32_t num_bytes, int32_t* out);
+void hamming_min_lanes_avx2(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                            int32_t* out);
+void hamming_min_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                            int32_t* out);
 
 }  // namespace lmb::detail

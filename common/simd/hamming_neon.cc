@@ -52,5 +52,18 @@ int32_t hamming_min_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32
   }
 }
 
+void hamming_min_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                            int32_t* out) {
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const int j = __builtin_ctz(lanes);
+    const uint8_t* q = queries + int64_t{j} * num_bytes;
+    switch (num_bytes) {
+      case 32: out[j] = min_neon<2>(q, rows, n, num_bytes); break;
+      case 64: out[j] = min_neon<4>(q, rows, n, num_bytes); break;
+      default: out[j] = min_dispatch(q, rows, n, num_bytes); break;
+    }
+  }
+}
+
 }  // namespace lmb::detail
 #endif

@@ -87,6 +87,20 @@ double fusion_term(const Model& model, int32_t cls, const uint8_t* descriptor) {
   return f.distance_score[d];
 }
 
+void fusion_terms(const Model& model, int32_t cls, const uint8_t* descriptors, uint32_t lanes, int32_t* distance,
+                  double* out) {
+  const ModelData& data = model.data();
+  const DescriptorFusion& f = data.fusion;
+  const int32_t bytes = data.descriptor_bytes;
+  const int64_t first = f.exemplar_begin[cls];
+  hamming_min_lanes(descriptors, lanes, f.exemplars.data() + first * bytes, f.exemplar_begin[cls + 1] - first, bytes,
+                    distance);
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const int j = __builtin_ctz(lanes);
+    out[j] = f.distance_score[distance[j]];
+  }
+}
+
 // Why offset_c + step * x bounds the exact score F of class c from above, x = t at the end, or
 // t_k + add_ck at checkpoint k (u = 2^-53, n = the class's stumps, h_i = above_i or below_i its
 // outputs in training order):

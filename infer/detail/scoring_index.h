@@ -24,6 +24,10 @@ inline EmbeddingLayout layout_of(const ModelData& data) {
 // Descriptor-distance fusion (DescriptorFusion, infer/model.h): the term of class cls (< C) for a
 // descriptor of model.descriptor_bytes() bytes; 0 without fusion.
 double fusion_term(const Model& model, int32_t cls, const uint8_t* descriptor);
+// fusion_term of class cls (the model has a fusion) for the descriptors (contiguous rows) of the
+// set bits j of `lanes`: out[j] (the other entries untouched); distance: 32 scratch entries.
+void fusion_terms(const Model& model, int32_t cls, const uint8_t* descriptors, uint32_t lanes, int32_t* distance,
+                  double* out);
 
 class ScoringIndex {
  public:
