@@ -228,7 +228,20 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       }
       if (bits == 0) continue;
       double terms[2][kBatch];
+      // The terms now, and the second screening, when they cost less than the exact sums they may
+      // spare: lanes x exemplars x descriptor words against stumps x 8-lane groups; else after
+      // the exact sums, only in the lanes where H + fusion_max() passes (finish_batch), as for a
+      // class with few stumps and many exemplars. Either way the same matches.
+      bool early = fusion;
       if (fusion) {
+        const int32_t c = classes[i];
+        const int64_t exemplars = m.data().fusion.exemplar_begin[c + 1] - m.data().fusion.exemplar_begin[c];
+        const int64_t stumps = idx.class_stump_begin()[c + 1] - idx.class_stump_begin()[c];
+        int64_t groups = 0;
+        for (int32_t v = 0; v < 2 * kBatch / 8; ++v) groups += ((bits >> (8 * v)) & 0xFFu) != 0;
+        early = __builtin_popcountll(bits) * exemplars * ((bytes + 7) / 8) <= stumps * groups;
+      }
+      if (early) {
         for (int32_t h = 0; h < pair; ++h) {
           std::fill(terms[h], terms[h] + kBatch, 0.0);
           const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
@@ -254,8 +267,8 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       for (int32_t h = 0; h < pair; ++h) {
         const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
         if (lanes == 0) continue;
-        kept_[b + h].push_back({classes[i], lanes});
-        if (fusion) kept_terms_[b + h].insert(kept_terms_[b + h].end(), terms[h], terms[h] + kBatch);
+        kept_[b + h].push_back({classes[i], lanes, early});
+        if (early) kept_terms_[b + h].insert(kept_terms_[b + h].end(), terms[h], terms[h] + kBatch);
       }
     }
   }
@@ -316,14 +329,34 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   }
   kernels_->accumulate_groups(groups_.data(), static_cast<int32_t>(groups_.size()), stumps.data(), fire);
   const bool fusion = m.has_fusion();
+  const double fusion_max = idx.fusion_max();
+  size_t next_terms = 0;  // kept_terms_[b] holds kBatch terms of each class with terms
   for (int32_t i = 0; i < num; ++i) {
     const int32_t c = kept[i].cls;
     double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
-    if (fusion) {
+    if (fusion && kept[i].terms) {
       // The terms screen_word computed in the lanes it kept; the other lanes cannot pass.
-      const double* terms = kept_terms_[b].data() + static_cast<size_t>(i) * kBatch;
+      const double* terms = kept_terms_[b].data() + next_terms;
+      next_terms += kBatch;
       for (int32_t j = 0; j < kBatch; ++j) {
         out[j] = (kept[i].lanes >> j) & 1 ? out[j] + terms[j] : -std::numeric_limits<double>::infinity();
+      }
+    } else if (fusion) {
+      // H + fusion_max() bounds the fused score from above (rounding is monotone): the descriptor
+      // distance is computed only in lanes where that bound passes offer()'s tests.
+      double lifted[kBatch];
+      for (int32_t j = 0; j < kBatch; ++j) lifted[j] = out[j] + fusion_max;
+      if (!kernels_->any_lane_passes(lifted, background, cutoff_score_.data(), options_.min_margin,
+                                     options_.min_score)) {
+        continue;
+      }
+      for (int32_t j = 0; j < count; ++j) {
+        const double s = lifted[j];
+        if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
+          out[j] += detail::fusion_term(m, c, descriptors_ + static_cast<int64_t>(ids[j]) * m.descriptor_bytes());
+        } else {
+          out[j] = -std::numeric_limits<double>::infinity();
+        }
       }
     }
     if (!kernels_->any_lane_passes(out, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {

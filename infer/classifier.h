@@ -129,6 +129,7 @@ class Classifier {
   struct Kept {
     int32_t cls;
     uint32_t lanes;  // lanes where its screening bound passed
+    bool terms;      // with the fusion: its terms are in kept_terms_ (else finish_batch computes them)
   };
   std::vector<std::vector<Kept>> kept_;          // per batch of the group: classes kept by screening
   std::vector<std::vector<double>> kept_terms_;  // with the fusion: kBatch terms of each kept class
