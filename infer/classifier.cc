@@ -229,7 +229,8 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       if (bits == 0) continue;
       double terms[2][kBatch];
       // The terms now, and the second screening, when they cost less than the exact sums they may
-      // spare: lanes x exemplars x descriptor words against stumps x 8-lane groups; else after
+      // spare: lanes x exemplars x descriptor words against 2 x stumps x 8-lane groups (a stump's
+      // masked add costs about two popcounts of a word); else after
       // the exact sums, only in the lanes where H + fusion_max() passes (finish_batch), as for a
       // class with few stumps and many exemplars. Either way the same matches.
       bool early = fusion;
@@ -239,7 +240,7 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
         const int64_t stumps = idx.class_stump_begin()[c + 1] - idx.class_stump_begin()[c];
         int64_t groups = 0;
         for (int32_t v = 0; v < 2 * kBatch / 8; ++v) groups += ((bits >> (8 * v)) & 0xFFu) != 0;
-        early = __builtin_popcountll(bits) * exemplars * ((bytes + 7) / 8) <= stumps * groups;
+        early = __builtin_popcountll(bits) * exemplars * ((bytes + 7) / 8) <= 2 * stumps * groups;
       }
       if (early) {
         for (int32_t h = 0; h < pair; ++h) {
