@@ -30,6 +30,7 @@ int hamming_min(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes)
 
 // out[j] = hamming_min(queries + j * num_bytes, rows, n, num_bytes) for every set bit j of `lanes`
 // (up to 32 queries; the other entries untouched), in one kernel call (the rows stay in cache).
+// All eight rows of each 8-lane group with a set bit must be readable.
 void hamming_min_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int num_bytes,
                        int32_t* out);
 

@@ -30,6 +30,7 @@ HammingKernels make_table(SimdLevel level) {
     k.rows = hamming_rows_avx2;
     k.min = hamming_min_avx2;
     k.min_lanes = hamming_min_lanes_avx2;
+    if (level == SimdLevel::kAvx512 && cpu_has_avx512_vpopcntdq()) k.min_lanes = hamming_min_lanes_avx512;
   }
 #elif defined(__aarch64__)
   if (level == SimdLevel::kNeon) {

@@ -15,7 +15,8 @@ struct HammingKernels {
   // The smallest of those distances (8 num_bytes + 1 when n is 0).
   int32_t (*min)(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes) = nullptr;
   // out[j] = min of query j (queries: contiguous rows of num_bytes bytes) for every set bit j of
-  // `lanes` (the other entries untouched).
+  // `lanes` (the other entries untouched). Every row of an 8-lane group with a set bit must be
+  // readable (the AVX-512 kernel loads the group's eight).
   void (*min_lanes)(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
                     int32_t* out) = nullptr;
 };
@@ -25,7 +26,8 @@ const HammingKernels& hamming_kernels();
 // The table of `level`, or null when this CPU cannot run it.
 const HammingKernels* hamming_kernels(SimdLevel level);
 
-// The per-level kernels (hamming_generic.cc, hamming_avx2.cc, hamming_neon.cc).
+// The per-level kernels (hamming_generic.cc, hamming_avx2.cc, hamming_avx512.cc: min_lanes with
+// VPOPCNTDQ, hamming_neon.cc).
 void hamming_rows_generic(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out);
 void hamming_rows_avx2(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out);
 void hamming_rows_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out);
@@ -36,6 +38,8 @@ void hamming_min_lanes_generic(const uint8_t* queries, uint32_t lanes, const uin
                                int32_t num_bytes, int32_t* out);
 void hamming_min_lanes_avx2(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
                             int32_t* out);
+void hamming_min_lanes_avx512(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                              int32_t* out);
 void hamming_min_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
                             int32_t* out);
 
