@@ -29,7 +29,8 @@ void min_lanes_avx512(const uint8_t* queries, uint32_t lanes, const uint8_t* row
     }
     __m512i q[kWords];
     // (The masked forms: GCC 12 warns on the unmasked ones' undefined pass-through register.)
-    for (int w = 0; w < kWords; ++w) q[w] = _mm512_mask_i64gather_epi64(_mm512_setzero_si512(), 0xFF, offsets, group + 8 * w, 1);
+    for (int w = 0; w < kWords; ++w)
+      q[w] = _mm512_mask_i64gather_epi64(_mm512_setzero_si512(), 0xFF, offsets, group + 8 * w, 1);
     __m512i best = _mm512_set1_epi64(8 * int64_t{bytes} + 1);
     for (int64_t i = 0; i < n; ++i) {
       const uint8_t* r = rows + i * bytes;
@@ -37,7 +38,8 @@ void min_lanes_avx512(const uint8_t* queries, uint32_t lanes, const uint8_t* row
       for (int w = 0; w < kWords; ++w) {
         uint64_t x;
         std::memcpy(&x, r + 8 * w, 8);
-        d = _mm512_add_epi64(d, _mm512_popcnt_epi64(_mm512_xor_si512(q[w], _mm512_set1_epi64(static_cast<int64_t>(x)))));
+        d = _mm512_add_epi64(d,
+                             _mm512_popcnt_epi64(_mm512_xor_si512(q[w], _mm512_set1_epi64(static_cast<int64_t>(x)))));
       }
       best = _mm512_mask_min_epu64(best, 0xFF, best, d);
     }
@@ -52,8 +54,8 @@ void min_lanes_avx512(const uint8_t* queries, uint32_t lanes, const uint8_t* row
 
 }  // namespace
 
-void hamming_min_lanes_avx512(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n,
-                              int32_t num_bytes, int32_t* out) {
+void hamming_min_lanes_avx512(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
+                              int32_t* out) {
   switch (num_bytes) {
     case 32: return min_lanes_avx512<4>(queries, lanes, rows, n, num_bytes, out);
     case 64: return min_lanes_avx512<8>(queries, lanes, rows, n, num_bytes, out);
