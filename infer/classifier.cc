@@ -198,19 +198,18 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
     const double* background[2] = {background_.data() + static_cast<size_t>(b) * kBatch,
                                    background_.data() + static_cast<size_t>(b + pair - 1) * kBatch};
     uint32_t valid[2];
+    int32_t count[2] = {0, 0};  // keypoints of each batch
     for (int32_t h = 0; h < pair; ++h) {
-      const int32_t count = std::min(kBatch, keypoints - (b + h) * kBatch);
-      valid[h] = count == kBatch ? ~0u : (1u << count) - 1;
+      count[h] = std::min(kBatch, keypoints - (b + h) * kBatch);
+      valid[h] = count[h] == kBatch ? ~0u : (1u << count[h]) - 1;
     }
     const uint64_t valid_bits = valid[0] | (pair > 1 ? uint64_t{valid[1]} << 32 : 0);
     // With the fusion, the lanes' descriptors side by side (one kernel call per class and batch).
     const int32_t bytes = m.descriptor_bytes();
-    int32_t filled[2] = {0, 0};
     if (fusion) {
       lane_descriptors_.resize(static_cast<size_t>(2 * kBatch * bytes));
       for (int32_t h = 0; h < pair; ++h) {
-        filled[h] = std::min(kBatch, keypoints - (b + h) * kBatch);
-        for (int32_t j = 0; j < filled[h]; ++j) {
+        for (int32_t j = 0; j < count[h]; ++j) {
           std::memcpy(lane_descriptors_.data() + static_cast<size_t>((h * kBatch + j) * bytes),
                       descriptors_ + static_cast<int64_t>(ids[(b + h) * kBatch + j]) * bytes,
                       static_cast<size_t>(bytes));
@@ -230,9 +229,9 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       double terms[2][kBatch];
       // The terms now, and the second screening, when they cost less than the exact sums they may
       // spare: lanes x exemplars x descriptor words against 2 x stumps x 8-lane groups (a stump's
-      // masked add costs about two popcounts of a word); else after
-      // the exact sums, only in the lanes where H + fusion_max() passes (finish_batch), as for a
-      // class with few stumps and many exemplars. Either way the same matches.
+      // masked add costs about two popcounts of a word); else after the exact sums, only in the
+      // lanes where H + fusion_max() passes (finish_batch), as for a class with few stumps and many
+      // exemplars. Either way the same matches.
       bool early = fusion;
       if (fusion) {
         const int32_t c = classes[i];

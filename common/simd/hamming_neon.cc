@@ -34,6 +34,15 @@ inline int32_t min_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_
   return best;
 }
 
+template <int kVectors>
+inline void min_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t bytes,
+                           int32_t* out) {
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const int j = __builtin_ctz(lanes);
+    out[j] = min_neon<kVectors>(queries + int64_t{j} * bytes, rows, n, bytes);
+  }
+}
+
 }  // namespace
 
 void hamming_rows_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32_t num_bytes, uint16_t* out) {
@@ -54,14 +63,10 @@ int32_t hamming_min_neon(const uint8_t* q, const uint8_t* rows, int64_t n, int32
 
 void hamming_min_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int32_t num_bytes,
                             int32_t* out) {
-  for (; lanes != 0; lanes &= lanes - 1) {
-    const int j = __builtin_ctz(lanes);
-    const uint8_t* q = queries + int64_t{j} * num_bytes;
-    switch (num_bytes) {
-      case 32: out[j] = min_neon<2>(q, rows, n, num_bytes); break;
-      case 64: out[j] = min_neon<4>(q, rows, n, num_bytes); break;
-      default: out[j] = min_dispatch(q, rows, n, num_bytes); break;
-    }
+  switch (num_bytes) {
+    case 32: return min_lanes_neon<2>(queries, lanes, rows, n, num_bytes, out);
+    case 64: return min_lanes_neon<4>(queries, lanes, rows, n, num_bytes, out);
+    default: return min_lanes_dispatch(queries, lanes, rows, n, num_bytes, out);
   }
 }
 

@@ -89,9 +89,8 @@ double reference_fusion(const ModelData& d, const uint8_t* desc, int32_t c) {
   return d.fusion.distance_score[best];
 }
 
-// A random fusion: 1..4 exemplars a class, some of them copies of the frame's descriptors with a
-// few bits flipped (so that small distances occur), a table falling from about +3 to -2.
-// Exemplars: 1..max_rows a class.
+// A random fusion: 1..max_rows exemplars a class, some of them copies of the frame's descriptors
+// with a few bits flipped (so that small distances occur), a table falling from about +3 to -2.
 void add_random_fusion(ModelData* d, const test::TestFrame& frame, uint64_t seed, int max_rows = 4) {
   Rng rng(seed);
   const int32_t bytes = d->descriptor_bytes;
