@@ -28,7 +28,7 @@ run() {  # name ranks config
   [ "$ranks" -gt 1 ] && cmd=(mpirun -n "$ranks" "$lboost" train)
   echo "bench_train: $name: ${cmd[*]} ($(date +%T), load $(cut -d' ' -f1 /proc/loadavg))"
   "${cmd[@]}" --map "$map" --vocab "$vocab" --out "$out/$name" --config "$out/$config" \
-    --rounds "$rounds" --top-k "$top_k" --dims-per-round 500 --threads 2 --checkpoint-interval 0 \
+    --rounds "$rounds" --top-k "$top_k" --dims-per-round 500 --threads 2 --checkpoint-interval 0 --checkpoint-minutes 0 \
     > "$out/$name.log" 2>&1 || { tail -5 "$out/$name.log"; exit 1; }
 }
 for name in ${LMB_BENCH_RUNS:-columns blocked blocked2}; do

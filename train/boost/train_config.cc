@@ -48,8 +48,11 @@ const std::vector<Setting<TrainConfig>>& feature_settings() {
 const std::vector<Setting<TrainConfig>>& checkpoint_settings() {
   using T = TrainConfig;
   static const std::vector<Setting<T>> settings = {
+      {"minutes", [](T& c) -> SettingRef { return &c.checkpoint_minutes; }, SettingRange::finite_at_least(0),
+       "wall minutes between checkpoints (0 = none by time); checkpoints also come on SIGTERM / SIGUSR1 and at "
+       "the end"},
       {"interval", [](T& c) -> SettingRef { return &c.checkpoint_interval; }, SettingRange::at_least(0),
-       "rounds between checkpoints; 0 = only on SIGTERM / SIGUSR1 and at the end"},
+       "rounds between checkpoints (0 = none by rounds), besides checkpoint.minutes"},
       {"keep", [](T& c) -> SettingRef { return &c.checkpoint_keep; }, SettingRange::at_least(1),
        "newest checkpoints kept"},
   };

@@ -3,7 +3,7 @@
 // checkpoint can hash to refuse a changed config.
 //
 // Tables: [training_set] (TrainingSetOptions), [boost] (BoostOptions), [regions]
-// (ContextRegionOptions), [features] threads, [checkpoint] interval, keep
+// (ContextRegionOptions), [features] threads, [checkpoint] minutes, interval, keep
 // (train/checkpoint/checkpoint_h5.h; not compared on resume), and, for a run of one area only,
 // [area] file, id, landmarks, landmarks_hash (AreaReference; outside the schema: not a number each). Every key is named
 // once, in the schema (train_config_schema(), built from the options' own schemas in train/boost/boost_options.h),
@@ -37,8 +37,9 @@ struct TrainConfig {
   BoostOptions boost;
   ContextRegionOptions regions;
   int feature_threads = 1;
-  int32_t checkpoint_interval = 100;  // rounds between checkpoints (0 = only on a signal and at the end)
-  int32_t checkpoint_keep = 3;        // newest checkpoints kept
+  double checkpoint_minutes = 10.0;  // wall minutes between checkpoints (0 = none by time)
+  int32_t checkpoint_interval = 0;   // rounds between checkpoints (0 = none by rounds)
+  int32_t checkpoint_keep = 3;       // newest checkpoints kept
   AreaReference area;
   void check() const;  // every part's check() and seeds in 0..2^63-1; throws lmb::Error naming the field
 };

@@ -2,7 +2,8 @@
 // ranks (`mpirun -n R lboost train ...`, `srun --mpi=pmix lboost train ...`; train/dist/).
 //   lboost train --map map.h5 --vocab vocab.lbv --out RUN_DIR [--config cfg.toml] [--rounds N]
 //                [--dims-per-round N] [--top-k N] [--seed S] [--threads N]
-//                [--checkpoint-interval N] [--checkpoint-keep K] [--area AREAS_FILE:ID]
+//                [--checkpoint-minutes M] [--checkpoint-interval N] [--checkpoint-keep K]
+//                [--area AREAS_FILE:ID]
 //   lboost train --synthetic small|medium|paper --out RUN_DIR ...   (synthetic problem of
 //                train/boost/synthetic_problem.h instead of a map: tests, job tests, benchmarks)
 // Rank 0 locks RUN_DIR (RUN_DIR/.train.lock, flock: a second trainer of the folder fails at once)
@@ -71,6 +72,7 @@ struct TrainArgs {
   std::optional<int32_t> top_k;
   std::optional<int64_t> seed;
   std::optional<int> threads;
+  std::optional<double> checkpoint_minutes;
   std::optional<int32_t> checkpoint_interval;
   std::optional<int32_t> checkpoint_keep;
   std::string synthetic;
@@ -316,6 +318,7 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
   TrainingJobOptions job;
   job.run_dir = run_dir;
   job.config_toml = config_text;
+  job.checkpoint_minutes = config.checkpoint_minutes;
   job.checkpoint_interval = config.checkpoint_interval;
   job.checkpoint_keep = config.checkpoint_keep;
   job.data =
@@ -394,6 +397,7 @@ void run_train(const TrainArgs& a) {
     config.boost.seed = config.training_set.seed = static_cast<uint64_t>(*a.seed);
   }
   if (a.threads) config.feature_threads = *a.threads;
+  if (a.checkpoint_minutes) config.checkpoint_minutes = *a.checkpoint_minutes;
   if (a.checkpoint_interval) config.checkpoint_interval = *a.checkpoint_interval;
   if (a.checkpoint_keep) config.checkpoint_keep = *a.checkpoint_keep;
   if (!a.area.empty()) {
@@ -455,6 +459,7 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--seed", args->seed,
                   "boost.seed and training_set.seed (default " + std::to_string(TrainConfig().boost.seed) + ")");
   cmd->add_option("--threads", args->threads, key("features.threads"));
+  cmd->add_option("--checkpoint-minutes", args->checkpoint_minutes, key("checkpoint.minutes"));
   cmd->add_option("--checkpoint-interval", args->checkpoint_interval, key("checkpoint.interval"));
   cmd->add_option("--checkpoint-keep", args->checkpoint_keep, key("checkpoint.keep"));
   cmd->callback([args] { run_train(*args); });

@@ -1,6 +1,8 @@
 #include "train/dist/training_job.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include <spdlog/spdlog.h>
 
@@ -70,6 +72,8 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
                                    const TrainingJobOptions& options, const std::optional<Checkpoint>& resume,
                                    const std::function<void(const RoundStats&)>& on_round) {
   LMB_CHECK(options.checkpoint_interval >= 0, "checkpoint.interval must be >= 0, got " << options.checkpoint_interval);
+  LMB_CHECK(std::isfinite(options.checkpoint_minutes) && options.checkpoint_minutes >= 0.0,
+            "checkpoint.minutes must be finite and >= 0, got " << options.checkpoint_minutes);
   LMB_CHECK(options.checkpoint_keep >= 1, "checkpoint.keep must be >= 1, got " << options.checkpoint_keep);
   TrainingJobResult result;
   if (resume) {
@@ -106,18 +110,29 @@ TrainingJobResult run_training_job(Communicator& comm, FeatureParallelLearner& l
   const auto t0 = Clock::now();
   const double cpu0 = cpu_seconds();
   double checkpoint_time = 0.0, checkpoint_cpu = 0.0;
+  auto last_checkpoint = t0;
+  // One allreduce a round: 2 = a stop was requested on some rank, 1 = rank 0's clock says a
+  // checkpoint is due.
+  constexpr int64_t kStop = 2, kDue = 1;
   while (learner.rounds_done() < learner.options().num_rounds) {
     const RoundStats stats = learner.run_round();
     ++result.rounds_run;
     if (comm.rank() == 0 && on_round) on_round(stats);
-    const bool stop = comm.allreduce_max(stop_signal_received()) != 0;
+    int64_t flag = stop_signal_received() != 0 ? kStop : 0;
+    if (comm.rank() == 0 && options.checkpoint_minutes > 0.0 &&
+        since(last_checkpoint) >= 60.0 * options.checkpoint_minutes)
+      flag = std::max(flag, kDue);
+    const int64_t agreed = comm.allreduce_max(flag);
+    const bool stop = agreed == kStop;
     const int32_t done = learner.rounds_done();
     const bool last = done == learner.options().num_rounds;
-    if (stop || last || (options.checkpoint_interval > 0 && done % options.checkpoint_interval == 0)) {
+    if (stop || last || agreed == kDue ||
+        (options.checkpoint_interval > 0 && done % options.checkpoint_interval == 0)) {
       const double before = result.checkpoint_seconds, cpu_before = cpu_seconds();
       checkpoint();
       checkpoint_time += result.checkpoint_seconds - before;
       checkpoint_cpu += cpu_seconds() - cpu_before;
+      last_checkpoint = Clock::now();
     }
     if (stop && !last) {
       if (comm.rank() == 0)

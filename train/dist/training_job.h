@@ -6,10 +6,12 @@
 // compared settings or the data source differ (the error names the setting), and broadcasts its
 // path; every rank loads it. The checkpoint may come from any rank count.
 //
-// After every round the ranks allreduce the stop flag (SIGTERM / SIGUSR1, train/dist/stop_signal.h);
-// every checkpoint_interval rounds, on a stop request and at the end rank 0 writes a checkpoint,
-// keeping the newest checkpoint_keep. A stop returns stopped = true (the command then exits with
-// kRequeueExitCode).
+// After every round the ranks allreduce the stop flag (SIGTERM / SIGUSR1, train/dist/stop_signal.h)
+// together with rank 0's clock: when checkpoint_minutes of wall time have passed since the last
+// checkpoint (or the start), every checkpoint_interval rounds, on a stop request and at the end
+// rank 0 writes a checkpoint, keeping the newest checkpoint_keep. Which rounds get one does not
+// change the trained model (a checkpoint only reads the state). A stop returns stopped = true
+// (the command then exits with kRequeueExitCode).
 #pragma once
 
 #include <cstdint>
@@ -41,7 +43,8 @@ struct TrainingJobOptions {
   std::string config_toml;          // the effective config (train/boost/train_config.h)
   std::string data;                 // the training data source, checked on resume
   FeatureSpace feature_space;       // what the stumps are trained on (rank 0), checked on resume
-  int32_t checkpoint_interval = 0;  // rounds between checkpoints; 0 = only on a stop and at the end
+  double checkpoint_minutes = 0.0;  // wall minutes between checkpoints, by rank 0's clock; 0 = none by time
+  int32_t checkpoint_interval = 0;  // rounds between checkpoints; 0 = none by rounds
   int32_t checkpoint_keep = 3;
 };
 

@@ -6,6 +6,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
@@ -216,6 +217,43 @@ TEST(TrainingJob, SignalOnOneRankStopsAllAfterACheckpoint) {
   EXPECT_EQ(CheckpointDir(dir).list().size(), 2u);
   world.barrier();
   if (world.rank() == 0) fs::remove_all(dir);
+}
+
+// checkpoint.minutes: rank 0's clock decides and every rank follows (a rank that checkpointed
+// alone would hang the gather); which rounds get a checkpoint leaves the model unchanged.
+TEST(TrainingJob, CheckpointsWhenRankZerosClockSaysAndTheModelIsTheSame) {
+  Communicator world(MPI_COMM_WORLD);
+  const Problem p = make_problem(30, 32);
+  const BoostModel reference = serial_model(p);
+  const int32_t rounds = p.config.boost.num_rounds;
+  ASSERT_GE(rounds, 3);
+  const FeatureMatrix mine = own_columns(p.data.features, world);
+  for (const double minutes : {1e-12, 1e6}) {
+    const fs::path dir = shared_temp_dir(minutes < 1.0 ? "clock_due" : "clock_never");
+    TrainingJobOptions job;
+    job.run_dir = dir;
+    job.data = "synthetic:test";
+    job.feature_space = synthetic_feature_space("synthetic:test", p.data.features.num_dims);
+    job.config_toml = train_config_toml(p.config);
+    job.checkpoint_minutes = minutes;
+    job.checkpoint_interval = 0;
+    job.checkpoint_keep = rounds + 1;
+    FeatureParallelLearner learner(world, mine, p.data.set, p.config.boost);
+    const TrainingJobResult r = run_training_job(world, learner, job, std::nullopt, {});
+    EXPECT_TRUE(learner.model() == reference) << "minutes " << minutes;
+    // Due after every round, or never: then only the final checkpoint.
+    const int32_t expected = minutes < 1.0 ? rounds : 1;
+    EXPECT_EQ(r.checkpoints_written, expected) << "minutes " << minutes << " on rank " << world.rank();
+    world.barrier();
+    EXPECT_EQ(CheckpointDir(dir).list().size(), static_cast<size_t>(expected)) << "minutes " << minutes;
+    world.barrier();
+    if (world.rank() == 0) fs::remove_all(dir);
+  }
+  TrainingJobOptions bad;  // refused before any collective step
+  bad.run_dir = "unused";
+  bad.checkpoint_minutes = std::nan("");
+  FeatureParallelLearner learner(world, mine, p.data.set, p.config.boost);
+  EXPECT_THROW(run_training_job(world, learner, bad, std::nullopt, {}), Error);
 }
 
 }  // namespace
