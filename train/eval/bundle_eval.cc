@@ -12,6 +12,8 @@
 #include <memory>
 #include <numeric>
 
+#include <spdlog/spdlog.h>
+
 #include "common/error.h"
 #include "common/io/map_h5.h"
 #include "common/landmark_map.h"
@@ -196,6 +198,19 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
   int64_t runs = 0;
   const int64_t loads_before = c.bundle.loads();
   nlohmann::json jframes = nlohmann::json::array();
+  // Progress: a line every 30 s of wall time and after each seed, with the mode's ETA.
+  const auto started = std::chrono::steady_clock::now();
+  auto last_line = started;
+  const int64_t total_runs = static_cast<int64_t>(frames.size()) * c.options.seeds;
+  const auto progress = [&](int seed, bool seed_done) {
+    const auto now = std::chrono::steady_clock::now();
+    if (!seed_done && now - last_line < std::chrono::seconds(30)) return;
+    last_line = now;
+    const double elapsed = std::chrono::duration<double>(now - started).count();
+    const double eta = runs > 0 ? elapsed * static_cast<double>(total_runs - runs) / static_cast<double>(runs) : 0.0;
+    spdlog::info("eval --bundle: {}: seed {}/{}, {} of {} frame runs, {:.0f} s, ETA {:.0f} s", mode.name, seed + 1,
+                 c.options.seeds, runs, total_runs, elapsed, eta);
+  };
   for (int s = 0; s < c.options.seeds; ++s) {
     LocalizerOptions lo = c.options.localizer;
     lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
@@ -214,8 +229,10 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
       ++runs;
       if (o.success && s == 0) pos_err.push_back(position_error(o.pose, frame.cam_from_world));
       if (s == 0) jframes.push_back(frame_json(frame, mode, o, ok));
+      progress(s, false);
     }
     correct_per_seed.push_back(correct);
+    progress(s, true);
   }
   const double nf = static_cast<double>(frames.size());
   const double recall = std::accumulate(correct_per_seed.begin(), correct_per_seed.end(), 0.0) / (nf * c.options.seeds);
