@@ -290,6 +290,7 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
     cutoff_[j] = {-std::numeric_limits<double>::infinity(), std::numeric_limits<int32_t>::max()};
     cutoff_score_[j] = cutoff_[j].score;
   }
+  batch_descriptors_.clear();  // filled when the first class needs its terms here
   // The classes kept by the screening: their exact scores in the 8-lane groups where some lane
   // passed the screening (four groups at a time); lanes of the other groups cannot pass and get
   // -inf. Then offered in class order.
@@ -350,12 +351,31 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
                                      options_.min_score)) {
         continue;
       }
+      uint32_t pass = 0;
       for (int32_t j = 0; j < count; ++j) {
         const double s = lifted[j];
         if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
-          out[j] += detail::fusion_term(m, c, descriptors_ + static_cast<int64_t>(ids[j]) * m.descriptor_bytes());
+          pass |= 1u << j;
         } else {
           out[j] = -std::numeric_limits<double>::infinity();
+        }
+      }
+      // The terms of the passing lanes in one kernel call (the same values as fusion_term's).
+      if (pass != 0) {
+        if (batch_descriptors_.empty()) {
+          const int32_t bytes = m.descriptor_bytes();
+          batch_descriptors_.assign(static_cast<size_t>(kBatch * bytes), 0);
+          for (int32_t j = 0; j < count; ++j) {
+            std::memcpy(batch_descriptors_.data() + static_cast<size_t>(j * bytes),
+                        descriptors_ + static_cast<int64_t>(ids[j]) * bytes, static_cast<size_t>(bytes));
+          }
+        }
+        int32_t distance[kBatch];
+        double terms[kBatch];
+        detail::fusion_terms(m, c, batch_descriptors_.data(), pass, distance, terms);
+        for (uint32_t l = pass; l != 0; l &= l - 1) {
+          const int j = __builtin_ctz(l);
+          out[j] += terms[j];
         }
       }
     }
