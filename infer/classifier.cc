@@ -179,6 +179,11 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
   const bool fusion = m.has_fusion();
   if (kept_.size() < static_cast<size_t>(batches)) kept_.resize(static_cast<size_t>(batches));
   if (kept_terms_.size() < static_cast<size_t>(batches)) kept_terms_.resize(static_cast<size_t>(batches));
+  const int32_t bytes = m.descriptor_bytes();
+  // With the fusion, each batch's descriptors side by side (one kernel call per class and batch,
+  // here and in finish_batch).
+  const size_t descriptor_rows = static_cast<size_t>(batches) * kBatch;
+  if (fusion && lane_descriptors_.size() < descriptor_rows * bytes) lane_descriptors_.resize(descriptor_rows * bytes);
   for (int32_t b = 0; b < batches; ++b) {
     kept_[b].clear();
     kept_terms_[b].clear();
@@ -204,13 +209,10 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       valid[h] = count[h] == kBatch ? ~0u : (1u << count[h]) - 1;
     }
     const uint64_t valid_bits = valid[0] | (pair > 1 ? uint64_t{valid[1]} << 32 : 0);
-    // With the fusion, the lanes' descriptors side by side (one kernel call per class and batch).
-    const int32_t bytes = m.descriptor_bytes();
     if (fusion) {
-      lane_descriptors_.resize(static_cast<size_t>(2 * kBatch * bytes));
       for (int32_t h = 0; h < pair; ++h) {
         for (int32_t j = 0; j < count[h]; ++j) {
-          std::memcpy(lane_descriptors_.data() + static_cast<size_t>((h * kBatch + j) * bytes),
+          std::memcpy(lane_descriptors_.data() + static_cast<size_t>(((b + h) * kBatch + j) * bytes),
                       descriptors_ + static_cast<int64_t>(ids[(b + h) * kBatch + j]) * bytes,
                       static_cast<size_t>(bytes));
         }
@@ -247,8 +249,8 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
           const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
           if (lanes == 0) continue;
           int32_t distance[kBatch];
-          detail::fusion_terms(m, classes[i], lane_descriptors_.data() + static_cast<size_t>(h * kBatch * bytes), lanes,
-                               distance, terms[h]);
+          detail::fusion_terms(m, classes[i], lane_descriptors_.data() + static_cast<size_t>((b + h) * kBatch * bytes),
+                               lanes, distance, terms[h]);
         }
         if (options_.screening && (probed_fused < kScreenProbe || 4 * kept_fused <= 3 * probed_fused)) {
           int32_t class_goal[2][kBatch];
@@ -290,7 +292,6 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
     cutoff_[j] = {-std::numeric_limits<double>::infinity(), std::numeric_limits<int32_t>::max()};
     cutoff_score_[j] = cutoff_[j].score;
   }
-  batch_descriptors_.clear();  // filled when the first class needs its terms here
   // The classes kept by the screening: their exact scores in the 8-lane groups where some lane
   // passed the screening (four groups at a time); lanes of the other groups cannot pass and get
   // -inf. Then offered in class order.
@@ -361,18 +362,11 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
         }
       }
       // The terms of the passing lanes in one kernel call (the same values as fusion_term's).
-      if (pass != 0) {
-        if (batch_descriptors_.empty()) {
-          const int32_t bytes = m.descriptor_bytes();
-          batch_descriptors_.assign(static_cast<size_t>(kBatch * bytes), 0);
-          for (int32_t j = 0; j < count; ++j) {
-            std::memcpy(batch_descriptors_.data() + static_cast<size_t>(j * bytes),
-                        descriptors_ + static_cast<int64_t>(ids[j]) * bytes, static_cast<size_t>(bytes));
-          }
-        }
+      if (pass != 0) {  // screen_word's copy of this batch's descriptors
         int32_t distance[kBatch];
         double terms[kBatch];
-        detail::fusion_terms(m, c, batch_descriptors_.data(), pass, distance, terms);
+        detail::fusion_terms(m, c, lane_descriptors_.data() + static_cast<size_t>(b) * kBatch * m.descriptor_bytes(),
+                             pass, distance, terms);
         for (uint32_t l = pass; l != 0; l &= l - 1) {
           const int j = __builtin_ctz(l);
           out[j] += terms[j];

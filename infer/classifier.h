@@ -133,8 +133,7 @@ class Classifier {
   };
   std::vector<std::vector<Kept>> kept_;          // per batch of the group: classes kept by screening
   std::vector<std::vector<double>> kept_terms_;  // with the fusion: kBatch terms of each kept class
-  std::vector<uint8_t> lane_descriptors_;        // with the fusion: two batches' descriptors (rows)
-  std::vector<uint8_t> batch_descriptors_;       // with the fusion: finish_batch's kBatch descriptors (rows)
+  std::vector<uint8_t> lane_descriptors_;        // with the fusion: each batch's kBatch descriptors (rows)
   std::vector<double> kept_out_;                 // kBatch exact scores of each kept class of a batch
   std::vector<detail::GroupItem> groups_;
   std::vector<double> background_;             // per batch of the group: kBatch background scores
