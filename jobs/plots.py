@@ -204,7 +204,8 @@ def plot_pose_recall_sweep(report, out_dir):
             continue
         x = [p[0] for p in pts]
         mean = [p[1] for p in pts]
-        err = [[p[1] - p[2] for p in pts], [p[3] - p[1] for p in pts]]
+        # max(0, .): the mean of equal seeds can exceed their max by a rounding step, which errorbar refuses.
+        err = [[max(0.0, p[1] - p[2]) for p in pts], [max(0.0, p[3] - p[1]) for p in pts]]
         ax.errorbar(x, mean, yerr=err, fmt="-o", color=colour, markersize=4, capsize=3, label=label)
     seeds = sweeps[0][2].get("seeds", [])
     ax.set_xscale("log")

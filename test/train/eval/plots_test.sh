@@ -45,6 +45,9 @@ report = {"dataset": {"map_frames": 200, "query_frames": 40, "landmarks": 1000, 
                       "bruteforce_hamming": method(0.81, 0.83, 0.9, 1.0, 40.0),
                       "hamming_ratio": method(0.81, 0.83, 0.9, 1.1, 41.0),
                       "projected_kdtree": method(0.66, 0.72, 1.3, 0.7, 2.0)}}
+# Equal seeds whose mean exceeds their max by a rounding step (0.1 + 0.2 > 0.3), as real reports give.
+report["methods"]["projected_kdtree"]["pose_recall_sweep"].update(
+    {"mean": [0.1 + 0.2] * 3, "min": [0.3] * 3, "max": [0.3] * 3})
 json.dump(report, open(out + "/report.json", "w"), indent=1)
 with open(out + "/run/metrics.jsonl", "w") as f:
     for r in range(300):
