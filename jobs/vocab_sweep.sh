@@ -8,7 +8,8 @@
 # SWEEP_DIR (default OUT_DIR/vocab_sweep): per word count w<N>/{vocab.lbv,config.toml,run/,
 # model.lbm,report.json}, then table.md (jobs/vocab_table.py). Settings from the environment:
 # WORDS (default "4 8 16 32 64 128"), ROUNDS (200), REGIONS (1000), DIMS_PER_ROUND (500),
-# LMB_THREADS (nproc). Word counts whose report exists are kept; delete SWEEP_DIR to start over.
+# LMB_THREADS (nproc), AUGMENT (0: augmented copies of every training sample, [augment] copies; the
+# noise is measured on the map). Word counts whose report exists are kept; delete SWEEP_DIR to start over.
 set -euo pipefail
 out=${1:-out/default}
 sweep=${2:-$out/vocab_sweep}
@@ -19,6 +20,7 @@ words_list=${WORDS:-4 8 16 32 64 128}
 rounds=${ROUNDS:-200}
 regions=${REGIONS:-1000}
 dims_per_round=${DIMS_PER_ROUND:-500}
+augment=${AUGMENT:-0}
 for f in map.h5 vocab_world/images; do
   [ -e "$out/$f" ] || { echo "jobs/vocab_sweep.sh: $out/$f missing (run jobs/pipeline.sh first)" >&2; exit 1; }
 done
@@ -38,6 +40,9 @@ candidate_dims = $((regions * w))
 [regions]
 num_regions = $regions
 TOML
+  if [ "$augment" -gt 0 ]; then
+    printf '[augment]\ncopies = %d\n' "$augment" >> "$d/config.toml"
+  fi
   rm -rf "$d/run"
   "$lboost" train --map "$out/map.h5" --vocab "$d/vocab.lbv" --out "$d/run" --config "$d/config.toml" \
     --threads "$threads"

@@ -1,5 +1,7 @@
 #include "train/boost/boost_options.h"
 
+#include <utility>
+
 #include "common/error.h"
 
 namespace lmb {
@@ -68,6 +70,32 @@ const std::vector<Setting<BoostOptions>>& boost_settings() {
        SettingRange::at_least(0), "held-out samples scored at most"},
   };
   return settings;
+}
+
+const std::vector<Setting<AugmentOptions>>& augment_settings() {
+  using T = AugmentOptions;
+  static const std::vector<Setting<T>> settings = {
+      {"copies", [](T& o) -> SettingRef { return &o.copies; }, SettingRange::closed(0, 16),
+       "augmented samples per training observation (0 = no augmentation)"},
+      {"dropout", [](T& o) -> SettingRef { return &o.dropout; }, SettingRange::closed(-1.0, 0.95),
+       "share of a frame's keypoints dropped in a copy; -1 = measured (1 - the map's re-observation rate)"},
+      {"position_sigma", [](T& o) -> SettingRef { return &o.position_sigma; }, SettingRange::closed(-1.0, 10.0),
+       "keypoint position noise, keypoint scales; -1 = measured (the map's reprojection residuals)"},
+      {"scale_sigma", [](T& o) -> SettingRef { return &o.scale_sigma; }, SettingRange::closed(-1.0, 2.0),
+       "keypoint log-scale noise; -1 = measured (spread of size x depth along the map's tracks)"},
+      {"rotation_deg", [](T& o) -> SettingRef { return &o.rotation_deg; }, SettingRange::closed(0.0, 90.0),
+       "gravity direction noise of a copy, degrees"},
+      {"seed", [](T& o) -> SettingRef { return &o.seed; }, SettingRange::any(), "seed of the augmentation draws"},
+  };
+  return settings;
+}
+
+void AugmentOptions::check() const {
+  check_settings("augment", augment_settings(), *this);
+  for (const auto& [name, v] : {std::pair{"dropout", dropout}, std::pair{"position_sigma", position_sigma},
+                                std::pair{"scale_sigma", scale_sigma}}) {
+    LMB_CHECK(v == -1.0 || v >= 0.0, "augment: " << name << " must be -1 (measured) or >= 0, got " << v);
+  }
 }
 
 void TrainingSetOptions::check() const { check_settings("training set", training_set_settings(), *this); }

@@ -107,8 +107,27 @@ struct BoostOptions {
   void check(int32_t num_dims) const;
 };
 
+// Context augmentation at training time (train/features/augmentation.h, docs/matching.md): each
+// training observation gets up to `copies` extra samples whose context is computed from a perturbed
+// copy of its frame: keypoints dropped as a detector fails to find them again, positions and scales
+// jittered as a detector localizes them, the gravity direction rotated. Each rate left at -1 is
+// measured on the map (augmentation.h: measure_map_noise). copies = 0: no augmentation, the run's
+// config.toml has no [augment] table and the training set is the one of earlier versions.
+struct AugmentOptions {
+  int32_t copies = 0;            // augmented samples per training observation (at most; a copy whose
+                                 // own keypoint is dropped is not made)
+  double dropout = -1.0;         // share of a frame's keypoints dropped; -1 = 1 - the map's re-observation rate
+  double position_sigma = -1.0;  // position noise, keypoint scales (per axis); -1 = the map's reprojection residuals
+  double scale_sigma = -1.0;     // log-scale noise; -1 = the spread of size x depth along the map's tracks
+  double rotation_deg = 0.0;     // gravity direction noise (standard deviation, degrees)
+  uint64_t seed = 1;             // the draws: a function of (seed, keypoint or frame, copy) only
+  bool enabled() const { return copies > 0; }
+  void check() const;  // throws lmb::Error naming the field
+};
+
 // The schemas: every setting with its config key, range and help.
 const std::vector<Setting<TrainingSetOptions>>& training_set_settings();
 const std::vector<Setting<BoostOptions>>& boost_settings();
+const std::vector<Setting<AugmentOptions>>& augment_settings();
 
 }  // namespace lmb

@@ -163,6 +163,8 @@ const std::vector<ConfigKey>& train_config_schema() {
         &s, "boost", [](TrainConfig& c) -> BoostOptions& { return c.boost; }, boost_settings());
     add_table<ContextRegionOptions>(
         &s, "regions", [](TrainConfig& c) -> ContextRegionOptions& { return c.regions; }, region_settings());
+    add_table<AugmentOptions>(
+        &s, "augment", [](TrainConfig& c) -> AugmentOptions& { return c.augment; }, augment_settings());
     add_table<TrainConfig>(
         &s, "features", [](TrainConfig& c) -> TrainConfig& { return c; }, feature_settings());
     add_table<TrainConfig>(
@@ -183,6 +185,7 @@ void TrainConfig::check() const {
   training_set.check();
   boost.check();
   regions.check();
+  augment.check();
   TrainConfig copy = *this;
   for (const ConfigKey& k : train_config_schema()) {
     if (k.table != "features" && k.table != "checkpoint") continue;  // the others: their check()
@@ -196,8 +199,9 @@ void TrainConfig::check() const {
   }
   // Seeds are written to config.toml as TOML integers (int64).
   constexpr uint64_t kMaxSeed = static_cast<uint64_t>(std::numeric_limits<int64_t>::max());
-  for (const auto& [name, seed] : {std::pair{"training_set.seed", training_set.seed},
-                                   std::pair{"boost.seed", boost.seed}, std::pair{"regions.seed", regions.seed}}) {
+  for (const auto& [name, seed] :
+       {std::pair{"training_set.seed", training_set.seed}, std::pair{"boost.seed", boost.seed},
+        std::pair{"regions.seed", regions.seed}, std::pair{"augment.seed", augment.seed}}) {
     LMB_CHECK(seed <= kMaxSeed, "config: " << name << " = " << seed << " must be in 0.." << kMaxSeed);
   }
 }
@@ -246,7 +250,10 @@ TrainConfig read_train_config(const std::filesystem::path& path) {
 std::string train_config_toml(const TrainConfig& config) {
   TrainConfig copy = config;
   std::vector<const ConfigKey*> keys;
-  for (const ConfigKey& k : train_config_schema()) keys.push_back(&k);
+  for (const ConfigKey& k : train_config_schema()) {
+    if (k.table == "augment" && !config.augment.enabled()) continue;
+    keys.push_back(&k);
+  }
   // By table, then key: the order of the file does not depend on the schema's.
   std::sort(keys.begin(), keys.end(), [](const ConfigKey* a, const ConfigKey* b) {
     return a->table != b->table ? a->table < b->table : a->key < b->key;

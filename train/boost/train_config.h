@@ -3,8 +3,9 @@
 // checkpoint can hash to refuse a changed config.
 //
 // Tables: [training_set] (TrainingSetOptions), [boost] (BoostOptions), [regions]
-// (ContextRegionOptions), [features] threads, [checkpoint] minutes, interval, keep
-// (train/checkpoint/checkpoint_h5.h; not compared on resume), and, for a run of one area only,
+// (ContextRegionOptions), [augment] (AugmentOptions; written only when copies > 0, so the configs
+// and checkpoints of runs without augmentation are those of earlier versions), [features] threads, [checkpoint]
+// minutes, interval, keep (train/checkpoint/checkpoint_h5.h; not compared on resume), and, for a run of one area only,
 // [area] file, id, landmarks, landmarks_hash (AreaReference; outside the schema: not a number each). Every key is named
 // once, in the schema (train_config_schema(), built from the options' own schemas in train/boost/boost_options.h),
 // which reads, writes, checks and describes the config.
@@ -36,6 +37,7 @@ struct TrainConfig {
   TrainingSetOptions training_set;
   BoostOptions boost;
   ContextRegionOptions regions;
+  AugmentOptions augment;  // [augment], written only when augment.copies > 0
   int feature_threads = 1;
   double checkpoint_minutes = 10.0;  // wall minutes between checkpoints (0 = none by time)
   int32_t checkpoint_interval = 0;   // rounds between checkpoints (0 = none by rounds)

@@ -96,6 +96,13 @@ void TrainingSet::check() const {
     LMB_CHECK(std::isfinite(sample_weight[i]) && sample_weight[i] > 0.f,
               "training set: sample " << i << " has weight " << sample_weight[i] << " (must be finite and > 0)");
   }
+  LMB_CHECK(sample_copy.empty() || static_cast<int64_t>(sample_copy.size()) == n,
+            "training set: sample_copy must be empty or have " << n << " entries");
+  for (size_t i = 0; i < sample_copy.size(); ++i) {
+    LMB_CHECK(sample_copy[i] >= 0 && (sample_copy[i] == 0 || !sample_is_validation[i]),
+              "training set: sample " << i << " has copy " << sample_copy[i]
+                                      << " (must be >= 0, and 0 for a validation sample)");
+  }
   std::vector<int64_t> train_count(static_cast<size_t>(num_classes) + 1, 0);
   for (int64_t i = 0; i < n; ++i) {
     const int32_t c = sample_class[i];
@@ -110,6 +117,27 @@ void TrainingSet::check() const {
   LMB_CHECK(train_count[num_classes] > 0,
             "training set: no background training samples (the map has no untracked keypoints and "
             "every landmark was selected; lower top_k_landmarks or raise background_cap)");
+}
+
+void add_augmented_copies(TrainingSet* set, int32_t copies, const std::function<bool(int64_t, int32_t)>& kept) {
+  LMB_CHECK(copies >= 0, "augment: copies = " << copies << " must be >= 0");
+  LMB_CHECK(set->sample_copy.empty(), "augment: the training set already has augmented copies");
+  const int64_t n = set->num_samples();
+  set->sample_copy.assign(static_cast<size_t>(n), 0);
+  for (int64_t s = 0; s < n; ++s) {
+    if (set->sample_is_validation[s]) continue;
+    for (int32_t c = 1; c <= copies; ++c) {
+      if (!kept(set->sample_keypoint[s], c)) continue;
+      set->sample_class.push_back(set->sample_class[s]);
+      set->sample_word.push_back(set->sample_word[s]);
+      set->sample_position.push_back(set->sample_position[s]);
+      set->sample_frame.push_back(set->sample_frame[s]);
+      set->sample_keypoint.push_back(set->sample_keypoint[s]);
+      set->sample_is_validation.push_back(0);
+      if (!set->sample_weight.empty()) set->sample_weight.push_back(set->sample_weight[s]);
+      set->sample_copy.push_back(c);
+    }
+  }
 }
 
 TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t>& keypoint_words,

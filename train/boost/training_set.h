@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -30,6 +31,10 @@ struct TrainingSet {
   std::vector<uint8_t> sample_is_validation;     // 1 = held-out map observation (never trained on)
   // Optional initial weight of every entry of a sample (finite, > 0); empty = all 1.
   std::vector<float> sample_weight;
+  // Optional augmentation copy of every sample: 0 = the observation itself, c > 0 = its c-th
+  // augmented copy (context from a perturbed frame, train/features/augmentation.h; never a
+  // validation sample). Empty = all 0.
+  std::vector<int32_t> sample_copy;
 
   int32_t background_class() const { return num_classes; }
   int32_t num_classes_with_background() const { return num_classes + 1; }
@@ -51,6 +56,12 @@ struct TrainingSet {
 // Throws lmb::Error on a malformed map, wrong word count, or no landmark qualifying.
 TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t>& keypoint_words,
                                const TrainingSetOptions& options);
+
+// Appends the augmented copies of every training (non-validation) sample of copy 0: for c in
+// 1..copies, in sample order then copy order, a sample equal to it with sample_copy c, when
+// kept(keypoint, c). The originals keep their indices, so the first num_samples() rows are the set
+// without augmentation. Throws lmb::Error when copies < 0 or the set already has copies.
+void add_augmented_copies(TrainingSet* set, int32_t copies, const std::function<bool(int64_t, int32_t)>& kept);
 
 // The held-out map observations of a training set, from the map, its classes' landmarks and the
 // options alone: the keypoints build_training_set marks sample_is_validation when its classes are

@@ -16,7 +16,9 @@
 // Everything is checked before anything is written into RUN_DIR: the config against the
 // checkpoint's, the data source, and the feature space (regions, vocabulary, map) against the one
 // the checkpoint was trained in. A refused run leaves RUN_DIR exactly as it was.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -56,6 +58,7 @@
 #include "train/dist/feature_parallel_learner.h"
 #include "train/dist/stop_signal.h"
 #include "train/dist/training_job.h"
+#include "train/features/augmentation.h"
 #include "train/features/build_features.h"
 
 namespace lmb::cli {
@@ -72,6 +75,7 @@ struct TrainArgs {
   std::optional<int32_t> top_k;
   std::optional<int64_t> seed;
   std::optional<int> threads;
+  std::optional<int32_t> augment_copies;
   std::optional<double> checkpoint_minutes;
   std::optional<int32_t> checkpoint_interval;
   std::optional<int32_t> checkpoint_keep;
@@ -91,6 +95,7 @@ struct HammingBaseline {
 HammingBaseline hamming_nn_validation_p1(const LandmarkMap& map, const TrainingSet& set) {
   std::vector<int64_t> train, validation;
   for (int64_t s = 0; s < set.num_samples(); ++s) {
+    if (!set.sample_copy.empty() && set.sample_copy[s] > 0) continue;  // an augmented copy: same descriptor
     (set.sample_is_validation[s] ? validation : train).push_back(s);
   }
   HammingBaseline out;
@@ -135,7 +140,31 @@ struct RankData {
   std::string source;          // checked on resume
   FeatureSpace feature_space;  // rank 0 (the map's fingerprint is computed there only)
   HammingBaseline hamming;
+  AugmentNoise augment;  // the noise of the augmented copies (when config.augment.copies > 0)
 };
+
+// The augmentation noise of a run: each rate the config leaves at -1 measured on the map (the same
+// on every rank: the measurement is deterministic).
+AugmentNoise resolve_augment_noise(const AugmentOptions& o, const LandmarkMap& map) {
+  AugmentNoise noise;
+  noise.seed = o.seed;
+  noise.rotation_rad = o.rotation_deg * M_PI / 180.0;
+  noise.dropout = o.dropout;
+  noise.position_sigma = o.position_sigma;
+  noise.scale_sigma = o.scale_sigma;
+  if (o.dropout < 0.0 || o.position_sigma < 0.0 || o.scale_sigma < 0.0) {
+    const MapNoiseEstimate m = measure_map_noise(map);
+    spdlog::info(
+        "train: map noise: re-observation rate {:.3f} ({} projections into covisible frames), position sigma "
+        "{:.4f} keypoint scales ({} observations), log-scale sigma {:.4f} ({} track observations)",
+        m.reobservation_rate, m.projected, m.position_sigma, m.residuals, m.scale_sigma, m.track_observations);
+    if (o.dropout < 0.0) noise.dropout = std::min(0.95, 1.0 - m.reobservation_rate);
+    if (o.position_sigma < 0.0) noise.position_sigma = m.position_sigma;
+    if (o.scale_sigma < 0.0) noise.scale_sigma = m.scale_sigma;
+  }
+  noise.check();
+  return noise;
+}
 
 SyntheticBoostOptions synthetic_preset(const std::string& name) {
   SyntheticBoostOptions o;
@@ -178,6 +207,17 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
     const ContextRegions regions(config.regions);
     FeatureBuildOptions feature_options;
     feature_options.num_threads = config.feature_threads;
+    if (config.augment.enabled()) {
+      d.augment = resolve_augment_noise(config.augment, map);
+      const int64_t originals = d.set.num_samples();
+      add_augmented_copies(&d.set, config.augment.copies, [&](int64_t keypoint, int32_t copy) {
+        return augmented_keypoint_kept(d.augment, keypoint, copy);
+      });
+      spdlog::info("train: augmentation: {} copies a training observation, {}: {} augmented samples",
+                   config.augment.copies, d.augment.text(), d.set.num_samples() - originals);
+      feature_options.copies = d.set.sample_copy;
+      feature_options.augment = d.augment;
+    }
     if (comm.distributed()) {
       feature_options.dims = rank_dims(embedding_layout(map, regions, vocabulary).num_dims(), comm.rank(), comm.size());
     }
@@ -362,6 +402,14 @@ void train_on_ranks(const TrainArgs& a, const TrainConfig& config, Communicator&
     summary["area"] = config.area.id;
     summary["area_file"] = config.area.file;
   }
+  if (config.augment.enabled()) {
+    summary["augment"] = {{"copies", config.augment.copies},
+                          {"dropout", data.augment.dropout},
+                          {"position_sigma", data.augment.position_sigma},
+                          {"scale_sigma", data.augment.scale_sigma},
+                          {"rotation_deg", data.augment.rotation_rad * 180.0 / M_PI},
+                          {"seed", data.augment.seed}};
+  }
   summary["rounds"] = learner.rounds_done();
   summary["ranks"] = comm.size();
   summary["machine"] = machine_info().summary();
@@ -397,6 +445,7 @@ void run_train(const TrainArgs& a) {
     config.boost.seed = config.training_set.seed = static_cast<uint64_t>(*a.seed);
   }
   if (a.threads) config.feature_threads = *a.threads;
+  if (a.augment_copies) config.augment.copies = *a.augment_copies;
   if (a.checkpoint_minutes) config.checkpoint_minutes = *a.checkpoint_minutes;
   if (a.checkpoint_interval) config.checkpoint_interval = *a.checkpoint_interval;
   if (a.checkpoint_keep) config.checkpoint_keep = *a.checkpoint_keep;
@@ -445,7 +494,7 @@ void add_train_command(CLI::App& app) {
       ->excludes(map)
       ->excludes(vocab);
   cmd->add_option("--out", args->out, "run folder: config.toml, log.txt, metrics.jsonl, model.bin")->required();
-  cmd->add_option("--config", args->config, "TOML config ([training_set], [boost], [regions], [features])")
+  cmd->add_option("--config", args->config, "TOML config ([training_set], [boost], [regions], [augment], [features])")
       ->check(CLI::ExistingFile);
   // The flags' help: the config key they set, its help and default (train/boost/train_config.h).
   auto key = [](const char* name) { return std::string(name) + ": " + describe_config_key(name); };
@@ -459,6 +508,7 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--seed", args->seed,
                   "boost.seed and training_set.seed (default " + std::to_string(TrainConfig().boost.seed) + ")");
   cmd->add_option("--threads", args->threads, key("features.threads"));
+  cmd->add_option("--augment-copies", args->augment_copies, key("augment.copies"));
   cmd->add_option("--checkpoint-minutes", args->checkpoint_minutes, key("checkpoint.minutes"));
   cmd->add_option("--checkpoint-interval", args->checkpoint_interval, key("checkpoint.interval"));
   cmd->add_option("--checkpoint-keep", args->checkpoint_keep, key("checkpoint.keep"));

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "common/error.h"
 #include "common/hamming.h"
@@ -70,6 +71,10 @@ void FeatureBuildOptions::check(int32_t num_dims) const {
     LMB_CHECK(i == 0 || dims[i] > dims[i - 1],
               "features: dims must be sorted ascending without repeats (dims[" << i << "] = " << dims[i] << ")");
   }
+  for (size_t i = 0; i < copies.size(); ++i) {
+    LMB_CHECK(copies[i] >= 0, "features: copies[" << i << "] = " << copies[i] << " must be >= 0");
+  }
+  augment.check();
 }
 
 EmbeddingLayout embedding_layout(const LandmarkMap& map, const ContextRegions& regions, const Vocabulary& vocabulary) {
@@ -138,6 +143,16 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
         sample_keypoints[i] >= 0 && sample_keypoints[i] < num_keypoints,
         "features: sample " << i << " keypoint " << sample_keypoints[i] << " is outside 0.." << num_keypoints - 1);
   }
+  const bool augmented = !options.copies.empty();
+  LMB_CHECK(!augmented || static_cast<int64_t>(options.copies.size()) == num_samples,
+            "features: " << options.copies.size() << " copies for " << num_samples << " samples");
+  auto copy_of = [&](int64_t i) { return augmented ? options.copies[i] : 0; };
+  for (int64_t i = 0; augmented && i < num_samples; ++i) {
+    LMB_CHECK(
+        options.copies[i] == 0 || augmented_keypoint_kept(options.augment, sample_keypoints[i], options.copies[i]),
+        "features: sample " << i << " is copy " << options.copies[i] << " of keypoint " << sample_keypoints[i]
+                            << ", which that copy drops");
+  }
   const std::vector<frame_t> frame_of = keypoint_frames(map);
   for (int64_t i = 0; i < num_samples; ++i) {
     LMB_CHECK(frame_of[sample_keypoints[i]] != kInvalidFrameId,
@@ -153,16 +168,14 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
   m.dims = options.dims;
   m.data.resize(static_cast<size_t>(num_samples) * stored);
 
-  // Samples grouped by frame: order[] sorted by (frame, sample index); one task per frame.
+  // Samples grouped by (frame, copy): order[] sorted by (frame, copy, sample index); one task per group.
   std::vector<int64_t> order(static_cast<size_t>(num_samples));
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int64_t a, int64_t b) { return frame_of[sample_keypoints[a]] < frame_of[sample_keypoints[b]]; });
+  auto group_of = [&](int64_t i) { return std::pair{frame_of[sample_keypoints[i]], copy_of(i)}; };
+  std::stable_sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return group_of(a) < group_of(b); });
   std::vector<int64_t> task_begin;
   for (int64_t i = 0; i < num_samples; ++i) {
-    if (i == 0 || frame_of[sample_keypoints[order[i]]] != frame_of[sample_keypoints[order[i - 1]]]) {
-      task_begin.push_back(i);
-    }
+    if (i == 0 || group_of(order[i]) != group_of(order[i - 1])) task_begin.push_back(i);
   }
   const int64_t num_tasks = static_cast<int64_t>(task_begin.size());
   task_begin.push_back(num_samples);
@@ -171,12 +184,13 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
   struct ThreadState {
     FrameContext context;
     std::vector<uint8_t> rows;
+    std::vector<int32_t> index_in_copy;
   };
   std::vector<ThreadState> states;
   states.reserve(static_cast<size_t>(threads));
   for (int t = 0; t < threads; ++t) {
     states.push_back(
-        {FrameContext(regions, layout.num_words), std::vector<uint8_t>(static_cast<size_t>(kRowBlock) * stored)});
+        {FrameContext(regions, layout.num_words), std::vector<uint8_t>(static_cast<size_t>(kRowBlock) * stored), {}});
   }
   const DimPlan plan = all_dims ? DimPlan() : DimPlan(regions, layout, options.dims);
   const int32_t context_dims = layout.num_context_dims();
@@ -185,13 +199,21 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
   parallel_tasks(num_tasks, threads, [&](int64_t task, int thread) {
     ThreadState& st = states[thread];
     const frame_t f = frame_of[sample_keypoints[order[task_begin[task]]]];
-    st.context.reset(map_frame_keypoints(map, f, words), "map: " + frame_name(map, f));
+    const int32_t copy = copy_of(order[task_begin[task]]);
     const int64_t first = map.frames[f].first_keypoint;
+    if (copy == 0) {
+      st.context.reset(map_frame_keypoints(map, f, words), "map: " + frame_name(map, f));
+    } else {
+      st.context.reset(
+          augmented_frame(map_frame_keypoints(map, f, words), f, first, options.augment, copy, &st.index_in_copy),
+          "map: " + frame_name(map, f) + " copy " + std::to_string(copy));
+    }
     for (int64_t b = task_begin[task]; b < task_begin[task + 1]; b += kRowBlock) {
       const int32_t block = static_cast<int32_t>(std::min<int64_t>(kRowBlock, task_begin[task + 1] - b));
       for (int32_t j = 0; j < block; ++j) {
         const int64_t keypoint = sample_keypoints[order[b + j]];
-        const int32_t k = static_cast<int32_t>(keypoint - first);
+        const int32_t k = copy == 0 ? static_cast<int32_t>(keypoint - first)
+                                    : st.index_in_copy[static_cast<size_t>(keypoint - first)];
         uint8_t* row = st.rows.data() + static_cast<size_t>(j) * stored;
         const uint8_t* descriptor = map.descriptor(keypoint);
         if (all_dims) {

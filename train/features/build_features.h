@@ -10,6 +10,7 @@
 #include "common/context_regions.h"
 #include "common/landmark_map.h"
 #include "common/vocabulary.h"
+#include "train/features/augmentation.h"
 #include "train/features/feature_matrix.h"
 
 namespace lmb {
@@ -18,9 +19,14 @@ struct FeatureBuildOptions {
   int num_threads = 1;  // std::threads; the output does not depend on it
   // Global dimensions to store (sorted ascending, unique, each < num_dims); empty = all, in order.
   std::vector<int32_t> dims;
+  // Per sample its augmentation copy (TrainingSet::sample_copy; empty = all 0): copy c > 0 takes its
+  // context from augmented_frame(..., augment, c) (train/features/augmentation.h), whose keypoint
+  // must be kept (augmented_keypoint_kept); its descriptor bits are the keypoint's own.
+  std::vector<int32_t> copies;
+  AugmentNoise augment;
 
   // Throws lmb::Error naming the field (num_threads outside 1..256, dims unsorted, duplicated or
-  // out of range for `num_dims`).
+  // out of range for `num_dims`, a negative copy, augment out of range).
   void check(int32_t num_dims) const;
 };
 
@@ -38,11 +44,11 @@ FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t frame, const 
 
 // Feature vectors of the given samples (global keypoint indices into map.keypoints, any frames,
 // any order, repeats allowed): sample i is row i of every column. The context of a keypoint is
-// made of all keypoints of its frame. Samples are grouped by frame so that each frame's index is
-// built once; threads take whole frames and write disjoint bytes, so the result is identical for
-// any num_threads. Memory: num_samples * (stored dims) bytes, plus per thread one frame index and
-// a row block of at most 256 samples. Throws lmb::Error for an index out of range, a descriptor
-// length mismatch, or a frame with invalid geometry (the message names the frame).
+// made of all keypoints of its frame (of the frame's augmented copy for options.copies > 0).
+// Samples are grouped by (frame, copy) so that each frame's index is built once a copy; threads take whole frames and
+// write disjoint bytes, so the result is identical for any num_threads. Memory: num_samples * (stored dims) bytes, plus
+// per thread one frame index and a row block of at most 256 samples. Throws lmb::Error for an index out of range, a
+// descriptor length mismatch, or a frame with invalid geometry (the message names the frame).
 FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegions& regions,
                                       const Vocabulary& vocabulary, const std::vector<int64_t>& sample_keypoints,
                                       const FeatureBuildOptions& options);

@@ -75,6 +75,30 @@ TEST(TrainConfig, AreaTableRoundTripsOnlyWhenSet) {
             "cfg.toml: area.file: expected a non-empty string");
 }
 
+TEST(TrainConfig, AugmentTableIsWrittenOnlyWhenAugmenting) {
+  TrainConfig c;
+  EXPECT_EQ(train_config_toml(c).find("[augment]"), std::string::npos);  // earlier runs' configs unchanged
+  apply_train_config_toml("[augment]\ncopies = 2\ndropout = 0.4\nrotation_deg = 3\n", "cfg.toml", &c);
+  c.check();
+  EXPECT_EQ(c.augment.copies, 2);
+  EXPECT_DOUBLE_EQ(c.augment.dropout, 0.4);
+  EXPECT_DOUBLE_EQ(c.augment.position_sigma, -1.0);  // measured on the map
+  const std::string text = train_config_toml(c);
+  EXPECT_NE(text.find("[augment]"), std::string::npos) << text;
+  TrainConfig d;
+  apply_train_config_toml(text, "config.toml", &d);
+  EXPECT_EQ(train_config_toml(d), text);
+  EXPECT_DOUBLE_EQ(d.augment.rotation_deg, 3.0);
+  // -1 means "measured"; other negative values are refused.
+  c.augment.scale_sigma = -0.5;
+  try {
+    c.check();
+    FAIL() << "scale_sigma -0.5 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("scale_sigma must be -1 (measured) or >= 0"), std::string::npos) << e.what();
+  }
+}
+
 TEST(TrainConfig, RejectsUnknownKeysWrongTypesAndSyntax) {
   TrainConfig c;
   auto message = [&](const std::string& text) {
@@ -102,8 +126,11 @@ TEST(TrainConfig, RejectsUnknownKeysWrongTypesAndSyntax) {
 TEST(TrainConfig, SchemaNamesEveryKeyOnceAndWritesEachOne) {
   std::set<std::string> names;
   for (const ConfigKey& k : train_config_schema()) EXPECT_TRUE(names.insert(k.name()).second) << k.name();
-  // The written config holds exactly the schema's keys: one "key = value" line each.
-  const std::string text = train_config_toml(TrainConfig{});
+  // The written config holds exactly the schema's keys: one "key = value" line each ([augment]
+  // only when augment.copies > 0: AugmentTableIsWrittenOnlyWhenAugmenting).
+  TrainConfig augmenting;
+  augmenting.augment.copies = 1;
+  const std::string text = train_config_toml(augmenting);
   size_t lines = 0;
   for (size_t at = 0; (at = text.find(" = ", at)) != std::string::npos; at += 3) ++lines;
   EXPECT_EQ(lines, names.size());

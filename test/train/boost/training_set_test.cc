@@ -214,6 +214,49 @@ TEST(TrainingSet, HeldOutObservationsAreTheValidationSamples) {
   EXPECT_THROW(held_out_observations(map, {40}, TrainingSetOptions()), Error);
 }
 
+TEST(TrainingSet, AugmentedCopiesFollowTheOriginalsAndNeverCopyValidation) {
+  const LandmarkMap map = make_map(20);
+  TrainingSetOptions o;
+  o.top_k_landmarks = 10;
+  o.validation_fraction = 0.3;
+  const TrainingSet plain = build_training_set(map, words_of(map), o);
+  TrainingSet set = plain;
+  // Keypoints of even index are kept in copy 1, every keypoint in copy 2.
+  add_augmented_copies(&set, 2, [](int64_t keypoint, int32_t copy) { return copy == 2 || keypoint % 2 == 0; });
+  set.check();
+  const int64_t n = plain.num_samples();
+  ASSERT_EQ(static_cast<int64_t>(set.sample_copy.size()), set.num_samples());
+  int64_t expected = n;
+  int64_t at = n;
+  for (int64_t s = 0; s < n; ++s) {
+    EXPECT_EQ(set.sample_copy[s], 0);
+    EXPECT_EQ(set.sample_keypoint[s], plain.sample_keypoint[s]);
+    if (plain.sample_is_validation[s]) continue;
+    for (int32_t c = 1; c <= 2; ++c) {
+      if (c == 1 && plain.sample_keypoint[s] % 2 != 0) continue;
+      ++expected;
+      ASSERT_LT(at, set.num_samples());
+      EXPECT_EQ(set.sample_copy[at], c);
+      EXPECT_EQ(set.sample_keypoint[at], plain.sample_keypoint[s]);
+      EXPECT_EQ(set.sample_class[at], plain.sample_class[s]);
+      EXPECT_EQ(set.sample_frame[at], plain.sample_frame[s]);
+      EXPECT_EQ(set.sample_is_validation[at], 0);
+      ++at;
+    }
+  }
+  EXPECT_EQ(set.num_samples(), expected);
+  EXPECT_GT(expected, n + n / 2);
+  EXPECT_THROW(add_augmented_copies(&set, 1, [](int64_t, int32_t) { return true; }), Error);
+  TrainingSet bad = set;
+  for (int64_t s = 0; s < n; ++s) {
+    if (bad.sample_is_validation[s]) {
+      bad.sample_copy[s] = 1;
+      break;
+    }
+  }
+  EXPECT_THROW(bad.check(), Error);
+}
+
 TEST(TrainingSet, RejectsBadInput) {
   const LandmarkMap map = make_map(4);
   EXPECT_THROW(build_training_set(map, std::vector<int32_t>(3, 0), TrainingSetOptions()), Error);

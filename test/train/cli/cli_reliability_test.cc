@@ -158,6 +158,32 @@ TEST_F(CliReliabilityTest, RefusedResumeLeavesTheRunFolderExactlyAsItWas) {
   EXPECT_EQ(slurp(out), slurp(dir_ / "model.lbm"));
 }
 
+// Issue 17: context augmentation (docs/matching.md) is deterministic for its seed and gives the
+// same model on 1, 2 and 3 ranks; its noise is measured on the map and recorded.
+TEST_F(CliReliabilityTest, AugmentedTrainingIsTheSameModelOnOneTwoAndThreeRanks) {
+  const std::string args = train_args() + " --augment-copies 2 --checkpoint-minutes 0 --out ";
+  const fs::path one = dir_ / "aug1", two = dir_ / "aug2", three = dir_ / "aug3";
+  ASSERT_EQ(run(args + one.string(), dir_).exit_code, 0);
+  ASSERT_EQ(run(args + two.string(), dir_, std::string(LMB_MPIEXEC) + " -n 2 ").exit_code, 0);
+  ASSERT_EQ(run(args + three.string(), dir_, std::string(LMB_MPIEXEC) + " -n 3 ").exit_code, 0);
+  const std::string model = slurp(one / "model.bin");
+  EXPECT_EQ(slurp(two / "model.bin"), model);
+  EXPECT_EQ(slurp(three / "model.bin"), model);
+  EXPECT_NE(slurp(dir_ / "run" / "model.bin"), model);  // the augmented samples changed the training
+  const std::string config = slurp(one / "config.toml");
+  EXPECT_NE(config.find("[augment]"), std::string::npos) << config;
+  const std::string summary = slurp(one / "summary.json");
+  EXPECT_NE(summary.find("\"augment\""), std::string::npos) << summary;
+  const std::string log = slurp(one / "log.txt");
+  EXPECT_NE(log.find("map noise: re-observation rate"), std::string::npos) << log;
+  EXPECT_NE(log.find("augmented samples"), std::string::npos) << log;
+  // Another augmentation seed: another model.
+  write_file_atomically(dir_ / "aug_seed.toml", "[augment]\nseed = 2\n");
+  const fs::path other = dir_ / "aug_seed2";
+  ASSERT_EQ(run(args + other.string() + " --config " + (dir_ / "aug_seed.toml").string(), dir_).exit_code, 0);
+  EXPECT_NE(slurp(other / "model.bin"), model);
+}
+
 // Item 12: a failed train left config.toml and an empty log.txt behind.
 TEST_F(CliReliabilityTest, FailedTrainLeavesNothingBehind) {
   write_file_atomically(dir_ / "not_a_map.h5", "plain text\n");
