@@ -433,7 +433,8 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
   }
 
   const MethodContext context{model, &map, &a};
-  const MethodContext held_context{model, &map, &a, &held};
+  MethodContext held_context{model, &map, &a, &held};
+  held_context.excluded_from_fusion = true;
   const std::vector<int64_t> calibration_keypoints =
       calibration_frame_keypoints(map, calibration_frames(map, a.calibration.max_frames));
   MethodContext calibration_context{model, &map, &a, &calibration_keypoints};

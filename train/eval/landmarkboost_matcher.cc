@@ -1,5 +1,7 @@
 #include "train/eval/landmarkboost_matcher.h"
 
+#include <algorithm>
+#include <cstring>
 #include <limits>
 #include <utility>
 
@@ -78,6 +80,57 @@ nlohmann::json LandmarkBoostMatcher::parameters() const {
   return {{"top_k", options_.top_k},
           {"inverted_file", options_.use_inverted_file},
           {"min_margin", json_number_or_string(options_.min_margin)}};
+}
+
+std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
+                                               const std::vector<int64_t>& excluded) {
+  LMB_CHECK(model != nullptr, "eval: no model");
+  const ModelData& d = model->data();
+  if (!d.fusion.enabled() || excluded.empty()) return model;
+  const int32_t C = d.num_classes;
+  const int64_t bytes = d.descriptor_bytes;
+  LMB_CHECK(map.descriptor_bytes == d.descriptor_bytes,
+            "eval: the map's descriptors have " << map.descriptor_bytes << " bytes, the model's " << bytes);
+  std::vector<int32_t> class_of(map.landmarks.size(), -1);
+  for (int32_t c = 0; c < C; ++c) {
+    const landmark_t l = d.class_landmark[c];
+    LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
+              "eval: class " << c << " landmark " << l << " is not in the map");
+    class_of[l] = c;
+  }
+  // Each class's observations in the map's non-query frames, in keypoint order: export's rows.
+  std::vector<std::vector<int64_t>> of(static_cast<size_t>(C));
+  for (const MapFrame& f : map.frames) {
+    if (f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l != kInvalidLandmarkId && class_of[l] >= 0) of[class_of[l]].push_back(k);
+    }
+  }
+  ModelData out = d;
+  out.fusion.exemplars.clear();
+  out.fusion.exemplar_begin.assign(1, 0);
+  for (int32_t c = 0; c < C; ++c) {
+    const int64_t begin = d.fusion.exemplar_begin[c];
+    LMB_CHECK(static_cast<int64_t>(of[c].size()) == d.fusion.exemplar_begin[c + 1] - begin,
+              "eval: the model's descriptor-fusion exemplars of class "
+                  << c << " are not the map's observations of landmark " << d.class_landmark[c]
+                  << " (a model exported from another map?)");
+    for (size_t i = 0; i < of[c].size(); ++i) {
+      const uint8_t* row = d.fusion.exemplars.data() + (begin + static_cast<int64_t>(i)) * bytes;
+      LMB_CHECK(std::memcmp(row, map.descriptor(of[c][i]), static_cast<size_t>(bytes)) == 0,
+                "eval: descriptor-fusion exemplar " << i << " of class " << c << " is not map keypoint " << of[c][i]
+                                                    << "'s descriptor (a model exported from another map?)");
+      if (std::binary_search(excluded.begin(), excluded.end(), of[c][i])) continue;
+      out.fusion.exemplars.insert(out.fusion.exemplars.end(), row, row + bytes);
+    }
+    const int64_t end = static_cast<int64_t>(out.fusion.exemplars.size()) / bytes;
+    LMB_CHECK(end > out.fusion.exemplar_begin.back(), "eval: class "
+                                                          << c << " (landmark " << d.class_landmark[c]
+                                                          << ") has no map observation outside the held-out ones");
+    out.fusion.exemplar_begin.push_back(end);
+  }
+  return std::make_shared<const Model>(std::move(out));
 }
 
 }  // namespace lmb

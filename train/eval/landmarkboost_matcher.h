@@ -11,7 +11,11 @@
 //     the model. With pose_top_k = 1 these are exactly the Localizer's correspondences.
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <vector>
+
+#include "common/landmark_map.h"
 
 #include "infer/classifier.h"
 #include "infer/model.h"
@@ -39,5 +43,15 @@ class LandmarkBoostMatcher : public Matcher {
   ClassifierOptions ranking_;  // the same without rejection
   bool rank_ = true;
 };
+
+// `model` with the descriptor fusion's exemplars of the map keypoints `excluded` (sorted) removed:
+// the model LandmarkBoost ranks held-out map observations with, so that, like the descriptor
+// baselines' index, the fusion does not find a held-out keypoint's own descriptor (at distance 0).
+// The model itself when it has no fusion or nothing is excluded. The exemplars must be the ones
+// export stores for this map (every non-query observation of each class, in keypoint order;
+// train/export/descriptor_fusion.h). Throws lmb::Error when they are not, or when a class would
+// keep no exemplar.
+std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
+                                               const std::vector<int64_t>& excluded);
 
 }  // namespace lmb

@@ -16,7 +16,12 @@ std::unique_ptr<Matcher> make_landmarkboost(const MethodContext& c, bool inverte
   options.top_k = c.options->top_k;
   options.use_inverted_file = inverted_file;
   options.min_margin = c.options->min_margin;
-  return std::make_unique<LandmarkBoostMatcher>(c.model, options, !c.accept_only);
+  // Ranking held-out map observations: the fusion's exemplars without them (as the descriptor
+  // baselines' index).
+  std::shared_ptr<const Model> model = c.excluded_from_fusion && c.excluded_keypoints != nullptr
+                                           ? without_exemplars(c.model, *c.map, *c.excluded_keypoints)
+                                           : c.model;
+  return std::make_unique<LandmarkBoostMatcher>(std::move(model), options, !c.accept_only);
 }
 
 DescriptorMatcherOptions knn_options(const MethodContext& c) {

@@ -25,6 +25,7 @@
 #include "test/support/lboost_run.h"
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
+#include "train/eval/landmarkboost_matcher.h"
 
 namespace lmb {
 namespace {
@@ -577,6 +578,45 @@ TEST_F(EvalCliTest, HeldOutMapObservationsBesideTheQuerySession) {
       eval_.out.find("generalization gap: held-out map observations (" + std::to_string(held.size()) + " keypoints"),
       std::string::npos)
       << eval_.out;
+}
+
+// The fused model ranks held-out map observations without their own descriptors among the
+// fusion's exemplars (which hold every map observation): each class keeps exactly its
+// observations outside the held-out ones, in map order. A model whose exemplars are not the map's
+// is refused.
+TEST_F(EvalCliTest, HeldOutObservationsAreNotTheirOwnFusionExemplars) {
+  const LandmarkMap map = read_map_h5(map_);
+  const std::shared_ptr<const Model> model = Model::load(dir_ / "model.lbm");
+  ASSERT_TRUE(model->data().fusion.enabled());  // export fuses by default
+  std::vector<landmark_t> classes;
+  for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
+  const std::vector<int64_t> held =
+      held_out_observations(map, classes, read_train_config(dir_ / "run" / "config.toml").training_set);
+  ASSERT_GT(held.size(), 10u);
+  EXPECT_EQ(without_exemplars(model, map, {}), model);
+  const std::shared_ptr<const Model> stripped = without_exemplars(model, map, held);
+  const DescriptorFusion& f = stripped->data().fusion;
+  const int bytes = map.descriptor_bytes;
+  const std::vector<int64_t> kept = class_observations(map, class_flags(map, *model), held);
+  ASSERT_EQ(static_cast<int64_t>(f.exemplars.size()), static_cast<int64_t>(kept.size()) * bytes);
+  ASSERT_EQ(f.exemplars.size() + held.size() * bytes, model->data().fusion.exemplars.size());
+  for (int32_t c = 0; c < model->num_classes(); ++c) {
+    std::vector<int64_t> own;
+    for (int64_t k : kept) {
+      if (map.keypoint_landmark[k] == model->class_landmark(c)) own.push_back(k);
+    }
+    ASSERT_EQ(f.exemplar_begin[c + 1] - f.exemplar_begin[c], static_cast<int64_t>(own.size())) << "class " << c;
+    for (size_t i = 0; i < own.size(); ++i) {
+      EXPECT_TRUE(std::equal(map.descriptor(own[i]), map.descriptor(own[i]) + bytes,
+                             f.exemplars.begin() + (f.exemplar_begin[c] + static_cast<int64_t>(i)) * bytes));
+    }
+  }
+  EXPECT_EQ(stripped->data().stumps.size(), model->data().stumps.size());
+  EXPECT_EQ(stripped->data().fusion.distance_score, model->data().fusion.distance_score);
+
+  LandmarkMap other = map;
+  other.descriptors[static_cast<size_t>(kept.front() * bytes)] ^= 1;
+  EXPECT_THROW(without_exemplars(model, other, held), Error);
 }
 
 // The tiny map's query frames split into two query sessions (alternate frames) and an empty
