@@ -78,7 +78,7 @@ const std::vector<Setting<AugmentOptions>>& augment_settings() {
       {"copies", [](T& o) -> SettingRef { return &o.copies; }, SettingRange::closed(0, 16),
        "augmented samples per training observation (0 = no augmentation)"},
       {"dropout", [](T& o) -> SettingRef { return &o.dropout; }, SettingRange::closed(-1.0, 0.95),
-       "share of a frame's keypoints dropped in a copy; -1 = measured (1 - the map's re-observation rate)"},
+       "share of a frame's keypoints dropped in a copy; -1 = measured (1 - the detector's repeatability on the map)"},
       {"position_sigma", [](T& o) -> SettingRef { return &o.position_sigma; }, SettingRange::closed(-1.0, 10.0),
        "keypoint position noise, keypoint scales; -1 = measured (the map's reprojection residuals)"},
       {"scale_sigma", [](T& o) -> SettingRef { return &o.scale_sigma; }, SettingRange::closed(-1.0, 2.0),

@@ -114,9 +114,9 @@ struct BoostOptions {
 // measured on the map (augmentation.h: measure_map_noise). copies = 0: no augmentation, the run's
 // config.toml has no [augment] table and the training set is the one of earlier versions.
 struct AugmentOptions {
-  int32_t copies = 0;            // augmented samples per training observation (at most; a copy whose
-                                 // own keypoint is dropped is not made)
-  double dropout = -1.0;         // share of a frame's keypoints dropped; -1 = 1 - the map's re-observation rate
+  int32_t copies = 0;     // augmented samples per training observation (at most; a copy whose
+                          // own keypoint is dropped is not made)
+  double dropout = -1.0;  // share of a frame's keypoints dropped; -1 = 1 - the detector's repeatability on the map
   double position_sigma = -1.0;  // position noise, keypoint scales (per axis); -1 = the map's reprojection residuals
   double scale_sigma = -1.0;     // log-scale noise; -1 = the spread of size x depth along the map's tracks
   double rotation_deg = 0.0;     // gravity direction noise (standard deviation, degrees)

@@ -155,10 +155,12 @@ AugmentNoise resolve_augment_noise(const AugmentOptions& o, const LandmarkMap& m
   if (o.dropout < 0.0 || o.position_sigma < 0.0 || o.scale_sigma < 0.0) {
     const MapNoiseEstimate m = measure_map_noise(map);
     spdlog::info(
-        "train: map noise: re-observation rate {:.3f} ({} projections into covisible frames), position sigma "
-        "{:.4f} keypoint scales ({} observations), log-scale sigma {:.4f} ({} track observations)",
-        m.reobservation_rate, m.projected, m.position_sigma, m.residuals, m.scale_sigma, m.track_observations);
-    if (o.dropout < 0.0) noise.dropout = std::min(0.95, 1.0 - m.reobservation_rate);
+        "train: map noise: detector repeatability {:.3f} (chance {:.3f}; {} tests), track re-observation rate "
+        "{:.3f} ({} projections into covisible frames), position sigma {:.4f} keypoint scales ({} observations), "
+        "log-scale sigma {:.4f} ({} track observations)",
+        m.repeatability, m.chance_rate, m.repeat_tests, m.reobservation_rate, m.projected, m.position_sigma,
+        m.residuals, m.scale_sigma, m.track_observations);
+    if (o.dropout < 0.0) noise.dropout = std::min(0.95, 1.0 - m.repeatability);
     if (o.position_sigma < 0.0) noise.position_sigma = m.position_sigma;
     if (o.scale_sigma < 0.0) noise.scale_sigma = m.scale_sigma;
   }

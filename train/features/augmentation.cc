@@ -31,6 +31,29 @@ double normal_draw(uint64_t seed, uint64_t key, int32_t copy, uint64_t stream) {
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
 }
 
+// The detector's repeatability test: is there a keypoint of the frame (ordered by x) within
+// kRepeatRadius sizes of `at` whose size is within a factor kRepeatSizeRatio of `size`?
+constexpr double kRepeatRadius = 0.5;
+constexpr double kRepeatSizeRatio = 2.0;
+constexpr double kChanceOffset = 4.0;
+
+bool detected_near(const std::vector<Keypoint>& by_x, const Eigen::Vector2d& at, double size) {
+  const double r = kRepeatRadius * size;
+  auto it = std::lower_bound(by_x.begin(), by_x.end(), at.x() - r,
+                             [](const Keypoint& k, double x) { return static_cast<double>(k.x) < x; });
+  for (; it != by_x.end() && static_cast<double>(it->x) <= at.x() + r; ++it) {
+    const double dx = it->x - at.x(), dy = it->y - at.y();
+    if (dx * dx + dy * dy > r * r) continue;
+    const double ratio = static_cast<double>(it->scale) / size;
+    if (ratio >= 1.0 / kRepeatSizeRatio && ratio <= kRepeatSizeRatio) return true;
+  }
+  return false;
+}
+
+bool in_image(const Camera& camera, const Eigen::Vector2d& p) {
+  return p.x() >= 0.0 && p.x() < camera.width && p.y() >= 0.0 && p.y() < camera.height;
+}
+
 double median_of(std::vector<double>* v) {
   if (v->empty()) return 0.0;
   const size_t mid = v->size() / 2;
@@ -62,6 +85,10 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
   const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
   const frame_t num_frames = map.num_frames();
   std::vector<std::vector<landmark_t>> frame_landmarks(static_cast<size_t>(num_frames));
+  // Per frame: (landmark, keypoint size) of its tracked keypoints (the first one per landmark),
+  // and its keypoints ordered by x for the detector's repeatability.
+  std::vector<std::vector<std::pair<landmark_t, float>>> frame_sizes(static_cast<size_t>(num_frames));
+  std::vector<std::vector<Keypoint>> by_x(static_cast<size_t>(num_frames));
   std::vector<std::vector<frame_t>> landmark_frames(static_cast<size_t>(num_landmarks));
   std::vector<frame_t> map_frames;
   MapNoiseEstimate out;
@@ -78,6 +105,9 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
                   fr.first_keypoint + fr.num_keypoints <= static_cast<int64_t>(map.keypoints.size()),
               "augment: frame " << f << " keypoint range out of bounds");
     const Camera& camera = map.cameras[fr.camera];
+    by_x[f].assign(map.keypoints.begin() + fr.first_keypoint,
+                   map.keypoints.begin() + fr.first_keypoint + fr.num_keypoints);
+    std::sort(by_x[f].begin(), by_x[f].end(), [](const Keypoint& a, const Keypoint& b) { return a.x < b.x; });
     for (int64_t k = fr.first_keypoint; k < fr.first_keypoint + fr.num_keypoints; ++k) {
       const landmark_t l = map.keypoint_landmark[k];
       if (l == kInvalidLandmarkId) continue;
@@ -85,6 +115,7 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
       frame_landmarks[f].push_back(l);
       landmark_frames[l].push_back(f);
       const Keypoint& kp = map.keypoints[k];
+      frame_sizes[f].emplace_back(l, kp.scale);
       const Eigen::Vector3d in_cam = fr.cam_from_world * map.landmarks[l].position;
       Eigen::Vector2d pixel;
       if (!(kp.scale > 0.f) || !std::isfinite(kp.scale) || !camera.project(in_cam, &pixel)) continue;
@@ -96,6 +127,11 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
     std::sort(frame_landmarks[f].begin(), frame_landmarks[f].end());
     frame_landmarks[f].erase(std::unique(frame_landmarks[f].begin(), frame_landmarks[f].end()),
                              frame_landmarks[f].end());
+    std::stable_sort(frame_sizes[f].begin(), frame_sizes[f].end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    frame_sizes[f].erase(std::unique(frame_sizes[f].begin(), frame_sizes[f].end(),
+                                     [](const auto& a, const auto& b) { return a.first == b.first; }),
+                         frame_sizes[f].end());
   }
   // Position: a 2D Gaussian's radius has median sigma * sqrt(2 ln 2).
   out.residuals = static_cast<int64_t>(residuals.size());
@@ -117,7 +153,7 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
   // Re-observation rate over covisible frame pairs from evenly spaced reference frames.
   const int64_t num_map = static_cast<int64_t>(map_frames.size());
   const int64_t refs = std::min<int64_t>(num_map, std::max<int32_t>(max_frames, 1));
-  int64_t observed = 0;
+  int64_t observed = 0, repeated = 0, by_chance = 0;
   std::vector<uint8_t> seen(static_cast<size_t>(num_frames), 0);
   std::vector<frame_t> covisible;
   for (int64_t i = 0; i < refs; ++i) {
@@ -135,16 +171,34 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
       const MapFrame& fg = map.frames[g];
       const Camera& camera = map.cameras[fg.camera];
       const std::vector<landmark_t>& in_g = frame_landmarks[g];
-      for (landmark_t l : frame_landmarks[f]) {
+      const MapFrame& ff = map.frames[f];
+      for (const auto& [l, size_f] : frame_sizes[f]) {
+        const Eigen::Vector3d in_g_cam = fg.cam_from_world * map.landmarks[l].position;
         Eigen::Vector2d pixel;
-        if (!camera.project(fg.cam_from_world * map.landmarks[l].position, &pixel)) continue;
-        if (!(pixel.x() >= 0.0 && pixel.x() < camera.width && pixel.y() >= 0.0 && pixel.y() < camera.height)) continue;
+        if (!camera.project(in_g_cam, &pixel)) continue;
+        if (!in_image(camera, pixel)) continue;
         ++out.projected;
         observed += std::binary_search(in_g.begin(), in_g.end(), l);
+        // The size the keypoint would have in g (size x depth is constant along a track).
+        const double z_f = (ff.cam_from_world * map.landmarks[l].position).z();
+        const double size_g = static_cast<double>(size_f) * z_f / in_g_cam.z();
+        if (!(size_g > 0.0) || !std::isfinite(size_g)) continue;
+        // Chance: the same test a few sizes to the side (where the landmark is not).
+        const Eigen::Vector2d aside = pixel + Eigen::Vector2d(kChanceOffset * size_g, 0.0);
+        if (!in_image(camera, aside)) continue;
+        ++out.repeat_tests;
+        repeated += detected_near(by_x[g], pixel, size_g);
+        by_chance += detected_near(by_x[g], aside, size_g);
       }
     }
   }
   out.reobservation_rate = out.projected > 0 ? static_cast<double>(observed) / static_cast<double>(out.projected) : 1.0;
+  if (out.repeat_tests > 0) {
+    const double n = static_cast<double>(out.repeat_tests);
+    const double hit = static_cast<double>(repeated) / n, chance = static_cast<double>(by_chance) / n;
+    out.chance_rate = chance;
+    out.repeatability = chance < 1.0 ? std::clamp((hit - chance) / (1.0 - chance), 0.0, 1.0) : 0.0;
+  }
   return out;
 }
 
@@ -178,7 +232,8 @@ FrameKeypoints augmented_frame(const FrameKeypoints& frame, frame_t frame_id, in
       x += noise.position_sigma * scale * normal_draw(noise.seed, key, copy, kPositionXStream);
       y += noise.position_sigma * scale * normal_draw(noise.seed, key, copy, kPositionYStream);
     }
-    if (noise.scale_sigma > 0.0) scale *= std::exp(noise.scale_sigma * normal_draw(noise.seed, key, copy, kScaleStream));
+    if (noise.scale_sigma > 0.0)
+      scale *= std::exp(noise.scale_sigma * normal_draw(noise.seed, key, copy, kScaleStream));
     (*index_in_copy)[static_cast<size_t>(i)] = out.size();
     out.x.push_back(static_cast<float>(x));
     out.y.push_back(static_cast<float>(y));

@@ -13,9 +13,11 @@
 // other keypoint independent of which samples exist.
 //
 // The default noise is measured on the map itself (measure_map_noise), not set per data set:
-//   - re-observation rate: over pairs of map frames that share a landmark, the share of the
-//     landmarks one frame tracks that project into the other image and that the other frame tracks
-//     too (dropout = 1 - rate);
+//   - repeatability: over pairs of map frames that share a landmark, the share of the landmarks
+//     one frame tracks, projected into the other image, that have a keypoint of a similar size
+//     there (tracked or not), corrected for chance (dropout = 1 - repeatability). The share the
+//     other frame also tracks (the re-observation rate) is reported beside it: it counts matching
+//     failures too, so it is lower;
 //   - position: the median reprojection residual of the map's observations in keypoint sizes
 //     (diameters), converted to a per-axis sigma (median of a 2D Gaussian's radius = 1.1774 sigma);
 //   - scale: along each landmark's track, log(keypoint scale x depth) is constant for an ideal
@@ -45,8 +47,14 @@ struct AugmentNoise {
 struct MapNoiseEstimate {
   double reobservation_rate = 1.0;  // 1 when no frame pair could be checked
   int64_t projected = 0;            // landmark projections into a covisible frame counted
-  double position_sigma = 0.0;      // keypoint scales (per axis)
-  int64_t residuals = 0;            // observations measured
+  // The detector's repeatability: the share of those projections with a keypoint of the other
+  // frame near them (any keypoint, tracked or not, of a similar size), less the chance of one
+  // being there (the same test beside the projection): (hit - chance) / (1 - chance).
+  double repeatability = 1.0;  // 1 when nothing could be tested
+  double chance_rate = 0.0;
+  int64_t repeat_tests = 0;
+  double position_sigma = 0.0;  // keypoint scales (per axis)
+  int64_t residuals = 0;        // observations measured
   double scale_sigma = 0.0;
   int64_t track_observations = 0;  // observations in tracks of >= 2 measured
 };

@@ -220,9 +220,12 @@ TEST(Augmentation, FeatureRowsEqualTheBruteForceEmbeddingOfTheCopy) {
   }
 }
 
-// A map whose noise is known: landmarks seen from every frame, each observation kept with
+// A map whose noise is known: landmarks seen from every frame, each observation tracked with
 // probability 0.6, pixel noise of 0.05 keypoint sizes per axis, keypoint size proportional to
-// 1 / depth times exp(N(0, 0.1^2)).
+// 1 / depth times exp(N(0, 0.1^2)). Of the observations not tracked, half are still detected (an
+// untracked keypoint at the landmark: matching failed), so the detector repeats 0.6 + 0.4 x 0.5 =
+// 0.8 of them; 1,500 untracked clutter keypoints a frame at random places and sizes test the chance
+// correction.
 TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
   Rng rng(21);
   LandmarkMap map;
@@ -240,7 +243,7 @@ TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
   }
   std::vector<double> true_size(map.landmarks.size());
   for (double& s : true_size) s = rng.uniform(0.05, 0.15);
-  int64_t possible = 0;
+  int64_t possible = 0, tracked_observations = 0;
   for (int f = 0; f < 40; ++f) {
     MapFrame frame;
     frame.name = std::to_string(f);
@@ -251,12 +254,19 @@ TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
       Eigen::Vector2d px;
       if (!cam.project(in_cam, &px) || px.x() < 0 || px.x() >= 640 || px.y() < 0 || px.y() >= 480) continue;
       ++possible;
-      if (rng.uniform() >= 0.6) continue;
+      const bool tracked = rng.uniform() < 0.6;
+      const bool detected = tracked || rng.uniform() < 0.5;
       const double size = 500.0 * true_size[l] / in_cam.z() * std::exp(0.1 * rng.normal());
-      map.keypoints.push_back(Keypoint{static_cast<float>(px.x() + 0.05 * size * rng.normal()),
-                                       static_cast<float>(px.y() + 0.05 * size * rng.normal()),
-                                       static_cast<float>(size), -1.f});
-      map.keypoint_landmark.push_back(l);
+      const double x = px.x() + 0.05 * size * rng.normal(), y = px.y() + 0.05 * size * rng.normal();
+      if (!detected) continue;
+      map.keypoints.push_back(Keypoint{static_cast<float>(x), static_cast<float>(y), static_cast<float>(size), -1.f});
+      map.keypoint_landmark.push_back(tracked ? l : kInvalidLandmarkId);
+      tracked_observations += tracked;
+    }
+    for (int c = 0; c < 1500; ++c) {
+      map.keypoints.push_back(Keypoint{static_cast<float>(rng.uniform(0, 640)), static_cast<float>(rng.uniform(0, 480)),
+                                       static_cast<float>(rng.uniform(3, 20)), -1.f});
+      map.keypoint_landmark.push_back(kInvalidLandmarkId);
     }
     frame.num_keypoints = static_cast<int32_t>(map.keypoints.size() - frame.first_keypoint);
     map.frames.push_back(frame);
@@ -264,13 +274,20 @@ TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
   const MapNoiseEstimate m = measure_map_noise(map, 40);
   EXPECT_GT(possible, 10000);
   EXPECT_NEAR(m.reobservation_rate, 0.6, 0.02);
+  EXPECT_NEAR(m.repeatability, 0.8, 0.02);
+  // The clutter is found beside many projections; without the correction the rate would be
+  // 0.8 + 0.2 x chance.
+  EXPECT_GT(m.chance_rate, 0.15) << m.repeatability;
+  EXPECT_LT(m.chance_rate, 0.5);
+  EXPECT_GT(m.repeat_tests, 10000);
   EXPECT_NEAR(m.position_sigma, 0.05, 0.004);
   EXPECT_NEAR(m.scale_sigma, 0.1, 0.005);
-  EXPECT_EQ(m.residuals, static_cast<int64_t>(map.keypoints.size()));
+  EXPECT_EQ(m.residuals, tracked_observations);
 
   // A map without tracks: nothing to measure, no noise.
   const MapNoiseEstimate none = measure_map_noise(random_map(4));
   EXPECT_EQ(none.reobservation_rate, 1.0);
+  EXPECT_EQ(none.repeatability, 1.0);
   EXPECT_EQ(none.position_sigma, 0.0);
   EXPECT_EQ(none.scale_sigma, 0.0);
 }
