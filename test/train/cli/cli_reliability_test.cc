@@ -175,7 +175,7 @@ TEST_F(CliReliabilityTest, AugmentedTrainingIsTheSameModelOnOneTwoAndThreeRanks)
   const std::string summary = slurp(one / "summary.json");
   EXPECT_NE(summary.find("\"augment\""), std::string::npos) << summary;
   const std::string log = slurp(one / "log.txt");
-  EXPECT_NE(log.find("map noise: re-observation rate"), std::string::npos) << log;
+  EXPECT_NE(log.find("map noise: detector repeatability"), std::string::npos) << log;
   EXPECT_NE(log.find("augmented samples"), std::string::npos) << log;
   // Another augmentation seed: another model.
   write_file_atomically(dir_ / "aug_seed.toml", "[augment]\nseed = 2\n");
