@@ -9,6 +9,7 @@
 #include "common/error.h"
 #include "train/eval/report.h"
 #include "train/eval/timing.h"
+#include "train/export/descriptor_fusion.h"
 
 namespace lmb {
 
@@ -91,22 +92,7 @@ std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model
   const int64_t bytes = d.descriptor_bytes;
   LMB_CHECK(map.descriptor_bytes == d.descriptor_bytes,
             "eval: the map's descriptors have " << map.descriptor_bytes << " bytes, the model's " << bytes);
-  std::vector<int32_t> class_of(map.landmarks.size(), -1);
-  for (int32_t c = 0; c < C; ++c) {
-    const landmark_t l = d.class_landmark[c];
-    LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
-              "eval: class " << c << " landmark " << l << " is not in the map");
-    class_of[l] = c;
-  }
-  // Each class's observations in the map's non-query frames, in keypoint order: export's rows.
-  std::vector<std::vector<int64_t>> of(static_cast<size_t>(C));
-  for (const MapFrame& f : map.frames) {
-    if (f.is_query) continue;
-    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
-      const landmark_t l = map.keypoint_landmark[k];
-      if (l != kInvalidLandmarkId && class_of[l] >= 0) of[class_of[l]].push_back(k);
-    }
-  }
+  const std::vector<std::vector<int64_t>> of = exemplar_keypoints(map, d.class_landmark);
   ModelData out = d;
   out.fusion.exemplars.clear();
   out.fusion.exemplar_begin.assign(1, 0);

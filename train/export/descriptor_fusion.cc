@@ -40,21 +40,13 @@ struct Exemplars {
   std::vector<int32_t> cls;       // per row
 };
 
-Exemplars collect_exemplars(const LandmarkMap& map, const std::vector<int32_t>& class_of_landmark, int32_t C) {
-  std::vector<std::vector<int64_t>> of(static_cast<size_t>(C));
-  for (const MapFrame& f : map.frames) {
-    if (f.is_query) continue;
-    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
-      const landmark_t l = map.keypoint_landmark[k];
-      if (l == kInvalidLandmarkId || class_of_landmark[l] < 0) continue;
-      of[class_of_landmark[l]].push_back(k);
-    }
-  }
+Exemplars collect_exemplars(const LandmarkMap& map, const std::vector<landmark_t>& class_landmarks) {
+  const std::vector<std::vector<int64_t>> of = exemplar_keypoints(map, class_landmarks);
+  const int32_t C = static_cast<int32_t>(class_landmarks.size());
   Exemplars e;
   e.begin.assign(static_cast<size_t>(C) + 1, 0);
   const int bytes = map.descriptor_bytes;
   for (int32_t c = 0; c < C; ++c) {
-    std::sort(of[c].begin(), of[c].end());
     LMB_CHECK(!of[c].empty(), "descriptor fusion: class " << c << " has no map observation");
     for (int64_t k : of[c]) {
       e.keypoint.push_back(k);
@@ -335,6 +327,27 @@ size_t plateau_middle(const std::vector<double>& p1) {
 
 }  // namespace
 
+std::vector<std::vector<int64_t>> exemplar_keypoints(const LandmarkMap& map,
+                                                     const std::vector<landmark_t>& class_landmarks) {
+  std::vector<int32_t> class_of_landmark(map.landmarks.size(), -1);
+  for (size_t c = 0; c < class_landmarks.size(); ++c) {
+    const landmark_t l = class_landmarks[c];
+    LMB_CHECK(l >= 0 && l < static_cast<landmark_t>(map.landmarks.size()),
+              "descriptor fusion: class " << c << " landmark " << l << " is not in the map");
+    class_of_landmark[l] = static_cast<int32_t>(c);
+  }
+  std::vector<std::vector<int64_t>> of(class_landmarks.size());
+  for (const MapFrame& f : map.frames) {
+    if (f.is_query) continue;
+    for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l != kInvalidLandmarkId && class_of_landmark[l] >= 0) of[class_of_landmark[l]].push_back(k);
+    }
+  }
+  for (std::vector<int64_t>& keypoints : of) std::sort(keypoints.begin(), keypoints.end());
+  return of;
+}
+
 DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& map, const TrainingSet& set,
                                        const DescriptorFusionOptions& options, DescriptorFusionStats* stats) {
   options.check();
@@ -350,13 +363,7 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
             "descriptor fusion: the map has " << map.descriptor_bytes << "-byte descriptors, the model "
                                               << model.descriptor_bytes());
-  std::vector<int32_t> class_of_landmark(map.landmarks.size(), -1);
-  for (int32_t c = 0; c < C; ++c) {
-    LMB_CHECK(set.class_landmark[c] >= 0 && set.class_landmark[c] < static_cast<landmark_t>(map.landmarks.size()),
-              "descriptor fusion: class " << c << " landmark " << set.class_landmark[c] << " is not in the map");
-    class_of_landmark[set.class_landmark[c]] = c;
-  }
-  const Exemplars ex = collect_exemplars(map, class_of_landmark, C);
+  const Exemplars ex = collect_exemplars(map, set.class_landmark);
 
   // 1. The likelihood ratio of the distance from training observations (leave-one-out).
   std::vector<double> g_bins;

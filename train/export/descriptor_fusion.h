@@ -55,6 +55,12 @@ struct DescriptorFusionStats {
   std::vector<double> distance_ratio;  // g at every distance 0..8 * descriptor bytes
 };
 
+// The map keypoints whose descriptors are class c's exemplars, in the order the model stores them:
+// every observation of class_landmarks[c] in the map's non-query frames, in keypoint order (empty
+// for a class with none). Throws lmb::Error for a landmark not in the map.
+std::vector<std::vector<int64_t>> exemplar_keypoints(const LandmarkMap& map,
+                                                     const std::vector<landmark_t>& class_landmarks);
+
 // Fits the fusion of `model` (a model without one, exported from the run that trained on `set`;
 // set.class_landmark must equal the model's classes) and returns it. Throws lmb::Error when the
 // set and the model disagree, a class has no map observation, or there is no held-out sample or

@@ -84,10 +84,9 @@ std::string AugmentNoise::text() const {
 MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
   const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
   const frame_t num_frames = map.num_frames();
-  std::vector<std::vector<landmark_t>> frame_landmarks(static_cast<size_t>(num_frames));
-  // Per frame: (landmark, keypoint size) of its tracked keypoints (the first one per landmark),
-  // and its keypoints ordered by x for the detector's repeatability.
-  std::vector<std::vector<std::pair<landmark_t, float>>> frame_sizes(static_cast<size_t>(num_frames));
+  // Per map frame: its tracks (landmark, metric size = keypoint size / focal length x depth, the
+  // first keypoint per landmark), sorted by landmark, and its keypoints ordered by x.
+  std::vector<std::vector<std::pair<landmark_t, double>>> tracks(static_cast<size_t>(num_frames));
   std::vector<std::vector<Keypoint>> by_x(static_cast<size_t>(num_frames));
   std::vector<std::vector<frame_t>> landmark_frames(static_cast<size_t>(num_landmarks));
   std::vector<frame_t> map_frames;
@@ -112,26 +111,23 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
       const landmark_t l = map.keypoint_landmark[k];
       if (l == kInvalidLandmarkId) continue;
       LMB_CHECK(l >= 0 && l < num_landmarks, "augment: keypoint " << k << " landmark " << l << " out of range");
-      frame_landmarks[f].push_back(l);
       landmark_frames[l].push_back(f);
       const Keypoint& kp = map.keypoints[k];
-      frame_sizes[f].emplace_back(l, kp.scale);
       const Eigen::Vector3d in_cam = fr.cam_from_world * map.landmarks[l].position;
+      const double metric_size = static_cast<double>(kp.scale) / camera.mean_focal_length() * in_cam.z();
+      tracks[f].emplace_back(l, metric_size);
       Eigen::Vector2d pixel;
       if (!(kp.scale > 0.f) || !std::isfinite(kp.scale) || !camera.project(in_cam, &pixel)) continue;
       const double r = (pixel - Eigen::Vector2d(kp.x, kp.y)).norm() / kp.scale;
       if (std::isfinite(r)) residuals.push_back(r);
-      const double log_size = std::log(static_cast<double>(kp.scale) / camera.mean_focal_length() * in_cam.z());
+      const double log_size = std::log(metric_size);
       if (std::isfinite(log_size)) track_logs[l].push_back(log_size);
     }
-    std::sort(frame_landmarks[f].begin(), frame_landmarks[f].end());
-    frame_landmarks[f].erase(std::unique(frame_landmarks[f].begin(), frame_landmarks[f].end()),
-                             frame_landmarks[f].end());
-    std::stable_sort(frame_sizes[f].begin(), frame_sizes[f].end(),
+    std::stable_sort(tracks[f].begin(), tracks[f].end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
-    frame_sizes[f].erase(std::unique(frame_sizes[f].begin(), frame_sizes[f].end(),
-                                     [](const auto& a, const auto& b) { return a.first == b.first; }),
-                         frame_sizes[f].end());
+    tracks[f].erase(std::unique(tracks[f].begin(), tracks[f].end(),
+                                [](const auto& a, const auto& b) { return a.first == b.first; }),
+                    tracks[f].end());
   }
   // Position: a 2D Gaussian's radius has median sigma * sqrt(2 ln 2).
   out.residuals = static_cast<int64_t>(residuals.size());
@@ -150,7 +146,8 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
   }
   out.scale_sigma = dof > 0 ? std::sqrt(sum_sq / static_cast<double>(dof)) : 0.0;
 
-  // Re-observation rate over covisible frame pairs from evenly spaced reference frames.
+  // Re-observation rate and repeatability over covisible frame pairs from evenly spaced reference
+  // frames.
   const int64_t num_map = static_cast<int64_t>(map_frames.size());
   const int64_t refs = std::min<int64_t>(num_map, std::max<int32_t>(max_frames, 1));
   int64_t observed = 0, repeated = 0, by_chance = 0;
@@ -159,8 +156,8 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
   for (int64_t i = 0; i < refs; ++i) {
     const frame_t f = map_frames[static_cast<size_t>(i * num_map / refs)];
     covisible.clear();
-    for (landmark_t l : frame_landmarks[f]) {
-      for (frame_t g : landmark_frames[l]) {
+    for (const auto& track : tracks[f]) {
+      for (frame_t g : landmark_frames[track.first]) {
         if (g == f || seen[g]) continue;
         seen[g] = 1;
         covisible.push_back(g);
@@ -170,18 +167,18 @@ MapNoiseEstimate measure_map_noise(const LandmarkMap& map, int32_t max_frames) {
       seen[g] = 0;
       const MapFrame& fg = map.frames[g];
       const Camera& camera = map.cameras[fg.camera];
-      const std::vector<landmark_t>& in_g = frame_landmarks[g];
-      const MapFrame& ff = map.frames[f];
-      for (const auto& [l, size_f] : frame_sizes[f]) {
+      const std::vector<std::pair<landmark_t, double>>& in_g = tracks[g];
+      for (const auto& [l, metric_size] : tracks[f]) {
         const Eigen::Vector3d in_g_cam = fg.cam_from_world * map.landmarks[l].position;
         Eigen::Vector2d pixel;
         if (!camera.project(in_g_cam, &pixel)) continue;
         if (!in_image(camera, pixel)) continue;
         ++out.projected;
-        observed += std::binary_search(in_g.begin(), in_g.end(), l);
-        // The size the keypoint would have in g (size x depth is constant along a track).
-        const double z_f = (ff.cam_from_world * map.landmarks[l].position).z();
-        const double size_g = static_cast<double>(size_f) * z_f / in_g_cam.z();
+        const auto it =
+            std::lower_bound(in_g.begin(), in_g.end(), l, [](const auto& t, landmark_t x) { return t.first < x; });
+        observed += it != in_g.end() && it->first == l;
+        // The size the keypoint would have in g (size x depth / focal length is constant along a track).
+        const double size_g = metric_size * camera.mean_focal_length() / in_g_cam.z();
         if (!(size_g > 0.0) || !std::isfinite(size_g)) continue;
         // Chance: the same test a few sizes to the side (where the landmark is not).
         const Eigen::Vector2d aside = pixel + Eigen::Vector2d(kChanceOffset * size_g, 0.0);

@@ -20,8 +20,9 @@
 //     failures too, so it is lower;
 //   - position: the median reprojection residual of the map's observations in keypoint sizes
 //     (diameters), converted to a per-axis sigma (median of a 2D Gaussian's radius = 1.1774 sigma);
-//   - scale: along each landmark's track, log(keypoint scale x depth) is constant for an ideal
-//     detector; the pooled standard deviation of its deviation from the track mean.
+//   - scale: along each landmark's track, log(keypoint size / focal length x depth) is constant for
+//     an ideal detector; the pooled standard deviation of its deviation from the track mean (the
+//     same metric size predicts a landmark's keypoint size in another frame for the repeatability).
 #pragma once
 
 #include <cstdint>

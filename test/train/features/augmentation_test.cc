@@ -9,10 +9,14 @@
 #include "common/error.h"
 #include "common/hamming.h"
 #include "common/random.h"
+#include "test/support/feature_fixtures.h"
 #include "train/features/build_features.h"
 
 namespace lmb {
 namespace {
+
+using test::random_vocabulary;
+using test::small_regions;
 
 constexpr int kBytes = 16;
 
@@ -46,20 +50,6 @@ LandmarkMap random_map(uint64_t seed, int frames = 5, int keypoints = 250) {
   return map;
 }
 
-Vocabulary random_vocabulary(int words, uint64_t seed) {
-  Rng rng(seed);
-  std::vector<uint8_t> w(static_cast<size_t>(words) * kBytes);
-  for (auto& b : w) b = static_cast<uint8_t>(rng.below(256));
-  return Vocabulary(kBytes, w);
-}
-
-ContextRegions small_regions() {
-  ContextRegionOptions o;
-  o.num_regions = 60;
-  o.seed = 4;
-  return ContextRegions(o);
-}
-
 AugmentNoise some_noise() {
   AugmentNoise n;
   n.dropout = 0.3;
@@ -72,7 +62,7 @@ AugmentNoise some_noise() {
 
 TEST(Augmentation, ZeroNoiseCopiesAreTheFrameItself) {
   const LandmarkMap map = random_map(1);
-  const std::vector<uint8_t> words = keypoint_words(map, random_vocabulary(8, 2));
+  const std::vector<uint8_t> words = keypoint_words(map, random_vocabulary(8, kBytes, 2));
   const FrameKeypoints frame = map_frame_keypoints(map, 2, words);
   AugmentNoise none;
   std::vector<int32_t> index;
@@ -88,7 +78,7 @@ TEST(Augmentation, ZeroNoiseCopiesAreTheFrameItself) {
 // the rotation is one angle for the whole frame, and a copy depends on (seed, keypoint, copy) only.
 TEST(Augmentation, CopiesHaveTheNoiseStatisticsAndDependOnSeedKeypointAndCopyOnly) {
   const LandmarkMap map = random_map(2, 80, 250);
-  const std::vector<uint8_t> words = keypoint_words(map, random_vocabulary(8, 3));
+  const std::vector<uint8_t> words = keypoint_words(map, random_vocabulary(8, kBytes, 3));
   AugmentNoise noise = some_noise();
   noise.rotation_rad = 0.0;
   int64_t kept = 0, total = 0;
@@ -158,7 +148,7 @@ TEST(Augmentation, CopiesHaveTheNoiseStatisticsAndDependOnSeedKeypointAndCopyOnl
 // for a rank's subset of dims; copy-0 rows are unchanged by the copies beside them.
 TEST(Augmentation, FeatureRowsEqualTheBruteForceEmbeddingOfTheCopy) {
   const LandmarkMap map = random_map(3);
-  const Vocabulary vocab = random_vocabulary(8, 4);
+  const Vocabulary vocab = random_vocabulary(8, kBytes, 4);
   const ContextRegions regions = small_regions();
   const AugmentNoise noise = some_noise();
   Rng rng(9);
@@ -222,19 +212,21 @@ TEST(Augmentation, FeatureRowsEqualTheBruteForceEmbeddingOfTheCopy) {
 
 // A map whose noise is known: landmarks seen from every frame, each observation tracked with
 // probability 0.6, pixel noise of 0.05 keypoint sizes per axis, keypoint size proportional to
-// 1 / depth times exp(N(0, 0.1^2)). Of the observations not tracked, half are still detected (an
-// untracked keypoint at the landmark: matching failed), so the detector repeats 0.6 + 0.4 x 0.5 =
-// 0.8 of them; 1,500 untracked clutter keypoints a frame at random places and sizes test the chance
+// focal length / depth times exp(N(0, 0.1^2)); two cameras whose focal lengths differ by more than
+// the repeatability test's size factor, so a size predicted without them fails between frames. Of the observations not
+// tracked, half are still detected (an untracked keypoint at the landmark: matching failed), so the detector repeats
+// 0.6 + 0.4 x 0.5 = 0.8 of them; 1,500 untracked clutter keypoints a frame at random places and sizes test the chance
 // correction.
 TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
   Rng rng(21);
   LandmarkMap map;
   map.descriptor_bytes = kBytes;
-  Camera cam;
-  cam.width = 640;
-  cam.height = 480;
-  cam.params = {500, 500, 320, 240};
-  map.cameras = {cam};
+  Camera wide, narrow;
+  wide.width = narrow.width = 640;
+  wide.height = narrow.height = 480;
+  wide.params = {350, 350, 320, 240};
+  narrow.params = {900, 900, 320, 240};
+  map.cameras = {wide, narrow};
   map.sessions = {MapSession{"map", SessionKind::kMap}};
   for (int l = 0; l < 400; ++l) {
     Landmark lm;
@@ -247,6 +239,8 @@ TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
   for (int f = 0; f < 40; ++f) {
     MapFrame frame;
     frame.name = std::to_string(f);
+    frame.camera = f % 2;
+    const Camera& cam = map.cameras[frame.camera];
     frame.cam_from_world.translation = Eigen::Vector3d(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), 0);
     frame.first_keypoint = static_cast<int64_t>(map.keypoints.size());
     for (landmark_t l = 0; l < static_cast<landmark_t>(map.landmarks.size()); ++l) {
@@ -256,7 +250,7 @@ TEST(Augmentation, MeasuredMapNoiseRecoversKnownNoise) {
       ++possible;
       const bool tracked = rng.uniform() < 0.6;
       const bool detected = tracked || rng.uniform() < 0.5;
-      const double size = 500.0 * true_size[l] / in_cam.z() * std::exp(0.1 * rng.normal());
+      const double size = cam.mean_focal_length() * true_size[l] / in_cam.z() * std::exp(0.1 * rng.normal());
       const double x = px.x() + 0.05 * size * rng.normal(), y = px.y() + 0.05 * size * rng.normal();
       if (!detected) continue;
       map.keypoints.push_back(Keypoint{static_cast<float>(x), static_cast<float>(y), static_cast<float>(size), -1.f});

@@ -8,9 +8,13 @@
 #include "common/error.h"
 #include "common/hamming.h"
 #include "common/random.h"
+#include "test/support/feature_fixtures.h"
 
 namespace lmb {
 namespace {
+
+using test::random_vocabulary;
+using test::small_regions;
 
 constexpr int kBytes = 16;
 
@@ -52,20 +56,6 @@ LandmarkMap random_map(uint64_t seed) {
   map.descriptors.resize(map.keypoints.size() * kBytes);
   for (auto& b : map.descriptors) b = static_cast<uint8_t>(rng.below(256));
   return map;
-}
-
-Vocabulary random_vocabulary(int words, int bytes, uint64_t seed) {
-  Rng rng(seed);
-  std::vector<uint8_t> w(static_cast<size_t>(words) * bytes);
-  for (auto& b : w) b = static_cast<uint8_t>(rng.below(256));
-  return Vocabulary(bytes, w);
-}
-
-ContextRegions small_regions() {
-  ContextRegionOptions o;
-  o.num_regions = 60;
-  o.seed = 4;
-  return ContextRegions(o);
 }
 
 // Samples in random order, from every frame, with repeats.
