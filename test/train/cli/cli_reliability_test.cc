@@ -170,6 +170,17 @@ TEST_F(CliReliabilityTest, AugmentedTrainingIsTheSameModelOnOneTwoAndThreeRanks)
   EXPECT_EQ(slurp(two / "model.bin"), model);
   EXPECT_EQ(slurp(three / "model.bin"), model);
   EXPECT_NE(slurp(dir_ / "run" / "model.bin"), model);  // the augmented samples changed the training
+  // Resumed on 2 ranks from the round-4 checkpoint (the model and every later checkpoint removed):
+  // the copies are made again, the same model.
+  fs::remove(two / "model.bin");
+  for (const auto& e : fs::directory_iterator(two / "checkpoints")) {
+    if (e.path().filename() != "ckpt-0000004.h5") fs::remove(e.path());
+  }
+  ASSERT_TRUE(fs::exists(two / "checkpoints" / "ckpt-0000004.h5"));
+  const RunResult resumed = run(args + two.string(), dir_, std::string(LMB_MPIEXEC) + " -n 2 ");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_NE(slurp(two / "log.txt").find("resumed from"), std::string::npos);
+  EXPECT_EQ(slurp(two / "model.bin"), model);
   const std::string config = slurp(one / "config.toml");
   EXPECT_NE(config.find("[augment]"), std::string::npos) << config;
   const std::string summary = slurp(one / "summary.json");
