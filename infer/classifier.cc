@@ -99,20 +99,47 @@ ScreenList screen_list(const Model& model, int32_t cls) {
   return v;
 }
 
+namespace {
+
+// One lane's goal (screen_goals).
+struct GoalRule {
+  double step, safe, min_margin, min_score;
+  bool options_safe;
+  GoalRule(const Model& model, double margin, double score)
+      : step(model.scoring().screen_step()),
+        safe(step * double{ScoringIndex::kScreenUnitsLimit / 4}),  // 2^27 steps
+        min_margin(margin),
+        min_score(score) {
+    const double inf = std::numeric_limits<double>::infinity();
+    options_safe = (margin == -inf || std::fabs(margin) <= safe) && (score == -inf || std::fabs(score) <= safe);
+  }
+  int32_t goal(double background, double lift) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    const double target = std::max(min_margin == -inf ? -inf : background + min_margin, min_score) - lift;
+    const bool usable = options_safe && std::fabs(background) <= safe && std::fabs(lift) <= safe && target != -inf;
+    return usable ? static_cast<int32_t>(std::floor(target / step)) : ScoringIndex::kScreenPassAll;
+  }
+};
+
+}  // namespace
+
 void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal,
                   const double* lift) {
-  const double step = model.scoring().screen_step();
-  const double safe = step * double{ScoringIndex::kScreenUnitsLimit / 4};  // 2^27 steps
-  const double inf = std::numeric_limits<double>::infinity();
-  const bool margin_safe = min_margin == -inf || std::fabs(min_margin) <= safe;
-  const bool score_safe = min_score == -inf || std::fabs(min_score) <= safe;
-  for (int32_t j = 0; j < Classifier::kBatch; ++j) {
-    const double l = lift ? lift[j] : 0.0;
-    const double target = std::max(min_margin == -inf ? -inf : background[j] + min_margin, min_score) - l;
-    const bool usable =
-        margin_safe && score_safe && std::fabs(background[j]) <= safe && std::fabs(l) <= safe && target != -inf;
-    goal[j] = usable ? static_cast<int32_t>(std::floor(target / step)) : ScoringIndex::kScreenPassAll;
+  const GoalRule rule(model, min_margin, min_score);
+  for (int32_t j = 0; j < Classifier::kBatch; ++j) goal[j] = rule.goal(background[j], lift ? lift[j] : 0.0);
+}
+
+uint32_t screen_terms_pass(const Model& model, int32_t cls, const uint16_t* residues, const double* background,
+                           double min_margin, double min_score, const double* terms, uint32_t lanes) {
+  const GoalRule rule(model, min_margin, min_score);
+  const int64_t shift = int64_t{model.scoring().screen_units()[cls]} + 2;
+  uint32_t out = 0;
+  for (uint32_t l = lanes; l != 0; l &= l - 1) {
+    const int j = __builtin_ctz(l);
+    const int64_t threshold = std::clamp<int64_t>(rule.goal(background[j], terms[j] + rule.step) - shift, 0, 65535);
+    if (residues[j] >= threshold) out |= 1u << j;
   }
+  return out;
 }
 
 }  // namespace detail
@@ -191,11 +218,10 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
   // Class by class over the word's batches, two at a time: a class's screening list is read once
   // for two batches. The cutoff test of offer() is left out (the cutoff starts at -inf).
   // With the fusion, a class kept by the bound lifted by fusion_max() gets its terms in the lanes
-  // kept, and is screened again with the goals lowered by them (the terms are kept for
-  // finish_batch).
+  // kept, and is screened again with the goals lowered by them, from the first screening's
+  // residues (detail::screen_terms_pass; the terms are kept for finish_batch).
   for (int32_t b = 0; b < batches; b += 2) {
-    int32_t kept_count = 0, kept_fused = 0;
-    int32_t probed = 0, probed_fused = 0;
+    int32_t kept_count = 0, probed = 0;
     const int32_t pair = std::min(2, batches - b);
     const uint32_t* fire[2] = {fire_.data() + b * M, fire_.data() + (b + pair - 1) * M};
     const int32_t* goal[2] = {goal_.data() + static_cast<size_t>(b) * kBatch,
@@ -221,9 +247,17 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
     for (int32_t i = 0; i < num; ++i) {
       // When the screening keeps most classes (a background that rarely wins), it only costs:
       // after kScreenProbe classes with more than 3/4 of them kept, the rest are kept unscreened.
+      // Not with the fusion: there the screening also gives the residues at the end of the list,
+      // which make the second screening (below) one test a lane instead of a second walk, so a
+      // class it keeps everywhere still costs less than one left unscreened.
       uint64_t bits = valid_bits;
-      if (options_.screening && (probed < kScreenProbe || 4 * kept_count <= 3 * probed)) {
-        bits = kernels_->screen_class(detail::screen_list(m, classes[i]), pair, fire, goal, valid) & valid_bits;
+      uint16_t residues[2 * kBatch];
+      bool have_residues = false;
+      if (options_.screening && (fusion || probed < kScreenProbe || 4 * kept_count <= 3 * probed)) {
+        bits = kernels_->screen_class(detail::screen_list(m, classes[i]), pair, fire, goal, valid,
+                                      fusion ? residues : nullptr) &
+               valid_bits;
+        have_residues = fusion;
         ++probed;
         kept_count += bits != 0;
       }
@@ -252,17 +286,17 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
           detail::fusion_terms(m, classes[i], lane_descriptors_.data() + static_cast<size_t>((b + h) * kBatch * bytes),
                                lanes, distance, terms[h]);
         }
-        if (options_.screening && (probed_fused < kScreenProbe || 4 * kept_fused <= 3 * probed_fused)) {
-          int32_t class_goal[2][kBatch];
-          double lift[kBatch];
+        if (have_residues) {  // the second screening: the end-of-list test with the goals lowered by the terms
+          uint64_t pass = 0;
           for (int32_t h = 0; h < pair; ++h) {
-            for (int32_t j = 0; j < kBatch; ++j) lift[j] = terms[h][j] + idx.screen_step();
-            detail::screen_goals(m, background[h], options_.min_margin, options_.min_score, class_goal[h], lift);
+            const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
+            if (lanes != 0) {
+              pass |= uint64_t{detail::screen_terms_pass(m, classes[i], residues + kBatch * h, background[h],
+                                                         options_.min_margin, options_.min_score, terms[h], lanes)}
+                      << (32 * h);
+            }
           }
-          const int32_t* goals[2] = {class_goal[0], class_goal[pair - 1]};
-          bits &= kernels_->screen_class(detail::screen_list(m, classes[i]), pair, fire, goals, valid);
-          ++probed_fused;
-          kept_fused += bits != 0;
+          bits = pass;
           if (bits == 0) continue;
         }
       }

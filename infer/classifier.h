@@ -160,6 +160,14 @@ ScreenList screen_list(const Model& model, int32_t cls);
 // before the tests (target - lift[j]).
 void screen_goals(const Model& model, const double* background, double min_margin, double min_score, int32_t* goal,
                   const double* lift = nullptr);
+// The lanes of `lanes` where class cls, whose screening (ScoringKernels::screen_class) passed
+// there with residues `residues` at the end of its list, still passes with each lane's score
+// lifted by terms[j] (the goals screen_goals gives with lift[j] = terms[j] + screen_step()): the
+// test screen_class makes at the end of the list, without walking it again. A lane that passes
+// it passes every checkpoint before (a checkpoint's bound is never below the final one), so while
+// these goals are at least those that produced the residues, this is screen_class's answer.
+uint32_t screen_terms_pass(const Model& model, int32_t cls, const uint16_t* residues, const double* background,
+                           double min_margin, double min_score, const double* terms, uint32_t lanes);
 }  // namespace detail
 
 }  // namespace lmb

@@ -121,7 +121,7 @@ void accumulate_groups_avx512(const GroupItem* items, int32_t n, const DenseStum
 // masked addition a stump and batch (the fire bits are the mask), the integer test at every
 // checkpoint (the class is dropped when no valid lane of any batch passes) and at the end.
 uint64_t screen_class_avx512(const ScreenList& v, int32_t batches, const uint32_t* const* fire,
-                             const int32_t* const* goal, const uint32_t* valid) {
+                             const int32_t* const* goal, const uint32_t* valid, uint16_t* residues) {
   const uint32_t* fire0 = fire[0];
   const uint32_t* fire1 = fire[batches > 1 ? 1 : 0];
   uint32_t valid0 = valid[0], valid1 = batches > 1 ? valid[1] : 0;
@@ -153,11 +153,21 @@ uint64_t screen_class_avx512(const ScreenList& v, int32_t batches, const uint32_
     const uint16_t low = last ? v.end_low : v.check_low[k];
     const int32_t shift = (last ? 0 : v.check_add[k]) + v.units + 2;
     const uint32_t bits0 = goal_bits(acc0, low, shift, goal_lo[0], goal_hi[0]) & valid0;
+    // At the end, the residues of a batch with a lane that passes (out_shift / 32: batch 0's slot).
+    const auto store = [&](__m512i acc, int32_t slot) {
+      _mm512_storeu_si512(residues + kScoringBatch * slot,
+                          _mm512_sub_epi16(acc, _mm512_set1_epi16(static_cast<int16_t>(low))));
+    };
     if (!pair) {
+      if (last && bits0 != 0 && residues != nullptr) store(acc0, out_shift / 32);
       if (last || bits0 == 0) return static_cast<uint64_t>(bits0) << out_shift;
       continue;
     }
     const uint32_t bits1 = goal_bits(acc1, low, shift, goal_lo[1], goal_hi[1]) & valid1;
+    if (last && residues != nullptr) {
+      if (bits0 != 0) store(acc0, 0);
+      if (bits1 != 0) store(acc1, 1);
+    }
     if (last || (bits0 | bits1) == 0) return bits0 | static_cast<uint64_t>(bits1) << 32;
     if (bits0 == 0) {  // batch 1 goes on alone
       acc0 = acc1;

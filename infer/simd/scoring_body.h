@@ -113,7 +113,10 @@ inline int32_t check_shift(const ScreenList& v, int64_t k, bool last) {
 }
 
 // One batch: the class's screening list in steps of kScreenCheck entries, the test at each.
-inline uint32_t screen_batch_body(const ScreenList& v, const uint32_t* fire, const int32_t* goal, uint32_t valid) {
+// residues (null, or kScoringBatch entries) gets the residues at the end of the list when a lane
+// passes there.
+inline uint32_t screen_batch_body(const ScreenList& v, const uint32_t* fire, const int32_t* goal, uint32_t valid,
+                                  uint16_t* residues) {
   uint16_t sums[kScoringBatch] = {};
   for (int64_t e = 0, k = 0;; ++k) {
     const int64_t stop = v.count < e + kScreenCheck ? v.count : e + kScreenCheck;
@@ -121,15 +124,19 @@ inline uint32_t screen_batch_body(const ScreenList& v, const uint32_t* fire, con
     e = stop;
     const bool last = e == v.count;
     const uint32_t bits = goal_bits(sums, check_low(v, k, last), check_shift(v, k, last), goal) & valid;
+    if (last && bits != 0 && residues != nullptr) {
+      for (int32_t j = 0; j < kScoringBatch; ++j) residues[j] = static_cast<uint16_t>(sums[j] - v.end_low);
+    }
     if (last || bits == 0) return bits;
   }
 }
 
 inline uint64_t screen_class_body(const ScreenList& v, int32_t batches, const uint32_t* const* fire,
-                                  const int32_t* const* goal, const uint32_t* valid) {
+                                  const int32_t* const* goal, const uint32_t* valid, uint16_t* residues) {
   uint64_t bits = 0;
   for (int32_t b = 0; b < batches; ++b) {
-    bits |= static_cast<uint64_t>(screen_batch_body(v, fire[b], goal[b], valid[b])) << (32 * b);
+    uint16_t* r = residues != nullptr ? residues + kScoringBatch * b : nullptr;
+    bits |= static_cast<uint64_t>(screen_batch_body(v, fire[b], goal[b], valid[b], r)) << (32 * b);
   }
   return bits;
 }
@@ -176,8 +183,8 @@ inline bool any_lane_passes_body(const double* score, const double* background, 
     fire_masks_body(stumps, num_stumps, values, stride, fire);                                                       \
   }                                                                                                                  \
   uint64_t screen_class_##isa(const ScreenList& list, int32_t batches, const uint32_t* const* fire,                  \
-                              const int32_t* const* goal, const uint32_t* valid) {                                   \
-    return screen_class_body(list, batches, fire, goal, valid);                                                      \
+                              const int32_t* const* goal, const uint32_t* valid, uint16_t* residues) {               \
+    return screen_class_body(list, batches, fire, goal, valid, residues);                                            \
   }                                                                                                                  \
   bool any_lane_passes_##isa(const double* score, const double* background, const double* cutoff, double min_margin, \
                              double min_score) {                                                                     \

@@ -69,9 +69,11 @@ struct ScoringKernels {
   // lane j of batch b is valid (bit j of valid[b]) and the class's integer bound from the fire
   // masks fire[b] passes the lane's goal goal[b][j] at every checkpoint (Classifier's
   // screen_goals); 0 as soon as a checkpoint fails in every valid lane of every batch. A batch
-  // screened alone gives the same bits as in a pair.
+  // screened alone gives the same bits as in a pair. When residues is not null, each batch b with
+  // a bit set gets residues[32 b + j] = the residue t_j at the end of the list in every lane j
+  // (what the test at the end compares; screen_residues_pass tests it against other goals).
   uint64_t (*screen_class)(const ScreenList& list, int32_t batches, const uint32_t* const* fire,
-                           const int32_t* const* goal, const uint32_t* valid) = nullptr;
+                           const int32_t* const* goal, const uint32_t* valid, uint16_t* residues) = nullptr;
   // Whether some lane j < kScoringBatch has score[j] - background[j] > min_margin, score[j] >=
   // min_score and score[j] >= cutoff[j].
   bool (*any_lane_passes)(const double* score, const double* background, const double* cutoff, double min_margin,
@@ -94,7 +96,7 @@ const ScoringKernels* scoring_kernels(SimdLevel level);
                             double* out0, double* out1);                                                             \
   void accumulate_groups_##isa(const GroupItem* items, int32_t n, const DenseStump* dense, const uint32_t* fire);    \
   uint64_t screen_class_##isa(const ScreenList& list, int32_t batches, const uint32_t* const* fire,                  \
-                              const int32_t* const* goal, const uint32_t* valid);                                    \
+                              const int32_t* const* goal, const uint32_t* valid, uint16_t* residues);                \
   bool any_lane_passes_##isa(const double* score, const double* background, const double* cutoff, double min_margin, \
                              double min_score);
 LMB_DECLARE_SCORING_KERNELS(generic)
@@ -109,6 +111,6 @@ void accumulate_two_avx512(double bias0, const int32_t* stumps0, int64_t count0,
                            int64_t count1, const DenseStump* dense, const uint32_t* fire, double* out0, double* out1);
 void accumulate_groups_avx512(const GroupItem* items, int32_t n, const DenseStump* dense, const uint32_t* fire);
 uint64_t screen_class_avx512(const ScreenList& list, int32_t batches, const uint32_t* const* fire,
-                             const int32_t* const* goal, const uint32_t* valid);
+                             const int32_t* const* goal, const uint32_t* valid, uint16_t* residues);
 
 }  // namespace lmb::detail

@@ -38,7 +38,8 @@ inline uint16x8_t lane_bits16() {
 }
 
 // One batch (screen_batch_body of scoring_body.h).
-uint32_t screen_batch(const ScreenList& v, const uint32_t* fire, const int32_t* goal, uint32_t valid) {
+uint32_t screen_batch(const ScreenList& v, const uint32_t* fire, const int32_t* goal, uint32_t valid,
+                      uint16_t* residues) {
   const uint16x8_t bits = lane_bits16();
   uint16x8_t acc[4] = {vdupq_n_u16(0), vdupq_n_u16(0), vdupq_n_u16(0), vdupq_n_u16(0)};
   int32x4_t goals[8];
@@ -66,6 +67,9 @@ uint32_t screen_batch(const ScreenList& v, const uint32_t* fire, const int32_t* 
       out |= static_cast<uint32_t>(vaddvq_u16(pass)) << (8 * g);
     }
     out &= valid;
+    if (last && out != 0 && residues != nullptr) {
+      for (int32_t g = 0; g < 4; ++g) vst1q_u16(residues + 8 * g, vsubq_u16(acc[g], low));
+    }
     if (last || out == 0) return out;
   }
 }
@@ -107,10 +111,11 @@ void accumulate_groups_neon(const GroupItem* items, int32_t n, const DenseStump*
 }
 
 uint64_t screen_class_neon(const ScreenList& list, int32_t batches, const uint32_t* const* fire,
-                           const int32_t* const* goal, const uint32_t* valid) {
+                           const int32_t* const* goal, const uint32_t* valid, uint16_t* residues) {
   uint64_t bits = 0;
   for (int32_t b = 0; b < batches; ++b) {
-    bits |= static_cast<uint64_t>(screen_batch(list, fire[b], goal[b], valid[b])) << (32 * b);
+    uint16_t* r = residues != nullptr ? residues + kScoringBatch * b : nullptr;
+    bits |= static_cast<uint64_t>(screen_batch(list, fire[b], goal[b], valid[b], r)) << (32 * b);
   }
   return bits;
 }

@@ -363,21 +363,22 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
         detail::screen_goals(model, below.data(), -inf, exact[0], score_goals.data());
         const int32_t* score_goal = score_goals.data();
         const uint32_t one = 1;
-        const uint64_t high = generic.screen_class(screen, 1, fire, high_bg, valid) |
-                              generic.screen_class(screen, 1, fire + 1, high_bg + 1, valid + 1) << 32;
+        const uint64_t high = generic.screen_class(screen, 1, fire, high_bg, valid, nullptr) |
+                              generic.screen_class(screen, 1, fire + 1, high_bg + 1, valid + 1, nullptr) << 32;
         for (SimdLevel level : supported_levels()) {
           const detail::ScoringKernels& k = *detail::scoring_kernels(level);
           // Kept in every valid lane of both batches, and of each batch alone.
-          ASSERT_EQ(k.screen_class(screen, 2, fire, low_bg, valid), valid2)
+          ASSERT_EQ(k.screen_class(screen, 2, fire, low_bg, valid, nullptr), valid2)
               << simd_level_name(level) << " scale " << scale << " class " << c << " trial " << trial;
           for (int32_t b = 0; b < 2; ++b) {
-            ASSERT_EQ(k.screen_class(screen, 1, fire + b, low_bg + b, valid + b), valid[b]) << simd_level_name(level);
+            ASSERT_EQ(k.screen_class(screen, 1, fire + b, low_bg + b, valid + b, nullptr), valid[b])
+                << simd_level_name(level);
           }
           // min_score: the exact score itself passes score >= min_score (no margin test).
-          ASSERT_EQ(k.screen_class(screen, 1, fire, &score_goal, &one), 1u) << simd_level_name(level);
+          ASSERT_EQ(k.screen_class(screen, 1, fire, &score_goal, &one, nullptr), 1u) << simd_level_name(level);
           // (A batch's bound only falls from checkpoint to checkpoint: the pair gives each
           // batch's own bits.)
-          ASSERT_EQ(k.screen_class(screen, 2, fire, high_bg, valid), high) << simd_level_name(level);
+          ASSERT_EQ(k.screen_class(screen, 2, fire, high_bg, valid, nullptr), high) << simd_level_name(level);
         }
         dropped += high == 0;
         ++trials;
@@ -387,6 +388,78 @@ TEST(Screening, BoundIsNeverBelowTheExactScoreAndKernelsAgree) {
       EXPECT_GT(dropped, trials * 9 / 10) << "scale " << scale;
     }
   }
+}
+
+// The fused second screening from the first one's residues (detail::screen_terms_pass) equals a
+// second screen_class walk with the goals lowered by each lane's term (screen_goals with lift =
+// term + step), at every SIMD level: the first screening lifted by the largest term, random terms
+// up to it, backgrounds around the exact scores so that both screenings keep some lanes and drop
+// others.
+TEST(Screening, SecondScreeningFromResiduesEqualsASecondWalk) {
+  constexpr int32_t B = Classifier::kBatch;
+  const Model model(random_model_data(60, 900, 44));
+  const detail::ScoringIndex& idx = model.scoring();
+  const size_t M = idx.dense_stumps().size();
+  const detail::ScoringKernels& generic = *detail::scoring_kernels(SimdLevel::kGeneric);
+  Rng rng(45);
+  const double term_max = 2.0;
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<uint32_t> fire0(M), fire1(M);
+  int64_t first_kept = 0, second_kept = 0, second_dropped = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    for (uint32_t& f : fire0) f = static_cast<uint32_t>(rng.next());
+    for (uint32_t& f : fire1) f = static_cast<uint32_t>(rng.next());
+    const uint32_t valid[2] = {~0u, trial % 3 == 0 ? (1u << (1 + trial % 31)) - 1 : ~0u};
+    const uint32_t* fire[2] = {fire0.data(), fire1.data()};
+    for (int32_t c = 0; c < model.num_classes(); ++c) {
+      const int32_t* list = idx.class_stump_index().data() + idx.class_stump_begin()[c];
+      const int64_t n = idx.class_stump_begin()[c + 1] - idx.class_stump_begin()[c];
+      double exact[2 * B], background[2 * B], lift[2 * B], terms[2 * B], term_lift[2 * B];
+      for (int32_t b = 0; b < 2; ++b) {
+        generic.accumulate_lanes(model.data().bias[c], list, n, idx.dense_stumps().data(), fire[b], exact + b * B);
+      }
+      for (int32_t j = 0; j < 2 * B; ++j) {
+        background[j] = exact[j] + rng.uniform(-1.0, 3.0);
+        lift[j] = term_max + idx.screen_step();
+        terms[j] = rng.uniform(-4.0, term_max);
+        term_lift[j] = terms[j] + idx.screen_step();
+      }
+      int32_t goal[2 * B], term_goal[2 * B];
+      for (int32_t b = 0; b < 2; ++b) {
+        detail::screen_goals(model, background + b * B, 0.0, -inf, goal + b * B, lift + b * B);
+        detail::screen_goals(model, background + b * B, 0.0, -inf, term_goal + b * B, term_lift + b * B);
+      }
+      const int32_t* goals[2] = {goal, goal + B};
+      const int32_t* term_goals[2] = {term_goal, term_goal + B};
+      const detail::ScreenList screen = detail::screen_list(model, c);
+      const uint64_t second_walk = generic.screen_class(screen, 2, fire, goals, valid, nullptr) &
+                                   generic.screen_class(screen, 2, fire, term_goals, valid, nullptr);
+      for (SimdLevel level : supported_levels()) {
+        const detail::ScoringKernels& k = *detail::scoring_kernels(level);
+        uint16_t residues[2 * B];
+        const uint64_t first = k.screen_class(screen, 2, fire, goals, valid, residues);
+        uint64_t second = 0;
+        for (int32_t b = 0; b < 2; ++b) {
+          const auto lanes = static_cast<uint32_t>(first >> (32 * b));
+          if (lanes != 0) {
+            second |= uint64_t{detail::screen_terms_pass(model, c, residues + b * B, background + b * B, 0.0, -inf,
+                                                         terms + b * B, lanes)}
+                      << (32 * b);
+          }
+        }
+        ASSERT_EQ(second, second_walk) << simd_level_name(level) << " class " << c << " trial " << trial;
+        if (level == SimdLevel::kGeneric) {
+          first_kept += __builtin_popcountll(first);
+          second_kept += __builtin_popcountll(second);
+          second_dropped += __builtin_popcountll(first & ~second);
+        }
+      }
+    }
+  }
+  // Both screenings matter: the first keeps lanes, and the second drops some of them.
+  EXPECT_GT(first_kept, 0);
+  EXPECT_GT(second_kept, 0);
+  EXPECT_GT(second_dropped, 0);
 }
 
 // classify() with screening equals classify() without, match for match, on a model where the

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -34,6 +35,12 @@ std::vector<const ScoringKernels*> fast_kernels() {
 }
 
 const ScoringKernels& generic() { return *detail::scoring_kernels(SimdLevel::kGeneric); }
+
+std::vector<const ScoringKernels*> all_kernels() {
+  std::vector<const ScoringKernels*> out = fast_kernels();
+  out.insert(out.begin(), &generic());
+  return out;
+}
 
 uint64_t bits_of(double x) {
   uint64_t b;
@@ -182,7 +189,9 @@ TEST(ScoringKernels, AccumulationsEqualTheListOrderSumAtEveryLevel) {
 }
 
 // The generic screening of one batch, written out lane by lane from model.h's definition.
-uint32_t reference_screen(const ScreenList& v, const uint32_t* fire, const int32_t* goal, uint32_t valid) {
+// residues (B entries) gets each lane's residue at the end of the list when some lane passes there.
+uint32_t reference_screen(const ScreenList& v, const uint32_t* fire, const int32_t* goal, uint32_t valid,
+                          uint16_t* residues) {
   uint32_t sums[B] = {};
   for (int64_t e = 0, k = 0;; ++k) {
     const int64_t stop = std::min<int64_t>(v.count, e + detail::kScreenCheck);
@@ -201,6 +210,9 @@ uint32_t reference_screen(const ScreenList& v, const uint32_t* fire, const int32
       if (t >= threshold) bits |= 1u << j;
     }
     bits &= valid;
+    if (last && bits != 0) {
+      for (int32_t j = 0; j < B; ++j) residues[j] = static_cast<uint16_t>((sums[j] - low) & 0xFFFF);
+    }
     if (last || bits == 0) return bits;
   }
 }
@@ -216,7 +228,7 @@ TEST(ScoringKernels, ScreeningEqualsTheLaneByLaneDefinitionAtEveryLevel) {
         : t == 2 ? int16_t{0}
                  : static_cast<int16_t>(rng.below(65536));
   }
-  int tested = 0, passed = 0;
+  int tested = 0, passed = 0, kept_one_batch = 0;
   for (int trial = 0; trial < 300; ++trial) {
     const int64_t lengths[] = {0, 1, 31, 32, 33, 64, 65, 200};
     std::vector<uint16_t> list(static_cast<size_t>(lengths[trial % 8]));
@@ -252,22 +264,40 @@ TEST(ScoringKernels, ScreeningEqualsTheLaneByLaneDefinitionAtEveryLevel) {
     const uint32_t valid[2] = {trial % 5 == 0 ? (1u << (trial % 31)) - 1 : ~0u, trial % 7 == 0 ? 0u : ~0u};
     const uint32_t* fire[2] = {fire0.data(), fire1.data()};
     const int32_t* goal[2] = {goal0.data(), goal1.data()};
-    const uint32_t want0 = reference_screen(v, fire0.data(), goal0.data(), valid[0]);
-    const uint32_t want1 = reference_screen(v, fire1.data(), goal1.data(), valid[1]);
+    uint16_t want_residues[2 * B] = {};
+    const uint32_t want0 = reference_screen(v, fire0.data(), goal0.data(), valid[0], want_residues);
+    const uint32_t want1 = reference_screen(v, fire1.data(), goal1.data(), valid[1], want_residues + B);
     const uint64_t want = want0 | static_cast<uint64_t>(want1) << 32;
-    ASSERT_EQ(generic().screen_class(v, 2, fire, goal, valid), want) << "trial " << trial;
-    ASSERT_EQ(generic().screen_class(v, 1, fire, goal, valid), want0) << "trial " << trial;
-    for (const ScoringKernels* k : fast_kernels()) {
-      ASSERT_EQ(k->screen_class(v, 2, fire, goal, valid), want) << simd_level_name(k->level) << " trial " << trial;
-      ASSERT_EQ(k->screen_class(v, 1, fire, goal, valid), want0) << simd_level_name(k->level) << " trial " << trial;
-      ASSERT_EQ(k->screen_class(v, 1, fire + 1, goal + 1, valid + 1), want1) << simd_level_name(k->level);
+    // The bits, without residues and with them; the residues of each batch with a lane kept (the
+    // others' slots are left as they were).
+    const auto check = [&](const ScoringKernels& k, int32_t batches, int32_t first, uint64_t expected) {
+      const std::string where = std::string(simd_level_name(k.level)) + " trial " + std::to_string(trial) +
+                                " batches " + std::to_string(batches) + " first " + std::to_string(first);
+      ASSERT_EQ(k.screen_class(v, batches, fire + first, goal + first, valid + first, nullptr), expected) << where;
+      uint16_t residues[2 * B];
+      std::fill(residues, residues + 2 * B, uint16_t{0xABCD});
+      ASSERT_EQ(k.screen_class(v, batches, fire + first, goal + first, valid + first, residues), expected) << where;
+      for (int32_t b = 0; b < batches; ++b) {
+        const bool kept = ((expected >> (32 * b)) & 0xFFFFFFFFu) != 0;
+        for (int32_t j = 0; j < B; ++j) {
+          ASSERT_EQ(residues[B * b + j], kept ? want_residues[B * (first + b) + j] : uint16_t{0xABCD})
+              << where << " batch " << b << " lane " << j;
+        }
+      }
+    };
+    for (const ScoringKernels* k : all_kernels()) {
+      check(*k, 2, 0, want);
+      check(*k, 1, 0, want0);
+      check(*k, 1, 1, want1);
     }
     ++tested;
     passed += want != 0;
+    kept_one_batch += (want0 != 0) != (want1 != 0);
   }
-  // Both outcomes occur.
+  // Both outcomes occur, and pairs where one batch is dropped and the other goes on alone.
   EXPECT_GT(passed, 0);
   EXPECT_LT(passed, tested);
+  EXPECT_GT(kept_one_batch, 0);
 }
 
 TEST(ScoringKernels, LaneTestEqualsTheScalarTestsAtEveryLevel) {
