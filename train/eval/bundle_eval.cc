@@ -63,6 +63,7 @@ struct Outcome {
   int inliers = 0;
   int32_t area = -1;
   int32_t selected = 0, scored = 0, loaded = 0;
+  std::vector<int32_t> scored_ids, scored_inliers;  // the areas scored, in order, and their poses' inliers
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -164,6 +165,8 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.area = r.area;
     o.selected = r.selected;
     o.scored = static_cast<int32_t>(r.scored.size());
+    o.scored_ids = r.scored;
+    o.scored_inliers = r.inliers;
     o.loaded = r.loaded;
     o.errors = std::move(r.errors);
   }
@@ -179,6 +182,8 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
     jf["area"] = o.area;
     jf["areas_selected"] = o.selected;
     jf["areas_scored"] = o.scored;
+    jf["scored"] = o.scored_ids;
+    jf["scored_inliers"] = o.scored_inliers;
     jf["areas_loaded"] = o.loaded;
     if (!o.errors.empty()) jf["errors"] = o.errors;
   }

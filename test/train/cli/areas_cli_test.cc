@@ -339,6 +339,18 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       // Without a prior every area is scored; with one, nearest first: fewer only when an area's
       // calibrated pose stopped the search.
       const size_t scored = fr[i]["areas_scored"].get<size_t>();
+      // The areas scored in the search's order, each once, with their poses' inliers; the winner
+      // is one of them with the inliers reported for the frame.
+      const std::vector<int32_t> order = fr[i]["scored"].get<std::vector<int32_t>>();
+      const std::vector<int32_t> order_inliers = fr[i]["scored_inliers"].get<std::vector<int32_t>>();
+      ASSERT_EQ(order.size(), scored) << m << " " << i;
+      ASSERT_EQ(order_inliers.size(), scored) << m << " " << i;
+      EXPECT_EQ(std::set<int32_t>(order.begin(), order.end()).size(), scored) << m << " " << i;
+      if (fr[i]["success"].get<bool>()) {
+        const auto at = std::find(order.begin(), order.end(), fr[i]["area"].get<int32_t>());
+        ASSERT_NE(at, order.end()) << m << " " << i;
+        EXPECT_EQ(order_inliers[static_cast<size_t>(at - order.begin())], fr[i]["num_inliers"].get<int32_t>());
+      }
       if (m == 2 || !fr[i]["success"].get<bool>()) {
         EXPECT_EQ(scored, want) << m << " " << i;
       } else {
