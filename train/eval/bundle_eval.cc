@@ -62,8 +62,8 @@ struct Outcome {
   Rigid3d pose;
   int inliers = 0;
   int32_t area = -1;
-  int32_t selected = 0, scored = 0, loaded = 0;
-  std::vector<int32_t> scored_ids, scored_inliers;  // the areas scored, in order, and their poses' inliers
+  int32_t selected = 0, loaded = 0;
+  std::vector<int32_t> scored, scored_inliers;  // the areas scored, in order, and their poses' inliers
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -164,9 +164,8 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.inliers = r.result.pose.num_inliers;
     o.area = r.area;
     o.selected = r.selected;
-    o.scored = static_cast<int32_t>(r.scored.size());
-    o.scored_ids = r.scored;
-    o.scored_inliers = r.inliers;
+    o.scored = std::move(r.scored);
+    o.scored_inliers = std::move(r.inliers);
     o.loaded = r.loaded;
     o.errors = std::move(r.errors);
   }
@@ -181,8 +180,8 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
   if (!mode.single) {
     jf["area"] = o.area;
     jf["areas_selected"] = o.selected;
-    jf["areas_scored"] = o.scored;
-    jf["scored"] = o.scored_ids;
+    jf["areas_scored"] = o.scored.size();
+    jf["scored"] = o.scored;
     jf["scored_inliers"] = o.scored_inliers;
     jf["areas_loaded"] = o.loaded;
     if (!o.errors.empty()) jf["errors"] = o.errors;
@@ -228,7 +227,7 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
       cpu.push_back(o.cpu_ms);
       wall.push_back(o.wall_ms);
       selected += o.selected;
-      scored += o.scored;
+      scored += static_cast<double>(o.scored.size());
       loaded += o.loaded;
       localized += o.success;
       ++runs;
