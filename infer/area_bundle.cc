@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <limits>
 #include <sstream>
+#include <tuple>
 
 #include "common/error.h"
 #include "common/file_container.h"
@@ -19,9 +20,21 @@ namespace lmb {
 
 namespace {
 
-void check_area_search(AreaSearch search, const char* where) {
+void check_area_search(AreaSearch search, AreaWinner winner, const char* where) {
   LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
             where << ": unknown area search " << static_cast<int32_t>(search));
+  LMB_CHECK(winner == AreaWinner::kSupport || winner == AreaWinner::kInliers,
+            where << ": unknown area winner " << static_cast<int32_t>(winner));
+}
+
+// Adds a scored area's correspondences to the frame's candidate points per keypoint (a landmark
+// that two overlapping areas both match to a keypoint is one candidate).
+void add_candidates(const Model& model, const LocalizeResult& r, std::vector<std::vector<Eigen::Vector3d>>* points) {
+  for (size_t i = 0; i < r.correspondence_keypoint.size(); ++i) {
+    std::vector<Eigen::Vector3d>& list = (*points)[static_cast<size_t>(r.correspondence_keypoint[i])];
+    const Eigen::Vector3d& p = model.class_position(r.matches.matches[r.correspondence_match[i]].cls);
+    if (std::find(list.begin(), list.end(), p) == list.end()) list.push_back(p);
+  }
 }
 
 uint64_t parse_unsigned(const std::string& token, const std::string& where, const std::string& field, int base,
@@ -248,11 +261,11 @@ void AreaBundle::release_except(const std::vector<int32_t>& keep) {
 BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
                                         const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                                         const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
-                                        const LocalizerOptions& options, AreaSearch search) {
+                                        const LocalizerOptions& options, AreaSearch search, AreaWinner winner) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point start = Clock::now();
   options.check();
-  check_area_search(search, "localize_in_bundle");
+  check_area_search(search, winner, "localize_in_bundle");
   BundleLocalizeResult out;
   std::vector<int32_t> selected = bundle.select(prior);
   out.selected = static_cast<int32_t>(selected.size());
@@ -264,11 +277,11 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
       return areas[a].distance(prior->position) < areas[b].distance(prior->position);
     });
   }
-  // The winner so far: the successful pose with the most inliers (ties: the smaller id).
-  const auto better = [&](int32_t id, int inliers) {
-    return out.area < 0 || inliers > out.result.pose.num_inliers ||
-           (inliers == out.result.pose.num_inliers && id < out.area);
-  };
+  // Every scored area's matches (per keypoint, distinct 3D points) and its result while it may win.
+  std::vector<std::vector<Eigen::Vector3d>> candidates(keypoints.size());
+  std::vector<LocalizeResult> posed;  // per scored area: its result when it has a pose
+  std::vector<size_t> posed_index;    // per scored area: index into posed, or SIZE_MAX
+  bool stopped = false;
   for (int32_t id : selected) {
     std::shared_ptr<const Model> model;
     const int64_t loads_before = bundle.loads();
@@ -285,15 +298,35 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
     const int inliers = r.pose.success ? r.pose.num_inliers : 0;
     out.scored.push_back(id);
     out.inliers.push_back(inliers);
-    if (nearest_first && r.calibrated && r.localized) {
-      out.area = id;
-      out.result = std::move(r);
-      break;
-    }
-    if (r.pose.success && better(id, inliers)) {
-      out.area = id;
-      out.result = std::move(r);
-    }
+    add_candidates(*model, r, &candidates);
+    stopped = nearest_first && r.calibrated && r.localized;
+    posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
+    if (r.pose.success) posed.push_back(std::move(r));
+    if (stopped) break;
+  }
+  // Each pose's support over every scored area's matches; the winner.
+  std::vector<Eigen::Vector2d> pixels(keypoints.size());
+  for (size_t k = 0; k < keypoints.size(); ++k) pixels[k] = Eigen::Vector2d(keypoints[k].x, keypoints[k].y);
+  std::vector<Rigid3d> poses;
+  for (const LocalizeResult& r : posed) poses.push_back(r.pose.cam_from_world);
+  const std::vector<int> support =
+      count_explained_keypoints(camera, pixels, candidates, poses, options.pose.max_reprojection_error_px);
+  size_t best = SIZE_MAX;
+  out.support.assign(out.scored.size(), 0);
+  for (size_t i = 0; i < out.scored.size(); ++i) {
+    if (posed_index[i] == SIZE_MAX) continue;
+    out.support[i] = support[posed_index[i]];
+    if (stopped) continue;  // the last area scored wins
+    const auto key = [&](size_t j) {
+      const int32_t rule = winner == AreaWinner::kSupport ? out.support[j] : 0;
+      return std::make_tuple(rule, out.inliers[j], -out.scored[j]);
+    };
+    if (best == SIZE_MAX || key(i) > key(best)) best = i;
+  }
+  if (stopped) best = out.scored.size() - 1;
+  if (best != SIZE_MAX) {
+    out.area = out.scored[best];
+    out.result = std::move(posed[posed_index[best]]);
   }
   out.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return out;
@@ -303,7 +336,7 @@ void BundleLocalizerOptions::check() const {
   localizer.check();
   LMB_CHECK(std::isfinite(tracking_radius) && tracking_radius >= 0.0,
             "bundle localizer options: tracking_radius = " << tracking_radius << " must be finite and >= 0");
-  check_area_search(search, "bundle localizer options");
+  check_area_search(search, winner, "bundle localizer options");
 }
 
 BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options)
@@ -316,7 +349,7 @@ BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::
                                                const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
                                                const PositionPrior* prior) const {
   return localize_in_bundle(*bundle_, camera, keypoints, descriptors, gravity_in_cam, prior, options_.localizer,
-                            options_.search);
+                            options_.search, options_.winner);
 }
 
 BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,

@@ -16,9 +16,11 @@
 // Localizing with a prior (position within `radius` metres): the areas whose cell lies within
 // radius + reach of the position are candidates, each localized with its own model, nearest first;
 // the first whose calibrated confidence reaches its operating point wins and the others are not
-// scored (AreaSearch). When none does, or without a prior (every area, in id order), the
-// successful pose with the most inliers wins (ties: the smaller area id): the areas compete, their matches are not
-// merged (docs/areas.md says why).
+// scored (AreaSearch). When none does, or without a prior (every area, in id order), the areas'
+// poses compete (AreaWinner): by default the pose that explains most of the frame's keypoints with
+// the matches of EVERY scored area wins, not the one with most inliers among its own area's
+// matches (in an aliased place an area that does not hold the frame's landmarks matches their
+// look-alikes and gives a wrong pose with more inliers than the right one; docs/areas.md).
 //
 // Memory: set_cache_limits() bounds the loaded areas (a count and/or their model bytes); when a
 // load would exceed a limit, the least recently used other areas are freed first.
@@ -123,10 +125,13 @@ class LMB_INFER_EXPORT AreaBundle {
 };
 
 struct LMB_INFER_EXPORT BundleLocalizeResult {
-  int32_t area = -1;                // the area whose pose won (-1: no area localized the frame)
-  LocalizeResult result;            // its result (empty when area is -1)
-  std::vector<int32_t> scored;      // the areas scored (selected and loaded)
-  std::vector<int32_t> inliers;     // per scored area: its pose's inliers (0 without a pose)
+  int32_t area = -1;             // the area whose pose won (-1: no area localized the frame)
+  LocalizeResult result;         // its result (empty when area is -1)
+  std::vector<int32_t> scored;   // the areas scored (selected and loaded)
+  std::vector<int32_t> inliers;  // per scored area: its pose's inliers (0 without a pose)
+  // Per scored area: the frame's keypoints its pose explains with the matches of every scored
+  // area (count_explained_keypoints; 0 without a pose).
+  std::vector<int32_t> support;
   std::vector<std::string> errors;  // one line per selected area that could not be loaded
   int32_t selected = 0;             // areas the prior selected (every area without one)
   int32_t loaded = 0;               // areas read from their files during this call
@@ -144,22 +149,34 @@ enum class AreaSearch : int32_t {
   // stops it, every selected area has been scored and the rule of kAll decides. Without a
   // prior: kAll.
   kNearestFirst = 0,
-  // Every selected area is scored; the successful pose with the most inliers wins (ties: the
-  // smaller area id).
+  // Every selected area is scored; AreaWinner decides.
   kAll = 1,
+};
+
+// Which of the scored areas' poses wins when the search did not stop at a calibrated pose.
+enum class AreaWinner : int32_t {
+  // The pose that explains most keypoints of the frame: a keypoint counts when one of its matches
+  // from ANY scored area (each area's pose_top_k best, the correspondences it gave RANSAC) passes
+  // the estimator's inlier test at that pose (count_explained_keypoints, the same threshold).
+  // Ties: more inliers of its own, then the smaller area id. A right pose is confirmed by every
+  // area that holds part of the view; a pose made of one area's look-alike matches is not.
+  kSupport = 0,
+  // The pose with the most inliers among its own area's matches (ties: the smaller area id).
+  kInliers = 1,
 };
 
 // Localizes a frame in the areas `prior` selects (every area when prior is null), each through
 // its own model with `options`, the winner chosen by `search`. Areas that fail to load are
 // reported in `errors` and skipped. Arguments as Localizer::localize.
-LMB_INFER_EXPORT BundleLocalizeResult
-localize_in_bundle(AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints,
-                   const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
-                   const LocalizerOptions& options = {}, AreaSearch search = AreaSearch::kNearestFirst);
+LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(
+    AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+    const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior, const LocalizerOptions& options = {},
+    AreaSearch search = AreaSearch::kNearestFirst, AreaWinner winner = AreaWinner::kSupport);
 
 struct LMB_INFER_EXPORT BundleLocalizerOptions {
   LocalizerOptions localizer;
   AreaSearch search = AreaSearch::kNearestFirst;  // with a prior (and in track()): see AreaSearch
+  AreaWinner winner = AreaWinner::kSupport;       // which scored area's pose wins: see AreaWinner
   // track(): the prior is the last tracked camera centre within this many metres (how far the
   // camera may move between two tracked frames; the bundle's reach is added by the selection).
   double tracking_radius = 1.0;

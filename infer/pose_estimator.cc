@@ -343,4 +343,45 @@ PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen:
   return result;
 }
 
+std::vector<int> count_explained_keypoints(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels,
+                                           const std::vector<std::vector<Eigen::Vector3d>>& points,
+                                           const std::vector<Rigid3d>& cam_from_world,
+                                           double max_reprojection_error_px) {
+  LMB_CHECK(points.size() == pixels.size(),
+            "count_explained_keypoints: " << points.size() << " point lists for " << pixels.size() << " pixels");
+  LMB_CHECK(std::isfinite(max_reprojection_error_px) && max_reprojection_error_px > 0.0,
+            "count_explained_keypoints: max_reprojection_error_px = " << max_reprojection_error_px
+                                                                      << " must be finite and > 0");
+  // The estimator's test (AbsolutePoseEstimator::score): x.b > 0 and (x.b)^2 > cos^2 |x|^2.
+  const double min_cos = std::cos(std::atan(max_reprojection_error_px / camera.mean_focal_length()));
+  const double c2 = min_cos * min_cos;
+  // The keypoints with candidates and a bearing.
+  std::vector<size_t> keypoints;
+  std::vector<Eigen::Vector3d> bearings;
+  for (size_t k = 0; k < pixels.size(); ++k) {
+    if (points[k].empty()) continue;
+    const Eigen::Vector2d normalized = camera.cam_from_img(pixels[k]);
+    const Eigen::Vector3d bearing = Eigen::Vector3d(normalized.x(), normalized.y(), 1.0).normalized();
+    if (!bearing.allFinite()) continue;
+    keypoints.push_back(k);
+    bearings.push_back(bearing);
+  }
+  std::vector<int> explained(cam_from_world.size(), 0);
+  for (size_t i = 0; i < cam_from_world.size(); ++i) {
+    const Eigen::Matrix3d R = cam_from_world[i].rotation.toRotationMatrix();
+    const Eigen::Vector3d& t = cam_from_world[i].translation;
+    for (size_t j = 0; j < keypoints.size(); ++j) {
+      for (const Eigen::Vector3d& p : points[keypoints[j]]) {
+        const Eigen::Vector3d x = R * p + t;
+        const double d = x.dot(bearings[j]);
+        if (d > 0 && d * d > c2 * x.squaredNorm()) {
+          ++explained[i];
+          break;
+        }
+      }
+    }
+  }
+  return explained;
+}
+
 }  // namespace lmb

@@ -96,4 +96,18 @@ LMB_INFER_EXPORT PoseResult estimate_absolute_pose(const Camera& camera, const s
                                                    const PoseEstimatorOptions& options = {},
                                                    const std::vector<double>& quality = {});
 
+// How many keypoints each pose explains when a keypoint may have several candidate 3D points
+// (e.g. the matches of several area models, infer/area_bundle.h): keypoint k counts for a pose when
+// at least one of points[k] passes the estimator's inlier test at it (the angle between the
+// keypoint's bearing and the point seen from the pose within atan(max_reprojection_error_px / mean
+// focal length), the point in front of the camera). pixels[k] as estimate_absolute_pose;
+// points.size() == pixels.size(). A keypoint whose pixel does not undistort counts for nothing.
+// Returns one count per pose (the bearings are computed once). Throws lmb::Error for mismatched
+// sizes or a non-finite / non-positive threshold.
+LMB_INFER_EXPORT std::vector<int> count_explained_keypoints(const Camera& camera,
+                                                            const std::vector<Eigen::Vector2d>& pixels,
+                                                            const std::vector<std::vector<Eigen::Vector3d>>& points,
+                                                            const std::vector<Rigid3d>& cam_from_world,
+                                                            double max_reprojection_error_px);
+
 }  // namespace lmb

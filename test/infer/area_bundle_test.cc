@@ -6,6 +6,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -276,6 +277,57 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   EXPECT_EQ(far_only.scored, std::vector<int32_t>{0});
 }
 
+// An aliased place: area 0 holds look-alikes of 36 of the frame's 60 landmarks, 0.8 m away (the
+// same descriptors, shifted positions), so its pose is wrong with 36 inliers; areas 1 and 2 each
+// hold the true positions of 30 of them (the view spans both), so their poses are right with 30
+// inliers each. Most inliers picks the wrong pose; support over every area's matches (60 keypoints
+// explained by the right pose, 36 by the wrong one) picks the right one.
+TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const test::TestFrame& f = world.frame;
+  std::vector<int32_t> seen;  // the frame's landmark classes, in keypoint order
+  for (int32_t c : f.keypoint_class) {
+    if (c >= 0 && std::find(seen.begin(), seen.end(), c) == seen.end()) seen.push_back(c);
+  }
+  ASSERT_EQ(seen.size(), 60u);
+  // Every area knows every code; a class the area does not hold sits 1 km away (never explained).
+  const Eigen::Vector3d away(1000, 0, 0), shift(0.8, 0, 0);
+  const auto area_model = [&](size_t first, size_t count, const Eigen::Vector3d& offset) {
+    ModelData d = test::make_code_model_data(world.positions);
+    for (auto& p : d.class_position) p += away;
+    for (size_t i = first; i < first + count; ++i) d.class_position[seen[i]] = world.positions[seen[i]] + offset;
+    return std::make_shared<const Model>(std::move(d));
+  };
+  write_bundle_index(dir_ / "aliased.txt", 1.0,
+                     {add(*area_model(0, 36, shift), 0, -kInf, 0.0), add(*area_model(0, 30, {0, 0, 0}), 1, 0.0, 1.0),
+                      add(*area_model(30, 30, {0, 0, 0}), 2, 1.0, kInf)});
+  const auto bundle = AreaBundle::open(dir_ / "aliased.txt");
+  const auto run = [&](AreaWinner winner) {
+    return localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
+                              AreaSearch::kAll, winner);
+  };
+  const BundleLocalizeResult by_support = run(AreaWinner::kSupport);
+  ASSERT_EQ(by_support.scored, (std::vector<int32_t>{0, 1, 2}));
+  EXPECT_EQ(by_support.inliers, (std::vector<int32_t>{36, 30, 30}));
+  EXPECT_EQ(by_support.support, (std::vector<int32_t>{36, 60, 60}));
+  EXPECT_EQ(by_support.area, 1);  // ties on support and inliers: the smaller id
+  EXPECT_LT(position_error(by_support.result.pose.cam_from_world, f.cam_from_world), 1e-6);
+  const BundleLocalizeResult by_inliers = run(AreaWinner::kInliers);
+  EXPECT_EQ(by_inliers.support, by_support.support);
+  EXPECT_EQ(by_inliers.area, 0);
+  EXPECT_NEAR(position_error(by_inliers.result.pose.cam_from_world, f.cam_from_world), 0.8, 1e-6);
+  EXPECT_THROW(run(static_cast<AreaWinner>(5)), Error);
+  // The bundle localizer takes the rule from its options.
+  BundleLocalizerOptions options;
+  options.winner = AreaWinner::kInliers;
+  EXPECT_EQ(BundleLocalizer(bundle, options)
+                .localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr)
+                .area,
+            0);
+  EXPECT_EQ(
+      BundleLocalizer(bundle).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr).area, 1);
+}
+
 // A calibration whose probability is sigmoid(bias) for every pose with an inlier: bias +8 accepts
 // every pose at the threshold 0.5, bias -8 none.
 PoseCalibration constant_calibration(double bias) {
@@ -305,7 +357,9 @@ TEST_F(AreaBundleTest, NearestFirstStopsAtTheFirstCalibratedLocalizedArea) {
   const LocalizeResult far = localize(model(far_data, std::nullopt));
   ASSERT_TRUE(own.pose.success);
   const int far_inliers = far.pose.success ? far.pose.num_inliers : 0;
-  // Under kAll, the most inliers win (ties: the smaller id).
+  // Under kAll the pose explaining most keypoints wins (AreaWinner::kSupport); the far area's
+  // matches are look-alikes of other landmarks, so that is the own area's unless the far one has as
+  // many inliers (checked below on the supports).
   const int32_t all_winner = far.pose.success && far_inliers >= own.pose.num_inliers ? 0 : 1;
   int case_id = 0;
   // (Each case writes its own area files: a bundle reads an area on first use.)
@@ -339,6 +393,9 @@ TEST_F(AreaBundleTest, NearestFirstStopsAtTheFirstCalibratedLocalizedArea) {
   EXPECT_EQ(all.scored, (std::vector<int32_t>{0, 1}));
   EXPECT_EQ(all.inliers, (std::vector<int32_t>{far_inliers, own.pose.num_inliers}));
   EXPECT_EQ(all.area, all_winner);
+  ASSERT_EQ(all.support.size(), 2u);
+  EXPECT_GT(all.support[1], all.support[0]);
+  EXPECT_GE(all.support[1], own.pose.num_inliers);
   // The prior in the far cell: the far area first. Its calibration rejecting: the own area is
   // scored too and kAll's rule decides; accepting (with a pose): the far area wins alone.
   const BundleLocalizeResult far_rejects = run(8.0, -8.0, in_far, AreaSearch::kNearestFirst);

@@ -517,5 +517,96 @@ TEST(PoseEstimator, MaxIterationsBoundsTheSamples) {
   }
 }
 
+// count_explained_keypoints with one candidate per keypoint is the estimator's own inlier test:
+// at the pose it returns, it counts exactly its inliers.
+TEST(ExplainedKeypoints, OneCandidateEachCountsTheEstimatorsInliers) {
+  const Camera camera = distorted_camera();
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    const Scene s = make_scene(300 + seed, 150, 1.0, 0.4);
+    PoseEstimatorOptions options = options_with_seed(seed);
+    const PoseResult r = estimate_absolute_pose(camera, s.pixels, s.points_world, options);
+    ASSERT_TRUE(r.success) << seed;
+    std::vector<std::vector<Eigen::Vector3d>> points(s.points_world.size());
+    for (size_t i = 0; i < points.size(); ++i) points[i] = {s.points_world[i]};
+    EXPECT_EQ(
+        count_explained_keypoints(camera, s.pixels, points, {r.cam_from_world}, options.max_reprojection_error_px),
+        std::vector<int>{r.num_inliers})
+        << seed;
+  }
+}
+
+// Several candidates per keypoint (shuffled true and wrong points, some behind the camera, some
+// keypoints with none): a keypoint counts once when any candidate is within the angle, equal to a
+// reference written with the angle itself.
+TEST(ExplainedKeypoints, AnyCandidateWithinTheAngleCountsTheKeypointOnce) {
+  const Camera camera = distorted_camera();
+  Rng rng(77);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Scene s = make_scene(400 + static_cast<uint64_t>(trial), 80, 2.0, 0.0);
+    const Rigid3d world_from_cam = s.cam_from_world.inverse();
+    const double max_px = rng.uniform(1.0, 10.0);
+    std::vector<std::vector<Eigen::Vector3d>> points(s.pixels.size());
+    for (size_t k = 0; k < points.size(); ++k) {
+      const int n = static_cast<int>(rng.below(4));  // 0..3 candidates
+      for (int j = 0; j < n; ++j) {
+        const double u = rng.uniform();
+        if (u < 0.3) {
+          points[k].push_back(s.points_world[k]);  // the true point (noisy pixel)
+        } else if (u < 0.5) {
+          // The true point mirrored behind the camera: the same line of sight, never explained.
+          const Eigen::Vector3d in_cam = s.cam_from_world * s.points_world[k];
+          points[k].push_back(world_from_cam * (-in_cam));
+        } else {
+          points[k].push_back(s.points_world[rng.below(s.points_world.size())]);  // another keypoint's
+        }
+      }
+    }
+    const double max_angle = std::atan(max_px / camera.mean_focal_length());
+    const auto reference = [&](const Rigid3d& pose) {
+      int want = 0;
+      for (size_t k = 0; k < points.size(); ++k) {
+        const Eigen::Vector3d bearing = camera.cam_from_img(s.pixels[k]).homogeneous().normalized();
+        bool any = false;
+        for (const Eigen::Vector3d& p : points[k]) {
+          const Eigen::Vector3d x = pose * p;
+          const double angle = std::acos(std::clamp(x.normalized().dot(bearing), -1.0, 1.0));
+          any = any || (x.dot(bearing) > 0 && angle <= max_angle);
+        }
+        want += any;
+      }
+      return want;
+    };
+    // Each of several poses (the true one, and others that explain fewer) as the reference gives.
+    const Rigid3d moved(s.cam_from_world.rotation, s.cam_from_world.translation + Eigen::Vector3d(0.05, 0, 0));
+    const std::vector<Rigid3d> poses = {s.cam_from_world, moved, s.cam_from_world};
+    const std::vector<int> got = count_explained_keypoints(camera, s.pixels, points, poses, max_px);
+    ASSERT_EQ(got.size(), 3u);
+    EXPECT_EQ(got[0], reference(s.cam_from_world)) << trial;
+    EXPECT_EQ(got[1], reference(moved)) << trial;
+    EXPECT_EQ(got[2], got[0]) << trial;
+  }
+  // Two candidates that both fit count once; none, nothing.
+  const Scene s = make_scene(9, 10, 0.0, 0.0);
+  std::vector<std::vector<Eigen::Vector3d>> twice(10);
+  twice[3] = {s.points_world[3], s.points_world[3] * 1.0};
+  EXPECT_EQ(count_explained_keypoints(camera, s.pixels, twice, {s.cam_from_world}, 4.0), std::vector<int>{1});
+  EXPECT_EQ(count_explained_keypoints(camera, s.pixels, std::vector<std::vector<Eigen::Vector3d>>(10),
+                                      {s.cam_from_world}, 4.0),
+            std::vector<int>{0});
+  EXPECT_TRUE(count_explained_keypoints(camera, s.pixels, twice, {}, 4.0).empty());
+}
+
+TEST(ExplainedKeypoints, InvalidInputThrows) {
+  const Camera camera = distorted_camera();
+  const Scene s = make_scene(10, 10, 0.0, 0.0);
+  EXPECT_THROW(count_explained_keypoints(camera, s.pixels, std::vector<std::vector<Eigen::Vector3d>>(9),
+                                         {s.cam_from_world}, 4.0),
+               Error);
+  const std::vector<std::vector<Eigen::Vector3d>> points(10);
+  for (double bad : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(count_explained_keypoints(camera, s.pixels, points, {s.cam_from_world}, bad), Error) << bad;
+  }
+}
+
 }  // namespace
 }  // namespace lmb

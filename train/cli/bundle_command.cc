@@ -5,6 +5,7 @@
 // be a valid model whose classes are exactly its area's landmarks.
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -92,8 +93,14 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
   cmd->add_flag("--no-prior", options->no_prior, "--bundle: localize in every area, without a prior");
   cmd->add_flag_function(
       "--all-areas", [options](int64_t) { options->search = AreaSearch::kAll; },
-      "--bundle: with a prior, score every selected area and keep the pose with most inliers (default: nearest "
-      "area first, the first localized pose wins)");
+      "--bundle: with a prior, score every selected area (default: nearest area first, the first calibrated "
+      "localized pose wins)");
+  cmd->add_option("--area-winner", options->winner,
+                  "--bundle: which scored area's pose wins: support (explains most keypoints with every scored "
+                  "area's matches) or inliers (most inliers of its own area)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, AreaWinner>{{"support", AreaWinner::kSupport}, {"inliers", AreaWinner::kInliers}}))
+      ->default_str("support");
   cmd->add_option("--prior-seed", options->prior_seed, "--bundle: seed of the prior's direction")
       ->capture_default_str();
   cmd->add_option("--cache-areas", options->cache.max_areas,

@@ -63,7 +63,8 @@ struct Outcome {
   int inliers = 0;
   int32_t area = -1;
   int32_t selected = 0, loaded = 0;
-  std::vector<int32_t> scored, scored_inliers;  // the areas scored, in order, and their poses' inliers
+  // The areas scored, in order, their poses' inliers and support (BundleLocalizeResult).
+  std::vector<int32_t> scored, scored_inliers, scored_support;
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -157,8 +158,9 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
       prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(c.options.prior_seed, f);
       prior.radius = mode.noise;
     }
-    BundleLocalizeResult r = localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                                                mode.has_prior ? &prior : nullptr, lo, c.options.search);
+    BundleLocalizeResult r =
+        localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
+                           mode.has_prior ? &prior : nullptr, lo, c.options.search, c.options.winner);
     o.success = r.area >= 0;
     o.pose = r.result.pose.cam_from_world;
     o.inliers = r.result.pose.num_inliers;
@@ -166,6 +168,7 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.selected = r.selected;
     o.scored = std::move(r.scored);
     o.scored_inliers = std::move(r.inliers);
+    o.scored_support = std::move(r.support);
     o.loaded = r.loaded;
     o.errors = std::move(r.errors);
   }
@@ -183,6 +186,7 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
     jf["areas_scored"] = o.scored.size();
     jf["scored"] = o.scored;
     jf["scored_inliers"] = o.scored_inliers;
+    jf["scored_support"] = o.scored_support;
     jf["areas_loaded"] = o.loaded;
     if (!o.errors.empty()) jf["errors"] = o.errors;
   }
@@ -296,6 +300,7 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["first_seed"] = options.localizer.pose.seed;
   report["prior_seed"] = options.prior_seed;
   report["area_search"] = options.search == AreaSearch::kAll ? "all" : "nearest_first";
+  report["area_winner"] = options.winner == AreaWinner::kSupport ? "support" : "inliers";
   report["reach_m"] = bundle->reach();
   report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
                           {"rotation_deg", options.thresholds.max_rotation_error_deg}};

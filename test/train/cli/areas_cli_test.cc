@@ -339,17 +339,31 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       // Without a prior every area is scored; with one, nearest first: fewer only when an area's
       // calibrated pose stopped the search.
       const size_t scored = fr[i]["areas_scored"].get<size_t>();
-      // The areas scored in the search's order, each once, with their poses' inliers; the winner
-      // is one of them with the inliers reported for the frame.
+      // The areas scored in the search's order, each once, with their poses' inliers and support
+      // (with one match a keypoint, a pose explains at least its own inliers' keypoints); the winner
+      // is one of them with the inliers reported for the frame, and without a prior (every area
+      // scored, no stop) the one with the most support.
       const std::vector<int32_t> order = fr[i]["scored"].get<std::vector<int32_t>>();
       const std::vector<int32_t> order_inliers = fr[i]["scored_inliers"].get<std::vector<int32_t>>();
+      const std::vector<int32_t> order_support = fr[i]["scored_support"].get<std::vector<int32_t>>();
       ASSERT_EQ(order.size(), scored) << m << " " << i;
       ASSERT_EQ(order_inliers.size(), scored) << m << " " << i;
+      ASSERT_EQ(order_support.size(), scored) << m << " " << i;
       EXPECT_EQ(std::set<int32_t>(order.begin(), order.end()).size(), scored) << m << " " << i;
+      for (size_t a = 0; a < scored; ++a) {
+        EXPECT_GE(order_support[a], order_inliers[a]) << m << " " << i;
+        if (order_inliers[a] == 0) {
+          EXPECT_EQ(order_support[a], 0) << m << " " << i;
+        }
+      }
       if (fr[i]["success"].get<bool>()) {
         const auto at = std::find(order.begin(), order.end(), fr[i]["area"].get<int32_t>());
         ASSERT_NE(at, order.end()) << m << " " << i;
-        EXPECT_EQ(order_inliers[static_cast<size_t>(at - order.begin())], fr[i]["num_inliers"].get<int32_t>());
+        const size_t w = static_cast<size_t>(at - order.begin());
+        EXPECT_EQ(order_inliers[w], fr[i]["num_inliers"].get<int32_t>());
+        if (m == 2) {
+          EXPECT_EQ(order_support[w], *std::max_element(order_support.begin(), order_support.end())) << m << " " << i;
+        }
       }
       if (m == 2 || !fr[i]["success"].get<bool>()) {
         EXPECT_EQ(scored, want) << m << " " << i;
