@@ -98,9 +98,12 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
     const auto t = expect("lmb-bundle", 1);
     LMB_CHECK(t[0] == "1", in.where() << ": format version " << t[0] << " is not supported (this build reads 1)");
   }
-  bundle->reach_ = parse_finite_number(expect("reach", 1)[0], in.where(), "reach");
+  // (Each line's tokens are read before in.where() names it: argument order is unspecified.)
+  const std::string reach = expect("reach", 1)[0];
+  bundle->reach_ = parse_finite_number(reach, in.where(), "reach");
   LMB_CHECK(bundle->reach_ >= 0.0, in.where() << ": reach " << bundle->reach_ << " is negative");
-  const uint64_t num_areas = parse_unsigned(expect("areas", 1)[0], in.where(), "areas", 10, 1000000);
+  const std::string areas = expect("areas", 1)[0];
+  const uint64_t num_areas = parse_unsigned(areas, in.where(), "areas", 10, 1000000);
   LMB_CHECK(num_areas >= 1, in.where() << ": a bundle needs at least one area");
   for (uint64_t i = 0; i < num_areas; ++i) {
     const auto t = expect("area", 16);
@@ -174,6 +177,11 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
   std::shared_ptr<const Model> model =
       Model::from_bytes(reinterpret_cast<const uint8_t*>(image.data()), image.size(), what);
   std::lock_guard<std::mutex> lock(mutex_);
+  // One descriptor length for every area: a frame's descriptors are read with it.
+  LMB_CHECK(descriptor_bytes_ < 0 || model->descriptor_bytes() == descriptor_bytes_,
+            what << ": " << model->descriptor_bytes() << "-byte descriptors, the bundle's areas loaded before have "
+                 << descriptor_bytes_);
+  descriptor_bytes_ = model->descriptor_bytes();
   const size_t i = static_cast<size_t>(id);
   last_use_[i] = ++use_clock_;
   if (!models_[i]) {
@@ -244,6 +252,11 @@ uint64_t AreaBundle::loaded_bytes() const {
 int64_t AreaBundle::loads() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return loads_;
+}
+
+int32_t AreaBundle::descriptor_bytes() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return descriptor_bytes_;
 }
 
 bool AreaBundle::loaded(int32_t id) const {

@@ -109,6 +109,9 @@ class LMB_INFER_EXPORT AreaBundle {
   uint64_t loaded_bytes() const;
   // How many times an area's model was read from its file (loads after an eviction count again).
   int64_t loads() const;
+  // The descriptor length of the areas (-1 until one has loaded). Every area must have the first
+  // loaded area's: one with another fails to load, naming both lengths.
+  int32_t descriptor_bytes() const;
 
  private:
   void evict_locked(int32_t keep);  // mutex_ held
@@ -121,6 +124,7 @@ class LMB_INFER_EXPORT AreaBundle {
   std::vector<uint64_t> last_use_;                    // per area: the use clock at its last use
   uint64_t use_clock_ = 0;
   int64_t loads_ = 0;
+  int32_t descriptor_bytes_ = -1;
   BundleCacheLimits limits_;
 };
 
@@ -211,6 +215,7 @@ class LMB_INFER_EXPORT BundleLocalizer {
   const std::optional<Eigen::Vector3d>& last_position() const { return last_position_; }
 
   AreaBundle& bundle() const { return *bundle_; }
+  const std::shared_ptr<AreaBundle>& shared_bundle() const { return bundle_; }
   const BundleLocalizerOptions& options() const { return options_; }
 
  private:

@@ -10,6 +10,13 @@
     if result.success:
         print(result.cam_from_world.matrix())
 
+    # A map split into areas (docs/areas.md): the areas a position prior selects compete.
+    bundle = lb.load("bundle/bundle.txt")
+    r = lb.BundleLocalizer(bundle).localize(camera, keypoints, descriptors, gravity_in_cam,
+                                            prior=(gps_position, 10.0))
+    if r.pose_found:
+        print(r.area, r.result.success, r.cam_from_world.matrix())
+
 keypoints: (n, 4) x, y, size, angle (COLMAP's pixel convention, OpenCV's KeyPoint.pt + 0.5);
 descriptors: (n, model.descriptor_bytes) uint8; gravity_in_cam: gravity (down) in the camera
 frame. The GIL is released while a frame is localized.
@@ -29,27 +36,31 @@ except ImportError as _e:
                       "apt-get install python3-numpy; the package is built for the interpreter "
                       "Python3_EXECUTABLE of the build's CMakeCache.txt, /usr/bin/python3 by default)") from _e
 
-from ._core import (Camera, Error, LocalizeResult, Localizer, LocalizerOptions, Model, Rigid3d,
-                    __version__)
+from ._core import (AreaBundle, BundleLocalizeResult, BundleLocalizer, Camera, Error, LocalizeResult,
+                    Localizer, LocalizerOptions, Model, Rigid3d, __version__)
 from .report import Report, read_report
 
 _MODEL_MAGIC = b"LMBMODEL"
+_BUNDLE_MAGIC = b"lmb-bundle "
 
 
 def load(path):
-    """Loads a model file (model.lbm) for Localizer. Raises landmarkboost.Error naming the file.
+    """Loads a model file (model.lbm) for Localizer, or a bundle of area models (bundle.txt of
+    `lboost bundle`) for BundleLocalizer. Raises landmarkboost.Error naming the file.
 
-    The one entry point for what a Localizer takes: a file is recognized by its magic, so that
-    other files (such as the per-area bundles of a large map) can be added here.
+    A file is recognized by its first bytes (the model's magic, the bundle index's first line).
     """
     try:
         with open(path, "rb") as f:
-            magic = f.read(len(_MODEL_MAGIC))
+            magic = f.read(max(len(_MODEL_MAGIC), len(_BUNDLE_MAGIC)))
     except OSError as e:
         raise Error(f"{path}: cannot open ({e.strerror})") from None
-    if magic == _MODEL_MAGIC:
+    if magic.startswith(_MODEL_MAGIC):
         return Model.load(path)
-    raise Error(f"{path}: not a LandmarkBoost model (magic {magic!r}, expected {_MODEL_MAGIC!r})")
+    if magic.startswith(_BUNDLE_MAGIC):
+        return AreaBundle.open(path)
+    raise Error(f"{path}: neither a LandmarkBoost model (magic {_MODEL_MAGIC!r}) nor a bundle index "
+                f"({_BUNDLE_MAGIC.decode()}...): starts with {magic!r}")
 
 
 def __getattr__(name):
@@ -58,5 +69,6 @@ def __getattr__(name):
     raise AttributeError(f"module 'landmarkboost' has no attribute '{name}'")
 
 
-__all__ = ["Camera", "Error", "LocalizeResult", "Localizer", "LocalizerOptions", "Model", "Report",
-           "Rigid3d", "load", "read_report", "__version__"]
+__all__ = ["AreaBundle", "BundleLocalizeResult", "BundleLocalizer", "Camera", "Error", "LocalizeResult",
+           "Localizer", "LocalizerOptions", "Model", "Report", "Rigid3d", "load", "read_report",
+           "__version__"]

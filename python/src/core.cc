@@ -1,11 +1,12 @@
-// landmarkboost._core: the inference library (infer/localizer.h, infer/model.h, common/camera.h)
-// for Python. Inputs are numpy arrays (descriptors are read in place when they are a C-contiguous
+// landmarkboost._core: the inference library (infer/localizer.h, infer/model.h, common/camera.h,
+// infer/area_bundle.h) for Python. Inputs are numpy arrays (descriptors are read in place when they are a C-contiguous
 // uint8 array); results are read-only numpy views into the C++ result, kept alive by it. The GIL
 // is released while a frame is localized, so Python threads localize in parallel.
 #include <atomic>
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "common/error.h"
 #include "common/rigid3.h"
 #include "common/types.h"
+#include "infer/area_bundle.h"
 #include "infer/c_api.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
@@ -147,6 +149,73 @@ py::array_t<uint8_t> descriptors_from(const py::array& a, size_t n, int bytes) {
 struct Result {
   LocalizeResult r;
 };
+
+// A bundle localization: the winning area's LocalizeResult (null without a pose) and the rest.
+struct BundleResult {
+  std::shared_ptr<Result> result;
+  BundleLocalizeResult r;  // r.result moved into `result`
+};
+
+std::shared_ptr<BundleResult> bundle_result(BundleLocalizeResult&& r) {
+  auto out = std::make_shared<BundleResult>();
+  if (r.area >= 0) {
+    out->result = std::make_shared<Result>();
+    out->result->r = std::move(r.result);
+  }
+  out->r = std::move(r);
+  return out;
+}
+
+AreaSearch area_search_from(const std::string& name) {
+  if (name == "nearest_first") return AreaSearch::kNearestFirst;
+  if (name == "all") return AreaSearch::kAll;
+  throw py::value_error("BundleLocalizer: search '" + name + "': expected 'nearest_first' or 'all'");
+}
+
+AreaWinner area_winner_from(const std::string& name) {
+  if (name == "support") return AreaWinner::kSupport;
+  if (name == "inliers") return AreaWinner::kInliers;
+  throw py::value_error("BundleLocalizer: winner '" + name + "': expected 'support' or 'inliers'");
+}
+
+std::optional<PositionPrior> prior_from(const py::object& prior) {
+  if (prior.is_none()) return std::nullopt;
+  const auto t = prior.cast<py::tuple>();
+  if (t.size() != 2) throw py::value_error("prior: expected (position, radius) or None");
+  PositionPrior p;
+  p.position = t[0].cast<Eigen::Vector3d>();
+  p.radius = t[1].cast<double>();
+  return p;
+}
+
+// The bundle's descriptor length: known once an area has loaded, else the first of `ids` that
+// loads tells it (-1 when none does: then no area is scored and the frame's descriptors are not read).
+int bundle_descriptor_bytes(AreaBundle& bundle, const std::vector<int32_t>& ids) {
+  for (size_t i = 0; bundle.descriptor_bytes() < 0 && i < ids.size(); ++i) {
+    try {
+      bundle.model(ids[i]);
+    } catch (const Error&) {
+    }
+  }
+  return bundle.descriptor_bytes();
+}
+
+// The frame of a bundle call: keypoints and descriptors checked against the bundle's length.
+struct BundleFrameArgs {
+  std::vector<Keypoint> keypoints;
+  py::array_t<uint8_t> descriptors;
+  const uint8_t* data() const { return keypoints.empty() ? nullptr : descriptors.data(); }
+};
+
+BundleFrameArgs bundle_frame(AreaBundle& bundle, const std::vector<int32_t>& ids, const py::array& keypoints,
+                             const py::array& descriptors) {
+  BundleFrameArgs f;
+  f.keypoints = keypoints_from(keypoints);
+  int bytes = bundle_descriptor_bytes(bundle, ids);
+  if (bytes < 0) bytes = descriptors.ndim() == 2 ? static_cast<int>(descriptors.shape(1)) : 0;
+  f.descriptors = descriptors_from(descriptors, f.keypoints.size(), bytes);
+  return f;
+}
 
 template <class F>
 auto field_view(const std::vector<ClassMatch>& m, const F* first_field, py::handle owner) {
@@ -500,4 +569,151 @@ KeyPoint.pt + 0.5; size = the detector's diameter, pixels; angle in degrees or -
 of gravity (down) in the camera frame (x right, y down, z forward), any length; options: per-call
 LocalizerOptions (default: the Localizer's). Raises landmarkboost.Error for invalid input; not
 finding a pose is result.success False.)");
+
+  // ---- Area bundles ----
+  py::class_<AreaBundle, std::shared_ptr<AreaBundle>>(m, "AreaBundle", R"(A bundle of area models (bundle.txt of
+`lboost bundle`, docs/areas.md): opening reads the index only; an area's model is read on its first
+use (its size and CRC-32 checked) and freed by release_except() or the cache limits. A missing or
+damaged area fails alone; the others still load.)")
+      .def_static("open", &AreaBundle::open, py::arg("path"),
+                  "Reads and checks bundle.txt; raises landmarkboost.Error naming the line.")
+      .def_property_readonly("num_areas", [](const AreaBundle& b) { return b.areas().size(); })
+      .def_property_readonly("reach", &AreaBundle::reach, "Metres: how far the map's cameras see.")
+      .def_property_readonly("index_path", &AreaBundle::index_path)
+      .def_property_readonly(
+          "areas",
+          [](const AreaBundle& b) {
+            py::list out;
+            for (const BundleArea& a : b.areas()) {
+              py::dict d;
+              d["id"] = a.id;
+              d["file"] = a.file;
+              d["bytes"] = a.bytes;
+              d["crc32"] = a.crc32;
+              d["landmarks"] = a.landmarks;
+              d["cell_lo"] = a.cell_lo;
+              d["cell_hi"] = a.cell_hi;
+              out.append(d);
+            }
+            return out;
+          },
+          "list of dict: id, file, bytes, crc32, landmarks, cell_lo, cell_hi (world frame; ends may be +-inf).")
+      .def(
+          "select",
+          [](const AreaBundle& b, const py::object& prior) {
+            const std::optional<PositionPrior> p = prior_from(prior);
+            return b.select(p ? &*p : nullptr);
+          },
+          py::arg("prior") = py::none(),
+          "Ids of the areas a prior (position, radius) selects (cell within radius + reach), ascending; every id "
+          "for None.")
+      .def(
+          "model", [](AreaBundle& b, int32_t id) { return std::const_pointer_cast<Model>(b.model(id)); }, py::arg("id"),
+          "Area id's model, read on first use; raises landmarkboost.Error naming the area.")
+      .def("loaded", &AreaBundle::loaded, py::arg("id"))
+      .def("release_except", &AreaBundle::release_except, py::arg("keep"), "Frees the models of the areas not in keep.")
+      .def(
+          "set_cache_limits",
+          [](AreaBundle& b, int64_t max_areas, uint64_t max_bytes) {
+            b.set_cache_limits({max_areas, max_bytes});
+          },
+          py::arg("max_areas") = 0, py::arg("max_bytes") = 0,
+          "At most max_areas areas / max_bytes model bytes loaded (0 = no limit), least recently used freed first.")
+      .def_property_readonly("loaded_ids", &AreaBundle::loaded_ids)
+      .def_property_readonly("loaded_bytes", &AreaBundle::loaded_bytes)
+      .def_property_readonly("loads", &AreaBundle::loads, "Reads of area models from their files.")
+      .def_property_readonly("descriptor_bytes", &AreaBundle::descriptor_bytes,
+                             "The areas' descriptor length (-1 until an area has loaded).")
+      .def("__repr__", [](const AreaBundle& b) {
+        return "<landmarkboost.AreaBundle: " + std::to_string(b.areas().size()) + " areas, " +
+               std::to_string(b.loaded_ids().size()) + " loaded, " + b.index_path().string() + ">";
+      });
+
+  py::class_<BundleResult, std::shared_ptr<BundleResult>>(m, "BundleLocalizeResult", R"(One frame localized in a bundle.
+area (the winning area, -1 without a pose), pose_found (area >= 0), result (the winning area's
+LocalizeResult, None without a pose: result.success says whether its calibration trusts the pose),
+cam_from_world (None without a pose), scored (the areas scored, in order), inliers and support (per
+scored area: its pose's inliers, and the frame's keypoints it explains with every scored area's
+matches), errors (one line per selected area that could not be loaded), selected, loaded,
+prior_used, total_ms.)")
+      .def_property_readonly("area", [](const BundleResult& b) { return b.r.area; })
+      .def_property_readonly("pose_found", [](const BundleResult& b) { return b.r.area >= 0; })
+      .def_property_readonly("result", [](const BundleResult& b) { return b.result; })
+      .def_property_readonly("cam_from_world",
+                             [](const BundleResult& b) -> std::optional<Rigid3d> {
+                               if (!b.result) return std::nullopt;
+                               return b.result->r.pose.cam_from_world;
+                             })
+      .def_property_readonly("scored", [](const BundleResult& b) { return b.r.scored; })
+      .def_property_readonly("inliers", [](const BundleResult& b) { return b.r.inliers; })
+      .def_property_readonly("support", [](const BundleResult& b) { return b.r.support; })
+      .def_property_readonly("errors", [](const BundleResult& b) { return b.r.errors; })
+      .def_property_readonly("selected", [](const BundleResult& b) { return b.r.selected; })
+      .def_property_readonly("loaded", [](const BundleResult& b) { return b.r.loaded; })
+      .def_property_readonly("prior_used", [](const BundleResult& b) { return b.r.prior_used; })
+      .def_property_readonly("total_ms", [](const BundleResult& b) { return b.r.total_ms; })
+      .def("__repr__", [](const BundleResult& b) {
+        return "<landmarkboost.BundleLocalizeResult: area " + std::to_string(b.r.area) + ", " +
+               std::to_string(b.r.scored.size()) + " of " + std::to_string(b.r.selected) + " selected areas scored, " +
+               std::to_string(b.r.errors.size()) + " errors>";
+      });
+
+  py::class_<BundleLocalizer>(m, "BundleLocalizer", R"(Localizes frames in an AreaBundle:
+BundleLocalizer(bundle, options=None, search="nearest_first", winner="support", tracking_radius=1.0,
+relocalize_without_prior=True). search: "nearest_first" (with a prior, the nearest area whose
+calibrated pose is localized wins and the rest are not scored) or "all"; winner: "support" (the pose
+that explains most keypoints with every scored area's matches) or "inliers". localize() releases
+the GIL and may serve several threads; track() keeps the last pose (one camera, one thread).)")
+      .def(py::init([](std::shared_ptr<AreaBundle> bundle, const LocalizerOptions* options, const std::string& search,
+                       const std::string& winner, double tracking_radius, bool relocalize_without_prior) {
+             BundleLocalizerOptions o;
+             if (options) o.localizer = *options;
+             o.search = area_search_from(search);
+             o.winner = area_winner_from(winner);
+             o.tracking_radius = tracking_radius;
+             o.relocalize_without_prior = relocalize_without_prior;
+             return BundleLocalizer(std::move(bundle), o);
+           }),
+           py::arg("bundle"), py::arg("options") = nullptr, py::arg("search") = "nearest_first",
+           py::arg("winner") = "support", py::arg("tracking_radius") = 1.0, py::arg("relocalize_without_prior") = true)
+      .def_property_readonly("bundle", [](const BundleLocalizer& l) { return l.shared_bundle(); })
+      .def(
+          "localize",
+          [](const BundleLocalizer& l, const Camera& camera, const py::array& keypoints, const py::array& descriptors,
+             const Eigen::Vector3d& gravity_in_cam, const py::object& prior) {
+            const std::optional<PositionPrior> p = prior_from(prior);
+            const BundleFrameArgs f =
+                bundle_frame(l.bundle(), l.bundle().select(p ? &*p : nullptr), keypoints, descriptors);
+            BundleLocalizeResult r;
+            {
+              py::gil_scoped_release release;
+              r = l.localize(camera, f.keypoints, f.data(), gravity_in_cam, p ? &*p : nullptr);
+            }
+            return bundle_result(std::move(r));
+          },
+          py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
+          py::arg("prior") = py::none(),
+          R"(Localizes one frame in the areas prior = (position, radius) selects (every area for None).
+Arguments as Localizer.localize; descriptors: (n, bundle.descriptor_bytes) uint8. Raises
+landmarkboost.Error for invalid input; areas that cannot be loaded are listed in result.errors.)")
+      .def(
+          "track",
+          [](BundleLocalizer& l, const Camera& camera, const py::array& keypoints, const py::array& descriptors,
+             const Eigen::Vector3d& gravity_in_cam) {
+            const BundleFrameArgs f = bundle_frame(l.bundle(), l.bundle().select(nullptr), keypoints, descriptors);
+            BundleLocalizeResult r;
+            {
+              py::gil_scoped_release release;
+              r = l.track(camera, f.keypoints, f.data(), gravity_in_cam);
+            }
+            return bundle_result(std::move(r));
+          },
+          py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
+          R"(Tracking: the prior is the last tracked camera centre within tracking_radius; the first frame,
+and a frame those areas do not localize, are localized in every area (result.prior_used False).)")
+      .def("reset_tracking", &BundleLocalizer::reset_tracking)
+      .def_property(
+          "last_position", [](const BundleLocalizer& l) { return l.last_position(); },
+          [](BundleLocalizer& l, const std::optional<Eigen::Vector3d>& p) { l.set_last_position(p); },
+          "The last tracked camera centre (world frame), or None.");
 }

@@ -203,7 +203,7 @@ def test_load_errors_name_the_file(tmp_path):
     with pytest.raises(lb.Error, match="missing.lbm"):
         lb.load(tmp_path / "missing.lbm")
     (tmp_path / "x.lbm").write_bytes(b"NOTAMODEL" * 10)
-    with pytest.raises(lb.Error, match=r"x.lbm: not a LandmarkBoost model"):
+    with pytest.raises(lb.Error, match=r"x.lbm: neither a LandmarkBoost model"):
         lb.load(tmp_path / "x.lbm")
     with pytest.raises(lb.Error, match="x.lbm"):
         lb.Model.load(tmp_path / "x.lbm")

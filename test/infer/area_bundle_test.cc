@@ -182,6 +182,45 @@ TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
   EXPECT_EQ(r.area, 0);
 }
 
+// Every area of a bundle reads the frame's descriptors with one length: an area whose model has
+// another fails to load alone (naming both), whichever area loaded first.
+TEST_F(AreaBundleTest, AnAreaWithAnotherDescriptorLengthFailsAlone) {
+  const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  ModelData wide_data = test::make_code_model_data(world.positions);
+  wide_data.descriptor_bytes = 2 * test::kCodeDescriptorBytes;
+  Rng rng(3);
+  std::vector<uint8_t> words(4 * static_cast<size_t>(wide_data.descriptor_bytes));
+  for (auto& b : words) b = static_cast<uint8_t>(rng.below(256));
+  wide_data.vocabulary = Vocabulary(wide_data.descriptor_bytes, words);
+  const Model wide(std::move(wide_data));
+  write_bundle_index(dir_ / "bundle.txt", 1.0, {add(model, 0, -kInf, 0.0), add(wide, 1, 0.0, kInf)});
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_EQ(bundle->descriptor_bytes(), -1);
+  EXPECT_NO_THROW(bundle->model(0));
+  EXPECT_EQ(bundle->descriptor_bytes(), test::kCodeDescriptorBytes);
+  try {
+    bundle->model(1);
+    ADD_FAILURE() << "area 1 loaded";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(": area 1 (area-1.lbm): 16-byte descriptors, the bundle's areas loaded before have 8"),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_FALSE(bundle->loaded(1));
+  const test::TestFrame& f = world.frame;
+  const BundleLocalizeResult r =
+      localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+  EXPECT_EQ(r.scored, std::vector<int32_t>{0});
+  ASSERT_EQ(r.errors.size(), 1u);
+  // The other way round: the wide area first, then the 8-byte one fails.
+  const auto other = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_NO_THROW(other->model(1));
+  EXPECT_EQ(other->descriptor_bytes(), 16);
+  EXPECT_THROW(other->model(0), Error);
+}
+
 TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
   const test::TestWorld world = test::make_test_world(10, 8, 2, 5);
   const Model model(test::make_code_model_data(world.positions));
@@ -202,6 +241,9 @@ TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
     }
   };
   expect_rejected("reach 1", "reach -1", "reach -1 is negative");
+  // The line named is the one at fault (the header, a comment, then reach and areas).
+  expect_rejected("reach 1", "reach x", "bad.txt line 3: reach is not a number: 'x'");
+  expect_rejected("areas 1", "areas x", "bad.txt line 4: areas is not a number");
   expect_rejected("areas 1", "areas 2", "ends before the 'area' line");
   expect_rejected(" crc32 ", " crc ", "expected 'crc32'");
   expect_rejected("file area-0.lbm", "file /abs/area-0.lbm", "must be relative");

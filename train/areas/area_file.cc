@@ -98,17 +98,30 @@ AreaFile read_area_file(const std::filesystem::path& path) {
     LMB_CHECK(t[0].size() == 16 && end == t[0].c_str() + t[0].size() && errno != ERANGE,
               in.where() << ": map_fingerprint is not 16 hex digits: '" << t[0] << "'");
   }
-  file.map_landmarks = parse_integer(expect("map_landmarks", 1)[0], in.where(), "map_landmarks", 1, INT32_MAX);
-  s.options.max_classes =
-      static_cast<int32_t>(parse_integer(expect("max_classes", 1)[0], in.where(), "max_classes", 1, INT32_MAX));
-  s.options.min_observations = static_cast<int32_t>(
-      parse_integer(expect("min_observations", 1)[0], in.where(), "min_observations", 1, INT32_MAX));
-  s.options.overlap = parse_finite_number(expect("overlap", 1)[0], in.where(), "overlap");
-  LMB_CHECK(s.options.overlap >= 0.0, in.where() << ": overlap " << s.options.overlap << " is negative");
-  s.options.reach = parse_finite_number(expect("reach", 1)[0], in.where(), "reach");
-  LMB_CHECK(s.options.reach >= 0.0, in.where() << ": reach " << s.options.reach << " is negative");
-  s.num_eligible = parse_integer(expect("eligible", 1)[0], in.where(), "eligible", 1, file.map_landmarks);
-  const int64_t num_areas = parse_integer(expect("areas", 1)[0], in.where(), "areas", 1, 1000000);
+  // A "<key> <value>" line's value; `where` then names that line (read before it is used: the
+  // order in which a call's arguments are evaluated is unspecified).
+  std::string where;
+  auto value = [&](const char* key) {
+    std::string v = expect(key, 1)[0];
+    where = in.where();
+    return v;
+  };
+  std::string v = value("map_landmarks");
+  file.map_landmarks = parse_integer(v, where, "map_landmarks", 1, INT32_MAX);
+  v = value("max_classes");
+  s.options.max_classes = static_cast<int32_t>(parse_integer(v, where, "max_classes", 1, INT32_MAX));
+  v = value("min_observations");
+  s.options.min_observations = static_cast<int32_t>(parse_integer(v, where, "min_observations", 1, INT32_MAX));
+  v = value("overlap");
+  s.options.overlap = parse_finite_number(v, where, "overlap");
+  LMB_CHECK(s.options.overlap >= 0.0, where << ": overlap " << s.options.overlap << " is negative");
+  v = value("reach");
+  s.options.reach = parse_finite_number(v, where, "reach");
+  LMB_CHECK(s.options.reach >= 0.0, where << ": reach " << s.options.reach << " is negative");
+  v = value("eligible");
+  s.num_eligible = parse_integer(v, where, "eligible", 1, file.map_landmarks);
+  v = value("areas");
+  const int64_t num_areas = parse_integer(v, where, "areas", 1, 1000000);
   s.areas.resize(static_cast<size_t>(num_areas));
   std::vector<int64_t> counts(s.areas.size());
   for (int64_t i = 0; i < num_areas; ++i) {

@@ -1,5 +1,6 @@
 #include "train/areas/area_file.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -64,8 +65,9 @@ TEST(AreaFile, RoundTripsExactly) {
 }
 
 // Replaces the first occurrence of `from` in the file's text by `to`; expects the reader to fail
-// with a message containing `needle`.
-void expect_rejected(const std::string& from, const std::string& to, const std::string& needle) {
+// with a message containing `needle` and, with names_its_line, naming the line replaced.
+void expect_rejected(const std::string& from, const std::string& to, const std::string& needle,
+                     bool names_its_line = false) {
   std::string text = area_file_text(corridor_areas(), "");
   const size_t start = from.rfind("lmb-areas", 0) == 0 ? 0 : text.find("map_fingerprint");  // past the comments
   const size_t at = text.find(from, start);
@@ -81,6 +83,11 @@ void expect_rejected(const std::string& from, const std::string& to, const std::
     EXPECT_NE(what.find(path.string()), std::string::npos) << what;
     EXPECT_NE(what.find(needle), std::string::npos) << "expected '" << needle << "' in: " << what;
     EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    if (names_its_line) {
+      const size_t first = at + (from[0] == '\n' ? 1 : 0);  // where the line replaced starts
+      const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(first), '\n');
+      EXPECT_NE(what.find(" line " + std::to_string(line) + ": "), std::string::npos) << line << ": " << what;
+    }
   }
   fs::remove_all(path.parent_path());
 }
@@ -88,8 +95,10 @@ void expect_rejected(const std::string& from, const std::string& to, const std::
 TEST(AreaFile, RejectsMalformedFilesNamingTheLine) {
   expect_rejected("lmb-areas 1", "lmb-areas 2", "format version 2");
   expect_rejected("map_fingerprint 0123456789abcdef", "map_fingerprint 0123xyz", "16 hex digits");
-  expect_rejected("max_classes 100", "max_classes 0", "max_classes 0 is outside");
-  expect_rejected("overlap 0.5", "overlap nan", "overlap is not");
+  expect_rejected("max_classes 100", "max_classes 0", "max_classes 0 is outside", true);
+  expect_rejected("overlap 0.5", "overlap nan", "overlap is not", true);
+  expect_rejected("map_landmarks ", "map_landmarks x", "map_landmarks is not an integer", true);
+  expect_rejected("\nareas ", "\nareas x", "areas is not an integer", true);
   expect_rejected("area 1 ", "area 2 ", "line 12: area id 2 is outside [1, 1]");
   expect_rejected(" bounds ", " bound ", "expected 'bounds'");
   expect_rejected("members 0 ", "members 0 1 ", "landmarks");                // one more id than its count
