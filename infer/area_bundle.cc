@@ -59,12 +59,23 @@ double BundleArea::distance(const Eigen::Vector3d& p) const {
   return std::sqrt(sq);
 }
 
-void write_bundle_index(const std::filesystem::path& path, double reach, const std::vector<BundleArea>& areas) {
+void write_bundle_index(const std::filesystem::path& path, double reach, const std::vector<BundleArea>& areas,
+                        const PoseCalibration* calibration) {
   LMB_CHECK(std::isfinite(reach) && reach >= 0.0, path.string() << ": reach " << reach << " must be finite and >= 0");
+  if (calibration != nullptr) calibration->check(path.string() + ": calibration");
   std::ostringstream os;
-  os << "lmb-bundle 1\n";
+  os << "lmb-bundle " << (calibration != nullptr ? 2 : 1) << "\n";
   os << "# area ID file FILE bytes N crc32 HEX landmarks N cell LO_X LO_Y LO_Z HI_X HI_Y HI_Z\n";
   os << "reach " << exact_number_text(reach) << "\n";
+  if (calibration != nullptr) {
+    os << "# calibration W0..W" << PoseEvidence::kNumFeatures - 1
+       << " BIAS THRESHOLD SAMPLES POSITIVE TARGET_PRECISION (infer/pose_confidence.h)\n";
+    os << "calibration";
+    for (double w : calibration->weights) os << " " << exact_number_text(w);
+    os << " " << exact_number_text(calibration->bias) << " " << exact_number_text(calibration->threshold) << " "
+       << calibration->num_samples << " " << calibration->num_positive << " "
+       << exact_number_text(calibration->target_precision) << "\n";
+  }
   os << "areas " << areas.size() << "\n";
   for (size_t i = 0; i < areas.size(); ++i) {
     const BundleArea& a = areas[i];
@@ -86,6 +97,7 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
   TextLineReader in(index);
   auto bundle = std::shared_ptr<AreaBundle>(new AreaBundle());
   bundle->index_ = index;
+  int version = 1;
   auto expect = [&](const char* key, size_t count) {
     LMB_CHECK(in.next(), index.string() << ": ends before the '" << key << "' line");
     std::vector<std::string> t = in.tokens();
@@ -96,12 +108,28 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
   };
   {
     const auto t = expect("lmb-bundle", 1);
-    LMB_CHECK(t[0] == "1", in.where() << ": format version " << t[0] << " is not supported (this build reads 1)");
+    LMB_CHECK(t[0] == "1" || t[0] == "2",
+              in.where() << ": format version " << t[0] << " is not supported (this build reads 1 and 2)");
+    version = t[0] == "2" ? 2 : 1;
   }
   // (Each line's tokens are read before in.where() names it: argument order is unspecified.)
   const std::string reach = expect("reach", 1)[0];
   bundle->reach_ = parse_finite_number(reach, in.where(), "reach");
   LMB_CHECK(bundle->reach_ >= 0.0, in.where() << ": reach " << bundle->reach_ << " is negative");
+  if (version == 2) {
+    constexpr size_t kF = PoseEvidence::kNumFeatures;
+    const auto t = expect("calibration", kF + 5);
+    const std::string w = in.where();
+    PoseCalibration c;
+    for (size_t k = 0; k < kF; ++k) c.weights[k] = parse_finite_number(t[k], w, "calibration weight");
+    c.bias = parse_finite_number(t[kF], w, "calibration bias");
+    c.threshold = parse_finite_number(t[kF + 1], w, "calibration threshold");
+    c.num_samples = static_cast<int64_t>(parse_unsigned(t[kF + 2], w, "calibration samples", 10, INT64_MAX));
+    c.num_positive = static_cast<int64_t>(parse_unsigned(t[kF + 3], w, "calibration positives", 10, INT64_MAX));
+    c.target_precision = parse_finite_number(t[kF + 4], w, "calibration target precision");
+    c.check(w + ": calibration");
+    bundle->calibration_ = c;
+  }
   const std::string areas = expect("areas", 1)[0];
   const uint64_t num_areas = parse_unsigned(areas, in.where(), "areas", 10, 1000000);
   LMB_CHECK(num_areas >= 1, in.where() << ": a bundle needs at least one area");
@@ -271,25 +299,18 @@ void AreaBundle::release_except(const std::vector<int32_t>& keep) {
   }
 }
 
-BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
-                                        const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
-                                        const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
-                                        const LocalizerOptions& options, AreaSearch search, AreaWinner winner) {
+namespace {
+
+// The areas `selected` localize the frame in this order; nearest_first: the first calibrated
+// localized pose stops the search. `start`: when the call began (total_ms).
+BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int32_t>& selected, bool nearest_first,
+                                       const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                       const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                       const LocalizerOptions& options, AreaWinner winner,
+                                       std::chrono::steady_clock::time_point start) {
   using Clock = std::chrono::steady_clock;
-  const Clock::time_point start = Clock::now();
-  options.check();
-  check_area_search(search, winner, "localize_in_bundle");
   BundleLocalizeResult out;
-  std::vector<int32_t> selected = bundle.select(prior);
   out.selected = static_cast<int32_t>(selected.size());
-  out.prior_used = prior != nullptr;
-  const bool nearest_first = prior != nullptr && search == AreaSearch::kNearestFirst;
-  if (nearest_first) {
-    const std::vector<BundleArea>& areas = bundle.areas();
-    std::stable_sort(selected.begin(), selected.end(), [&](int32_t a, int32_t b) {
-      return areas[a].distance(prior->position) < areas[b].distance(prior->position);
-    });
-  }
   // Every scored area's matches (per keypoint, distinct 3D points) and its result while it may win.
   std::vector<std::vector<Eigen::Vector3d>> candidates(keypoints.size());
   std::vector<LocalizeResult> posed;  // per scored area: its result when it has a pose
@@ -338,11 +359,73 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
   }
   if (stopped) best = out.scored.size() - 1;
   if (best != SIZE_MAX) {
+    const Rigid3d winner_pose = poses[posed_index[best]];
+    const std::vector<int> rival = count_explained_keypoints(camera, pixels, candidates, poses,
+                                                             options.pose.max_reprojection_error_px, &winner_pose);
+    for (size_t j = 0; j < rival.size(); ++j) {
+      if (j != posed_index[best]) out.rival_support = std::max(out.rival_support, rival[j]);
+    }
     out.area = out.scored[best];
     out.result = std::move(posed[posed_index[best]]);
+    // The bundle's evidence for the winning pose.
+    PoseEvidence& e = out.evidence;
+    e = out.result.evidence;  // its area's inlier rank and spread
+    e.num_keypoints = static_cast<int>(keypoints.size());
+    e.num_correspondences = static_cast<int>(
+        std::count_if(candidates.begin(), candidates.end(), [](const auto& list) { return !list.empty(); }));
+    e.num_inliers = out.support[best];
+    e.runner_up_inliers = out.rival_support;
+    out.localized = out.result.localized;
+    if (bundle.calibrated()) {
+      out.calibrated = true;
+      out.confidence = bundle.calibration().probability(e);
+      out.confidence_threshold =
+          options.min_confidence >= 0.0 ? options.min_confidence : bundle.calibration().threshold;
+      out.localized = out.confidence >= out.confidence_threshold;
+    }
   }
   out.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return out;
+}
+
+}  // namespace
+
+BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
+                                        const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                                        const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
+                                        const LocalizerOptions& options, AreaSearch search, AreaWinner winner) {
+  const auto start = std::chrono::steady_clock::now();
+  options.check();
+  check_area_search(search, winner, "localize_in_bundle");
+  std::vector<int32_t> selected = bundle.select(prior);
+  const bool nearest_first = prior != nullptr && search == AreaSearch::kNearestFirst;
+  if (nearest_first) {
+    const std::vector<BundleArea>& areas = bundle.areas();
+    std::stable_sort(selected.begin(), selected.end(), [&](int32_t a, int32_t b) {
+      return areas[a].distance(prior->position) < areas[b].distance(prior->position);
+    });
+  }
+  BundleLocalizeResult out = localize_selected(bundle, selected, nearest_first, camera, keypoints, descriptors,
+                                               gravity_in_cam, options, winner, start);
+  out.prior_used = prior != nullptr;
+  return out;
+}
+
+BundleLocalizeResult localize_in_areas(AreaBundle& bundle, const std::vector<int32_t>& ids, const Camera& camera,
+                                       const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                                       const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions& options,
+                                       AreaWinner winner) {
+  const auto start = std::chrono::steady_clock::now();
+  options.check();
+  check_area_search(AreaSearch::kAll, winner, "localize_in_areas");
+  for (size_t i = 0; i < ids.size(); ++i) {
+    LMB_CHECK(ids[i] >= 0 && static_cast<size_t>(ids[i]) < bundle.areas().size(),
+              "localize_in_areas: no area " << ids[i] << " (the bundle has " << bundle.areas().size() << ")");
+    LMB_CHECK(std::find(ids.begin(), ids.begin() + static_cast<std::ptrdiff_t>(i), ids[i]) ==
+                  ids.begin() + static_cast<std::ptrdiff_t>(i),
+              "localize_in_areas: area " << ids[i] << " is listed twice");
+  }
+  return localize_selected(bundle, ids, false, camera, keypoints, descriptors, gravity_in_cam, options, winner, start);
 }
 
 void BundleLocalizerOptions::check() const {

@@ -4,9 +4,11 @@
 // freed by release_except() when no longer needed. A missing or corrupt area fails alone, with one
 // line naming it; the other areas still load.
 //
-// The index (text, `lmb-bundle 1`):
-//   lmb-bundle 1
+// The index (text, `lmb-bundle 1`, or 2 with a calibration):
+//   lmb-bundle 2
 //   reach 5.0558576932189325        metres: how far cameras see (the areas file's reach)
+//   calibration W0 .. W6 BIAS THRESHOLD SAMPLES POSITIVE PRECISION   (version 2 only: the bundle's
+//                                   pose calibration, PoseCalibration's fields, fitted by `lboost bundle --map`)
 //   areas 21
 //   area 0 file area-0.lbm bytes 6246098 crc32 1a2b3c4d landmarks 6866 cell LO_X LO_Y LO_Z HI_X HI_Y HI_Z
 //   ...
@@ -61,9 +63,11 @@ struct LMB_INFER_EXPORT BundleArea {
   double distance(const Eigen::Vector3d& p) const;
 };
 
-// Writes bundle.txt atomically. Throws lmb::Error naming the path.
+// Writes bundle.txt atomically: version 1, or 2 with a calibration (non-null). Throws lmb::Error
+// naming the path.
 LMB_INFER_EXPORT void write_bundle_index(const std::filesystem::path& path, double reach,
-                                         const std::vector<BundleArea>& areas);
+                                         const std::vector<BundleArea>& areas,
+                                         const PoseCalibration* calibration = nullptr);
 
 // A position prior: the camera centre is within `radius` metres (>= 0) of `position` (world frame).
 struct LMB_INFER_EXPORT PositionPrior {
@@ -85,6 +89,10 @@ class LMB_INFER_EXPORT AreaBundle {
 
   const std::vector<BundleArea>& areas() const { return areas_; }
   double reach() const { return reach_; }
+  // The bundle's pose calibration (version 2 indexes): P(the winning pose is right) from the
+  // bundle's evidence (BundleLocalizeResult::evidence).
+  bool calibrated() const { return calibration_.has_value(); }
+  const PoseCalibration& calibration() const { return *calibration_; }
   const std::filesystem::path& index_path() const { return index_; }
 
   // Ids of the areas a prior selects (cell within radius + reach), ascending; every id without one.
@@ -118,6 +126,7 @@ class LMB_INFER_EXPORT AreaBundle {
 
   std::filesystem::path index_;
   double reach_ = 0.0;
+  std::optional<PoseCalibration> calibration_;
   std::vector<BundleArea> areas_;
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<const Model>> models_;  // per area, null until loaded
@@ -136,6 +145,23 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
   // Per scored area: the frame's keypoints its pose explains with the matches of every scored
   // area (count_explained_keypoints; 0 without a pose).
   std::vector<int32_t> support;
+  // The winner's rival: the most keypoints another scored area's pose explains with matches the
+  // winning pose does not explain (count_explained_keypoints' unless_explained_by); 0 without a
+  // winner or another pose. An agreeing pose counts ~0; in an aliased place a look-alike pose
+  // comes close to the winner's support.
+  int32_t rival_support = 0;
+  // The winning pose's evidence over the whole bundle (infer/pose_confidence.h): its support as
+  // the inliers, the keypoints with a match in some scored area as the correspondences, the rival
+  // support as the runner-up, the winning area's inlier rank and spread.
+  PoseEvidence evidence;
+  // With a calibrated bundle: P(the winning pose is right) and the operating point applied (the
+  // bundle's, or options.min_confidence when >= 0); -1 otherwise.
+  bool calibrated = false;
+  double confidence = -1.0;
+  double confidence_threshold = -1.0;
+  // The answer to act on: a winning pose and, with a calibrated bundle, confidence >= threshold;
+  // with an uncalibrated one, the winning area's own LocalizeResult::localized.
+  bool localized = false;
   std::vector<std::string> errors;  // one line per selected area that could not be loaded
   int32_t selected = 0;             // areas the prior selected (every area without one)
   int32_t loaded = 0;               // areas read from their files during this call
@@ -176,6 +202,16 @@ LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(
     AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
     const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior, const LocalizerOptions& options = {},
     AreaSearch search = AreaSearch::kNearestFirst, AreaWinner winner = AreaWinner::kSupport);
+
+// The same over areas the caller chose (e.g. by a retrieval of its own), every one scored in the
+// order given (no prior, no early stop), the winner chosen by `winner`. Throws lmb::Error for an id
+// outside the bundle or listed twice.
+LMB_INFER_EXPORT BundleLocalizeResult localize_in_areas(AreaBundle& bundle, const std::vector<int32_t>& ids,
+                                                        const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                                        const uint8_t* descriptors,
+                                                        const Eigen::Vector3d& gravity_in_cam,
+                                                        const LocalizerOptions& options = {},
+                                                        AreaWinner winner = AreaWinner::kSupport);
 
 struct LMB_INFER_EXPORT BundleLocalizerOptions {
   LocalizerOptions localizer;

@@ -189,7 +189,9 @@ LMB_INFER_EXPORT lmb_status lmb_bundle_set_cache(lmb_bundle* bundle, int max_are
  * calibrated and whose pose reaches its operating point wins and the rest are not scored; when
  * none does, and without a prior (every area), the pose that explains most of the frame's keypoints
  * with the matches of every scored area wins (lmb::AreaSearch::kNearestFirst,
- * lmb::AreaWinner::kSupport). Arguments as lmb_localize; *out_area (may be NULL) receives the winning area
+ * lmb::AreaWinner::kSupport). out_pose->success: with a calibrated bundle (lboost bundle --map) the
+ * bundle's confidence reaches its operating point, else a pose was found. Arguments as
+ * lmb_localize; *out_area (may be NULL) receives the winning area
  * (-1 without a pose). Areas that cannot be loaded are skipped; when every selected area fails,
  * the call returns LMB_ERROR_MODEL_FILE naming them. */
 LMB_INFER_EXPORT lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_camera* camera,

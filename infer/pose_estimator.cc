@@ -345,8 +345,8 @@ PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen:
 
 std::vector<int> count_explained_keypoints(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels,
                                            const std::vector<std::vector<Eigen::Vector3d>>& points,
-                                           const std::vector<Rigid3d>& cam_from_world,
-                                           double max_reprojection_error_px) {
+                                           const std::vector<Rigid3d>& cam_from_world, double max_reprojection_error_px,
+                                           const Rigid3d* unless_explained_by) {
   LMB_CHECK(points.size() == pixels.size(),
             "count_explained_keypoints: " << points.size() << " point lists for " << pixels.size() << " pixels");
   LMB_CHECK(std::isfinite(max_reprojection_error_px) && max_reprojection_error_px > 0.0,
@@ -366,15 +366,25 @@ std::vector<int> count_explained_keypoints(const Camera& camera, const std::vect
     keypoints.push_back(k);
     bearings.push_back(bearing);
   }
+  const auto passes = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const Eigen::Vector3d& p,
+                          const Eigen::Vector3d& bearing) {
+    const Eigen::Vector3d x = R * p + t;
+    const double d = x.dot(bearing);
+    return d > 0 && d * d > c2 * x.squaredNorm();
+  };
+  Eigen::Matrix3d R_ref = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t_ref = Eigen::Vector3d::Zero();
+  if (unless_explained_by != nullptr) {
+    R_ref = unless_explained_by->rotation.toRotationMatrix();
+    t_ref = unless_explained_by->translation;
+  }
   std::vector<int> explained(cam_from_world.size(), 0);
   for (size_t i = 0; i < cam_from_world.size(); ++i) {
     const Eigen::Matrix3d R = cam_from_world[i].rotation.toRotationMatrix();
     const Eigen::Vector3d& t = cam_from_world[i].translation;
     for (size_t j = 0; j < keypoints.size(); ++j) {
       for (const Eigen::Vector3d& p : points[keypoints[j]]) {
-        const Eigen::Vector3d x = R * p + t;
-        const double d = x.dot(bearings[j]);
-        if (d > 0 && d * d > c2 * x.squaredNorm()) {
+        if (passes(R, t, p, bearings[j]) && (unless_explained_by == nullptr || !passes(R_ref, t_ref, p, bearings[j]))) {
           ++explained[i];
           break;
         }

@@ -102,12 +102,15 @@ LMB_INFER_EXPORT PoseResult estimate_absolute_pose(const Camera& camera, const s
 // keypoint's bearing and the point seen from the pose within atan(max_reprojection_error_px / mean
 // focal length), the point in front of the camera). pixels[k] as estimate_absolute_pose;
 // points.size() == pixels.size(). A keypoint whose pixel does not undistort counts for nothing.
-// Returns one count per pose (the bearings are computed once). Throws lmb::Error for mismatched
-// sizes or a non-finite / non-positive threshold.
+// Returns one count per pose (the bearings are computed once). With `unless_explained_by`, a
+// point counts only when that pose does not explain it: a pose's support for a rival explanation
+// of the frame (a pose that agrees with it counts ~0, a look-alike pose elsewhere its own support).
+// Throws lmb::Error for mismatched sizes or a non-finite / non-positive threshold.
 LMB_INFER_EXPORT std::vector<int> count_explained_keypoints(const Camera& camera,
                                                             const std::vector<Eigen::Vector2d>& pixels,
                                                             const std::vector<std::vector<Eigen::Vector3d>>& points,
                                                             const std::vector<Rigid3d>& cam_from_world,
-                                                            double max_reprojection_error_px);
+                                                            double max_reprojection_error_px,
+                                                            const Rigid3d* unless_explained_by = nullptr);
 
 }  // namespace lmb

@@ -14,8 +14,8 @@
     bundle = lb.load("bundle/bundle.txt")
     r = lb.BundleLocalizer(bundle).localize(camera, keypoints, descriptors, gravity_in_cam,
                                             prior=(gps_position, 10.0))
-    if r.pose_found:
-        print(r.area, r.result.success, r.cam_from_world.matrix())
+    if r.localized:
+        print(r.area, r.confidence, r.cam_from_world.matrix())
 
 keypoints: (n, 4) x, y, size, angle (COLMAP's pixel convention, OpenCV's KeyPoint.pt + 0.5);
 descriptors: (n, model.descriptor_bytes) uint8; gravity_in_cam: gravity (down) in the camera

@@ -622,6 +622,8 @@ damaged area fails alone; the others still load.)")
       .def_property_readonly("loaded_ids", &AreaBundle::loaded_ids)
       .def_property_readonly("loaded_bytes", &AreaBundle::loaded_bytes)
       .def_property_readonly("loads", &AreaBundle::loads, "Reads of area models from their files.")
+      .def_property_readonly("calibrated", &AreaBundle::calibrated,
+                             "Whether the index holds the bundle's pose calibration (lboost bundle --map).")
       .def_property_readonly("descriptor_bytes", &AreaBundle::descriptor_bytes,
                              "The areas' descriptor length (-1 until an area has loaded).")
       .def("__repr__", [](const AreaBundle& b) {
@@ -634,7 +636,9 @@ area (the winning area, -1 without a pose), pose_found (area >= 0), result (the 
 LocalizeResult, None without a pose: result.success says whether its calibration trusts the pose),
 cam_from_world (None without a pose), scored (the areas scored, in order), inliers and support (per
 scored area: its pose's inliers, and the frame's keypoints it explains with every scored area's
-matches), errors (one line per selected area that could not be loaded), selected, loaded,
+matches), rival_support (the most keypoints another area's pose explains with matches the winner
+does not), localized (the answer to act on: with a calibrated bundle confidence >=
+confidence_threshold, else the winning area's own result.success), calibrated, confidence, errors (one line per selected area that could not be loaded), selected, loaded,
 prior_used, total_ms.)")
       .def_property_readonly("area", [](const BundleResult& b) { return b.r.area; })
       .def_property_readonly("pose_found", [](const BundleResult& b) { return b.r.area >= 0; })
@@ -647,6 +651,11 @@ prior_used, total_ms.)")
       .def_property_readonly("scored", [](const BundleResult& b) { return b.r.scored; })
       .def_property_readonly("inliers", [](const BundleResult& b) { return b.r.inliers; })
       .def_property_readonly("support", [](const BundleResult& b) { return b.r.support; })
+      .def_property_readonly("rival_support", [](const BundleResult& b) { return b.r.rival_support; })
+      .def_property_readonly("localized", [](const BundleResult& b) { return b.r.localized; })
+      .def_property_readonly("calibrated", [](const BundleResult& b) { return b.r.calibrated; })
+      .def_property_readonly("confidence", [](const BundleResult& b) { return b.r.confidence; })
+      .def_property_readonly("confidence_threshold", [](const BundleResult& b) { return b.r.confidence_threshold; })
       .def_property_readonly("errors", [](const BundleResult& b) { return b.r.errors; })
       .def_property_readonly("selected", [](const BundleResult& b) { return b.r.selected; })
       .def_property_readonly("loaded", [](const BundleResult& b) { return b.r.loaded; })

@@ -37,7 +37,7 @@ def test_one_area_bundle_equals_the_single_model(tiny, tmp_path):
     m = lb.io.read_map(tiny.map)
     bundle = lb.load(write_bundle(tmp_path / "one", tiny.model, [("-inf", "inf")]))
     assert isinstance(bundle, lb.AreaBundle)
-    assert bundle.num_areas == 1 and bundle.reach == 1.0 and bundle.loaded_ids == []
+    assert bundle.num_areas == 1 and bundle.reach == 1.0 and bundle.loaded_ids == [] and not bundle.calibrated
     assert bundle.descriptor_bytes == -1  # nothing loaded yet
     localizer = lb.Localizer(lb.load(tiny.model))
     bundle_localizer = lb.BundleLocalizer(bundle)
@@ -55,6 +55,8 @@ def test_one_area_bundle_equals_the_single_model(tiny, tmp_path):
         assert r.area == 0
         assert r.result.num_inliers == single.num_inliers == r.inliers[0]
         assert r.support[0] >= r.inliers[0]  # one match a keypoint: each inlier is a keypoint it explains
+        assert r.rival_support == 0  # no other area
+        assert not r.calibrated and r.confidence == -1.0 and r.localized == single.success
         assert r.result.success == single.success and r.result.confidence == single.confidence
         assert r.cam_from_world.rotation.tolist() == single.cam_from_world.rotation.tolist()
         assert r.cam_from_world.translation.tolist() == single.cam_from_world.translation.tolist()

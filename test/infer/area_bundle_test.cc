@@ -248,6 +248,30 @@ TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
   expect_rejected(" crc32 ", " crc ", "expected 'crc32'");
   expect_rejected("file area-0.lbm", "file /abs/area-0.lbm", "must be relative");
   expect_rejected(" cell -inf", " cell inf", "cell on axis 0 lies at infinity");
+  // Version 2 needs its calibration line; version 3 is refused.
+  expect_rejected("reach 1", "reach 1\ncalibration 0 0 0 0 0 0 0 0 0.5 1 1 0.9", "bad.txt line 4: expected 'areas'");
+  std::string v2 = good;
+  v2.replace(v2.find("lmb-bundle 1"), 12, "lmb-bundle 2");
+  write_file_atomically(dir_ / "v2.txt", v2);
+  try {
+    AreaBundle::open(dir_ / "v2.txt");
+    ADD_FAILURE() << "a version 2 index without its calibration line was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("v2.txt line 4: expected 'calibration'"), std::string::npos) << e.what();
+  }
+  std::string v3 = good;
+  v3.replace(v3.find("lmb-bundle 1"), 12, "lmb-bundle 3");
+  write_file_atomically(dir_ / "v3.txt", v3);
+  EXPECT_THROW(AreaBundle::open(dir_ / "v3.txt"), Error);
+  std::string bad_calibration = v2;
+  bad_calibration.replace(bad_calibration.find("areas 1"), 7, "calibration 0 0 0 0 0 0 0 0 1.5 1 1 0.9\nareas 1");
+  write_file_atomically(dir_ / "v2bad.txt", bad_calibration);
+  try {
+    AreaBundle::open(dir_ / "v2bad.txt");
+    ADD_FAILURE() << "a threshold of 1.5 was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("v2bad.txt line 4: calibration"), std::string::npos) << e.what();
+  }
 
   EXPECT_THROW(AreaBundle::open(dir_ / "missing.txt"), Error);
 }
@@ -332,11 +356,15 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
     if (c >= 0 && std::find(seen.begin(), seen.end(), c) == seen.end()) seen.push_back(c);
   }
   ASSERT_EQ(seen.size(), 60u);
-  // Every area knows every code; a class the area does not hold sits 1 km away (never explained).
-  const Eigen::Vector3d away(1000, 0, 0), shift(0.8, 0, 0);
+  // Every area knows every code; a class the area does not hold sits at a random point ~1 km away
+  // (random, so that these points form no pose of their own).
+  const Eigen::Vector3d shift(0.8, 0, 0);
+  Rng rng(17);
   const auto area_model = [&](size_t first, size_t count, const Eigen::Vector3d& offset) {
     ModelData d = test::make_code_model_data(world.positions);
-    for (auto& p : d.class_position) p += away;
+    for (auto& p : d.class_position) {
+      p = Eigen::Vector3d(rng.uniform(500, 1500), rng.uniform(-500, 500), rng.uniform(-500, 500));
+    }
     for (size_t i = first; i < first + count; ++i) d.class_position[seen[i]] = world.positions[seen[i]] + offset;
     return std::make_shared<const Model>(std::move(d));
   };
@@ -359,6 +387,72 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   EXPECT_EQ(by_inliers.area, 0);
   EXPECT_NEAR(position_error(by_inliers.result.pose.cam_from_world, f.cam_from_world), 0.8, 1e-6);
   EXPECT_THROW(run(static_cast<AreaWinner>(5)), Error);
+  // The winner's rival: the aliased pose explains its 36 keypoints with look-alikes the right pose
+  // does not explain; the right pose's 60 keypoints are a rival to the aliased winner.
+  EXPECT_EQ(by_support.rival_support, 36);
+  EXPECT_EQ(by_inliers.rival_support, 60);
+  // The bundle's evidence: the support as inliers, the rival as runner-up, every keypoint with a
+  // match as offered; uncalibrated: the winning area's own answer.
+  EXPECT_EQ(by_support.evidence.num_inliers, 60);
+  EXPECT_EQ(by_support.evidence.runner_up_inliers, 36);
+  EXPECT_EQ(by_support.evidence.num_keypoints, static_cast<int>(f.keypoints.size()));
+  EXPECT_GE(by_support.evidence.num_correspondences, 60);
+  EXPECT_FALSE(by_support.calibrated);
+  EXPECT_EQ(by_support.confidence, -1.0);
+  EXPECT_EQ(by_support.localized, by_support.result.localized);
+  // localize_in_areas: the areas given, in that order, as a bundle search without a prior.
+  const BundleLocalizeResult listed =
+      localize_in_areas(*bundle, {2, 0, 1}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_EQ(listed.scored, (std::vector<int32_t>{2, 0, 1}));
+  EXPECT_EQ(listed.support, (std::vector<int32_t>{60, 36, 60}));
+  EXPECT_EQ(listed.area, 1);  // ties on support and inliers: the smaller id
+  const BundleLocalizeResult alone =
+      localize_in_areas(*bundle, {0}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_EQ(alone.area, 0);
+  EXPECT_EQ(alone.support, std::vector<int32_t>{36});
+  EXPECT_EQ(alone.rival_support, 0);
+  EXPECT_THROW(localize_in_areas(*bundle, {0, 3}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam),
+               Error);
+  EXPECT_THROW(localize_in_areas(*bundle, {1, 1}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam),
+               Error);
+  // A calibrated bundle (index version 2): the confidence is the calibration's probability of the
+  // bundle's evidence, localized at its operating point or at options.min_confidence.
+  PoseCalibration c;
+  c.weights = {1.0, 2.0, -3.0, 0.5, 0.25, 1.0, 0.0};
+  c.bias = -2.0;
+  c.threshold = 0.5;
+  c.num_samples = 40;
+  c.num_positive = 30;
+  c.target_precision = 0.95;
+  std::vector<BundleArea> areas = bundle->areas();
+  write_bundle_index(dir_ / "calibrated.txt", 1.0, areas, &c);
+  EXPECT_EQ(read_file(dir_ / "calibrated.txt").rfind("lmb-bundle 2\n", 0), 0u);
+  const auto calibrated = AreaBundle::open(dir_ / "calibrated.txt");
+  ASSERT_TRUE(calibrated->calibrated());
+  EXPECT_EQ(calibrated->calibration().weights, c.weights);
+  EXPECT_EQ(calibrated->calibration().bias, c.bias);
+  EXPECT_EQ(calibrated->calibration().threshold, c.threshold);
+  EXPECT_EQ(calibrated->calibration().num_samples, 40);
+  EXPECT_EQ(calibrated->calibration().num_positive, 30);
+  EXPECT_EQ(calibrated->calibration().target_precision, 0.95);
+  EXPECT_FALSE(bundle->calibrated());
+  const BundleLocalizeResult cal = localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(),
+                                                      f.gravity_in_cam, nullptr, {}, AreaSearch::kAll);
+  ASSERT_EQ(cal.area, 1);
+  EXPECT_TRUE(cal.calibrated);
+  EXPECT_EQ(cal.confidence, c.probability(cal.evidence));
+  EXPECT_EQ(cal.confidence_threshold, 0.5);
+  EXPECT_EQ(cal.localized, cal.confidence >= 0.5);
+  LocalizerOptions strict;
+  strict.min_confidence = 1.0;
+  const BundleLocalizeResult never = localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(),
+                                                        f.gravity_in_cam, nullptr, strict, AreaSearch::kAll);
+  EXPECT_EQ(never.confidence_threshold, 1.0);
+  EXPECT_FALSE(never.localized);
+  strict.min_confidence = 0.0;
+  EXPECT_TRUE(localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr,
+                                 strict, AreaSearch::kAll)
+                  .localized);
   // The bundle localizer takes the rule from its options.
   BundleLocalizerOptions options;
   options.winner = AreaWinner::kInliers;

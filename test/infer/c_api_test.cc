@@ -352,6 +352,13 @@ struct CBundleFixture : CFixture {
       a.cell_hi = Eigen::Vector3d(id == 0 ? inf : 25.0, inf, inf);
     }
     write_bundle_index(index, 1.0, areas);
+    // The same areas with a bundle calibration that accepts every pose, and one that accepts none.
+    for (double bias : {50.0, -50.0}) {
+      PoseCalibration c;
+      c.bias = bias;
+      c.threshold = 0.5;
+      write_bundle_index(dir / (bias > 0 ? "accept.txt" : "reject.txt"), 1.0, areas, &c);
+    }
   }
   ~CBundleFixture() { std::filesystem::remove_all(dir); }
 };
@@ -430,6 +437,19 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
   }
   lmb_bundle_free(bundle);
   lmb_bundle_free(nullptr);
+  // A calibrated bundle: success is its answer to act on (the confidence at the operating point),
+  // whatever the pose; the winning area is reported either way.
+  for (const char* name : {"accept.txt", "reject.txt"}) {
+    lmb_bundle* calibrated = nullptr;
+    ASSERT_EQ(lmb_bundle_open((fx.dir / name).c_str(), &calibrated), LMB_OK) << lmb_last_error();
+    ASSERT_EQ(lmb_bundle_localize(calibrated, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                  test::kCodeDescriptorBytes, gravity, nullptr, nullptr, &pose, &area),
+              LMB_OK);
+    EXPECT_EQ(area, 1) << name;
+    EXPECT_EQ(pose.success, std::string(name) == "accept.txt" ? 1 : 0) << name;
+    EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers) << name;
+    lmb_bundle_free(calibrated);
+  }
 }
 
 TEST(CApiTest, BundleErrorsAreStatusesWithMessages) {

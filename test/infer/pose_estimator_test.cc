@@ -584,6 +584,23 @@ TEST(ExplainedKeypoints, AnyCandidateWithinTheAngleCountsTheKeypointOnce) {
     EXPECT_EQ(got[0], reference(s.cam_from_world)) << trial;
     EXPECT_EQ(got[1], reference(moved)) << trial;
     EXPECT_EQ(got[2], got[0]) << trial;
+    // Unless explained by a pose: nothing for that pose itself; for another pose, the keypoints it
+    // explains with a point the reference does not (a reference written out).
+    const std::vector<int> rival = count_explained_keypoints(camera, s.pixels, points, poses, max_px, &moved);
+    EXPECT_EQ(rival[1], 0) << trial;
+    int want_rival = 0;
+    for (size_t k = 0; k < points.size(); ++k) {
+      const Eigen::Vector3d bearing = camera.cam_from_img(s.pixels[k]).homogeneous().normalized();
+      const auto within = [&](const Rigid3d& pose, const Eigen::Vector3d& p) {
+        const Eigen::Vector3d x = pose * p;
+        return x.dot(bearing) > 0 && std::acos(std::clamp(x.normalized().dot(bearing), -1.0, 1.0)) <= max_angle;
+      };
+      bool any = false;
+      for (const Eigen::Vector3d& p : points[k]) any = any || (within(s.cam_from_world, p) && !within(moved, p));
+      want_rival += any;
+    }
+    EXPECT_EQ(rival[0], want_rival) << trial;
+    EXPECT_EQ(rival[2], want_rival) << trial;
   }
   // Two candidates that both fit count once; none, nothing.
   const Scene s = make_scene(9, 10, 0.0, 0.0);

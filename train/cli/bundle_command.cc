@@ -2,21 +2,31 @@
 // docs/areas.md) from the areas file and the areas' exported models.
 //   lboost bundle --areas areas.txt --models DIR [--out DIR/bundle.txt]
 // DIR holds area-ID.lbm for every area of the file (lboost export of each area's run); each must
-// be a valid model whose classes are exactly its area's landmarks.
+// be a valid model whose classes are exactly its area's landmarks. With --map (the map the areas
+// split), the bundle's pose calibration is fitted on map frames and written into the index.
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <map>
 #include <string>
 #include <vector>
 
+#include <spdlog/spdlog.h>
+
 #include "common/error.h"
+#include "common/feature_space.h"
 #include "common/file_container.h"
 #include "common/file_io.h"
+#include "common/io/map_h5.h"
 #include "infer/area_bundle.h"
 #include "infer/model.h"
+#include "infer/pose_confidence.h"
 #include "train/areas/area_file.h"
 #include "train/cli/commands.h"
 #include "train/eval/bundle_eval.h"
+#include "train/eval/metrics.h"
+#include "train/eval/pose_calibration_fit.h"
 
 namespace lmb::cli {
 
@@ -26,7 +36,107 @@ struct BundleArgs {
   std::string areas;
   std::string models;
   std::string out;
+  std::string map;               // optional: fit the bundle's calibration on its map frames
+  int calibration_frames = 100;  // at most this many map frames
+  bool inverted_file = false;    // localize them with the inverted file
+  uint64_t seed = 0;             // RANSAC seed
+  double target_precision = 0.95;
 };
+
+// The bundle's pose calibration (infer/area_bundle.h, BundleLocalizeResult::evidence), fitted on
+// map frames (train/eval/pose_calibration_fit.h, calibration_frames: every s-th frame of the map
+// sessions) the way `lboost export` fits a model's, with the support rule; a pose is right within
+// 0.2 m / 5 deg of the frame's map pose. Each frame twice: localized in every area (no prior: the
+// most areas compete), and "elsewhere", in every area that holds no landmark in its view
+// (landmarks_in_view), i.e. the frame as if taken where the map holds only look-alikes: a map
+// frame's own areas rarely give a wrong pose, the elsewhere variant gives the wrong poses an
+// aliased place gives. Operating point: the higher of the target precision's and the one that
+// lets at most 1% of the frames' elsewhere variants pass. No query frame is read. Returns false
+// (and prints why) when too few right or wrong poses were found to fit one.
+bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path& index, const AreaFile& file,
+                            PoseCalibration* out) {
+  const LandmarkMap map = read_map_h5(args.map);
+  LMB_CHECK(fingerprint_map(map) == file.map_fingerprint,
+            "--map " << args.map << " is not the map " << args.areas << " splits (fingerprints differ)");
+  const std::vector<frame_t> frames = calibration_frames(map, args.calibration_frames);
+  const auto bundle = AreaBundle::open(index);
+  LocalizerOptions lo;
+  lo.classifier.use_inverted_file = args.inverted_file;
+  lo.pose.seed = args.seed;
+  const PoseThresholds thresholds;
+  std::vector<PoseEvidence> evidence;
+  std::vector<char> right, elsewhere;
+  const auto started = std::chrono::steady_clock::now();
+  auto last_line = started;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const MapFrame& frame = map.frames[frames[i]];
+    const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
+                                          map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
+    const std::vector<char> view = landmarks_in_view(map, frames[i]);
+    std::vector<int32_t> all, away;
+    for (const Area& area : file.split.areas) {
+      all.push_back(area.id);
+      const bool sees = std::any_of(area.landmarks.begin(), area.landmarks.end(), [&](landmark_t l) {
+        return l >= 0 && static_cast<size_t>(l) < view.size() && view[static_cast<size_t>(l)] != 0;
+      });
+      if (!sees) away.push_back(area.id);
+    }
+    for (int variant = 0; variant < 2; ++variant) {
+      const std::vector<int32_t>& ids = variant == 0 ? all : away;
+      if (ids.empty()) continue;
+      const BundleLocalizeResult r =
+          localize_in_areas(*bundle, ids, map.cameras[frame.camera], keypoints, map.descriptor(frame.first_keypoint),
+                            frame.gravity_in_cam, lo, AreaWinner::kSupport);
+      LMB_CHECK(r.errors.empty(), "bundle calibration: " << r.errors.front());
+      if (r.area < 0) continue;
+      evidence.push_back(r.evidence);
+      right.push_back(pose_within(r.result.pose.cam_from_world, frame.cam_from_world, thresholds) ? 1 : 0);
+      elsewhere.push_back(static_cast<char>(variant));
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_line >= std::chrono::seconds(30) || i + 1 == frames.size()) {
+      last_line = now;
+      const double elapsed = std::chrono::duration<double>(now - started).count();
+      spdlog::info("bundle: calibration frame {} of {}, {:.0f} s, ETA {:.0f} s", i + 1, frames.size(), elapsed,
+                   elapsed * static_cast<double>(frames.size() - i - 1) / static_cast<double>(i + 1));
+    }
+  }
+  const int64_t num_right = std::count(right.begin(), right.end(), 1);
+  const int64_t num_wrong = static_cast<int64_t>(right.size()) - num_right;
+  if (num_right < 5 || num_wrong < 5) {
+    spdlog::warn(
+        "bundle: no calibration: {} map frames gave {} poses, {} right and {} wrong (at least 5 of each "
+        "are needed); the index is written without one",
+        frames.size(), right.size(), num_right, num_wrong);
+    return false;
+  }
+  PoseCalibration c = fit_pose_calibration(evidence, right);
+  std::vector<double> p;
+  for (const PoseEvidence& e : evidence) p.push_back(c.probability(e));
+  const double for_precision = precision_threshold(p, right, args.target_precision);
+  std::vector<double> p_elsewhere;
+  for (size_t i = 0; i < p.size(); ++i) {
+    if (elsewhere[i]) p_elsewhere.push_back(p[i]);
+  }
+  const double for_elsewhere = pass_share_threshold(p_elsewhere, static_cast<int64_t>(frames.size()), 0.01);
+  c.threshold = std::max(for_precision, for_elsewhere);
+  c.target_precision = args.target_precision;
+  c.check("bundle calibration");
+  int64_t kept = 0, kept_right = 0, kept_elsewhere = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    kept += p[i] >= c.threshold;
+    kept_right += p[i] >= c.threshold && right[i];
+    kept_elsewhere += p[i] >= c.threshold && elsewhere[i];
+  }
+  spdlog::info(
+      "bundle: calibration on {} map frames: {} poses ({} of them elsewhere), {} right; operating point "
+      "{:.4f} (precision {}: {:.4f}; at most 1% of the frames elsewhere: {:.4f}) keeps {} poses, {} right, "
+      "{} of them elsewhere",
+      frames.size(), right.size(), p_elsewhere.size(), num_right, c.threshold, args.target_precision, for_precision,
+      for_elsewhere, kept, kept_right, kept_elsewhere);
+  *out = c;
+  return true;
+}
 
 void run_bundle(const BundleArgs& args) {
   namespace fs = std::filesystem;
@@ -69,6 +179,10 @@ void run_bundle(const BundleArgs& args) {
     areas.push_back(a);
   }
   write_bundle_index(out, file.split.options.reach, areas);
+  PoseCalibration calibration;
+  if (!args.map.empty() && args.calibration_frames > 0 && fit_bundle_calibration(args, out, file, &calibration)) {
+    write_bundle_index(out, file.split.options.reach, areas, &calibration);
+  }
   std::printf("bundle: %zu areas, %.1f MB of models, reach %.2f m -> %s\n", areas.size(),
               static_cast<double>(total) / 1048576.0, file.split.options.reach, out.string().c_str());
 }
@@ -83,6 +197,20 @@ void add_bundle_command(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--out", args->out, "the index, in the --models folder (default MODELS/bundle.txt)");
+  cmd->add_option("--map", args->map,
+                  "the map the areas split (map.h5): fit the bundle's pose calibration on its map frames")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--calibration-frames", args->calibration_frames,
+                  "--map: map frames localized for the calibration at most (0 = no calibration)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--inverted-file", args->inverted_file,
+                "--map: localize the calibration frames with the inverted file (as the bundle will be used)");
+  cmd->add_option("--seed", args->seed, "--map: RANSAC seed of the calibration frames")->capture_default_str();
+  cmd->add_option("--target-precision", args->target_precision,
+                  "--map: the operating point's precision on the calibration poses")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 1.0));
   cmd->callback([args] { run_bundle(*args); });
 }
 

@@ -65,6 +65,9 @@ struct Outcome {
   int32_t selected = 0, loaded = 0;
   // The areas scored, in order, their poses' inliers and support (BundleLocalizeResult).
   std::vector<int32_t> scored, scored_inliers, scored_support;
+  int32_t support = 0, rival_support = 0;  // the winner's support and its rival's
+  bool localized = false;                  // the answer to act on (BundleLocalizeResult::localized)
+  double confidence = -1.0;                // the calibrated confidence (-1: uncalibrated)
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -152,6 +155,8 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.success = r.pose.success;
     o.pose = r.pose.cam_from_world;
     o.inliers = r.pose.num_inliers;
+    o.localized = r.localized;
+    o.confidence = r.confidence;
   } else {
     PositionPrior prior;
     if (mode.has_prior) {
@@ -168,6 +173,12 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.selected = r.selected;
     o.scored = std::move(r.scored);
     o.scored_inliers = std::move(r.inliers);
+    for (size_t i = 0; i < o.scored.size(); ++i) {
+      if (o.scored[i] == r.area) o.support = r.support[i];
+    }
+    o.rival_support = r.rival_support;
+    o.localized = r.localized;
+    o.confidence = r.confidence;
     o.scored_support = std::move(r.support);
     o.loaded = r.loaded;
     o.errors = std::move(r.errors);
@@ -178,8 +189,9 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
 }
 
 nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome& o, bool correct) {
-  nlohmann::json jf = {{"name", frame.name},       {"success", o.success}, {"correct", correct},
-                       {"num_inliers", o.inliers}, {"cpu_ms", o.cpu_ms},   {"wall_ms", o.wall_ms}};
+  nlohmann::json jf = {{"name", frame.name},       {"success", o.success},     {"correct", correct},
+                       {"num_inliers", o.inliers}, {"localized", o.localized}, {"confidence", o.confidence},
+                       {"cpu_ms", o.cpu_ms},       {"wall_ms", o.wall_ms}};
   if (!mode.single) {
     jf["area"] = o.area;
     jf["areas_selected"] = o.selected;
@@ -187,6 +199,8 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
     jf["scored"] = o.scored;
     jf["scored_inliers"] = o.scored_inliers;
     jf["scored_support"] = o.scored_support;
+    jf["support"] = o.support;
+    jf["rival_support"] = o.rival_support;
     jf["areas_loaded"] = o.loaded;
     if (!o.errors.empty()) jf["errors"] = o.errors;
   }
@@ -200,7 +214,7 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
 // One mode over every frame and seed: its report entry, and its line of the table.
 nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::vector<frame_t>& frames,
                              std::string* table) {
-  std::vector<int> correct_per_seed;
+  std::vector<int> correct_per_seed, trusted_per_seed, trusted_correct_per_seed;
   std::vector<double> cpu, wall, pos_err;
   double selected = 0, scored = 0, loaded = 0, localized = 0;
   int64_t runs = 0;
@@ -222,12 +236,14 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
   for (int s = 0; s < c.options.seeds; ++s) {
     LocalizerOptions lo = c.options.localizer;
     lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
-    int correct = 0;
+    int correct = 0, trusted = 0, trusted_correct = 0;
     for (frame_t f : frames) {
       const MapFrame& frame = c.map.frames[f];
       const Outcome o = localize_frame(c, mode, f, lo);
       const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, c.options.thresholds);
       correct += ok;
+      trusted += o.localized;
+      trusted_correct += o.localized && ok;
       cpu.push_back(o.cpu_ms);
       wall.push_back(o.wall_ms);
       selected += o.selected;
@@ -240,6 +256,8 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
       progress(s, false);
     }
     correct_per_seed.push_back(correct);
+    trusted_per_seed.push_back(trusted);
+    trusted_correct_per_seed.push_back(trusted_correct);
     progress(s, true);
   }
   const double nf = static_cast<double>(frames.size());
@@ -248,6 +266,10 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
   nlohmann::json jm = {{"mode", mode.name},
                        {"pose_recall", recall},
                        {"frames_correct_per_seed", correct_per_seed},
+                       // The frames reported localized (the answer to act on: a calibrated
+                       // confidence at its operating point) and of them correct, per seed.
+                       {"localized_frames_per_seed", trusted_per_seed},
+                       {"localized_correct_per_seed", trusted_correct_per_seed},
                        {"localized_per_frame", localized / n},
                        {"median_position_error_m", median(pos_err)},
                        {"cpu_ms_per_frame", {{"mean", mean(cpu)}, {"median", median(cpu)}}},

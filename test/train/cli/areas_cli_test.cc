@@ -390,6 +390,53 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       EXPECT_EQ(f["areas_scored"].get<size_t>(), f["areas_selected"].get<size_t>()) << m;
     }
   }
+  // The bundle's calibration (lboost bundle --map): fitted on the map frames and their "elsewhere"
+  // variants, written as an index of version 2 that opens calibrated; a localization reports each
+  // frame's confidence, localized exactly when it reaches the operating point. A map the areas file
+  // was not made from is refused.
+  {
+    const fs::path cal = dir_ / "cal_bundle";
+    fs::create_directories(cal);
+    for (int id = 0; id < num_areas; ++id) {
+      const std::string name = "area-" + std::to_string(id) + ".lbm";
+      fs::copy_file(models / name, cal / name, fs::copy_options::overwrite_existing);
+    }
+    const RunResult c = run("bundle --areas " + short_reach.string() + " --models " + cal.string() + " --map " +
+                                map_.string() + " --calibration-frames 40",
+                            dir_);
+    ASSERT_EQ(c.exit_code, 0) << c.err;
+    EXPECT_NE((c.out + c.err).find("bundle: calibration on "), std::string::npos) << c.out << c.err;
+    const auto calibrated = AreaBundle::open(cal / "bundle.txt");
+    ASSERT_TRUE(calibrated->calibrated()) << c.err;
+    EXPECT_GT(calibrated->calibration().num_samples, calibrated->calibration().num_positive);
+    const fs::path cal_out = dir_ / "cal_localize.json";
+    ASSERT_EQ(run("localize --bundle " + (cal / "bundle.txt").string() + " --map " + map_.string() +
+                      " --no-prior --out " + cal_out.string(),
+                  dir_)
+                  .exit_code,
+              0);
+    const nlohmann::json cj = nlohmann::json::parse(slurp(cal_out));
+    int localized = 0;
+    for (const nlohmann::json& fr : cj["modes"][0]["frames"]) {
+      const double confidence = fr["confidence"].get<double>();
+      if (!fr["success"].get<bool>()) {
+        EXPECT_FALSE(fr["localized"].get<bool>());
+        continue;
+      }
+      EXPECT_GE(confidence, 0.0);
+      EXPECT_EQ(fr["localized"].get<bool>(), confidence >= calibrated->calibration().threshold);
+      localized += fr["localized"].get<bool>();
+    }
+    EXPECT_EQ(cj["modes"][0]["localized_frames_per_seed"][0].get<int>(), localized);
+    const fs::path other_map = dir_ / "other_map.h5";
+    LandmarkMap moved = read_map_h5(map_);
+    moved.landmarks.front().position.x() += 1.0;
+    write_map_h5(moved, other_map);
+    expect_one_error(
+        run("bundle --areas " + short_reach.string() + " --models " + cal.string() + " --map " + other_map.string(),
+            dir_),
+        "bundle", "is not the map");
+  }
   // A damaged area: the run goes on without it, naming it once per frame that selects it.
   std::string image = slurp(models / "area-1.lbm");
   image[image.size() / 2] ^= 0x20;
