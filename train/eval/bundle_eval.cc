@@ -291,10 +291,13 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     if (i > 0) seeds_text += ',';
     seeds_text += std::to_string(correct_per_seed[i]);
   }
+  const int trusted = std::accumulate(trusted_per_seed.begin(), trusted_per_seed.end(), 0);
+  const int trusted_right = std::accumulate(trusted_correct_per_seed.begin(), trusted_correct_per_seed.end(), 0);
+  const std::string trusted_text = std::to_string(trusted) + " (" + std::to_string(trusted_right) + " right)";
   char line[400];
-  std::snprintf(line, sizeof(line), "%-17s  %6.4f  (%s of %zu)  %9.3f  %9.3f  %8.2f %8.2f  %s\n", mode.name.c_str(),
-                recall, seeds_text.c_str(), frames.size(), localized / n, median(pos_err), mean(cpu), median(cpu),
-                areas_text.c_str());
+  std::snprintf(line, sizeof(line), "%-17s  %6.4f  (%s of %zu)  %9.3f  %-16s %9.3f  %8.2f %8.2f  %s\n",
+                mode.name.c_str(), recall, seeds_text.c_str(), frames.size(), localized / n, trusted_text.c_str(),
+                median(pos_err), mean(cpu), median(cpu), areas_text.c_str());
   *table += line;
   return jm;
 }
@@ -332,8 +335,8 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
 
   BundleEvalResult result;
   result.table =
-      "mode               recall  (per seed)          localized  med_pos_m  cpu_ms/frame (mean, "
-      "median)  areas selected/scored/loaded per frame\n";
+      "mode               recall  (per seed)              posed  localized (all seeds)  med_pos_m  cpu_ms/frame "
+      "(mean, median)  areas selected/scored/loaded per frame\n";
   const ModeContext context{options, map, *bundle, single};
   nlohmann::json jmodes = nlohmann::json::array();
   for (const Mode& mode : make_modes(options, single != nullptr)) {
