@@ -6,8 +6,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <limits>
 #include <sstream>
+#include <thread>
 #include <tuple>
 
 #include "common/error.h"
@@ -25,6 +27,10 @@ void check_area_search(AreaSearch search, AreaWinner winner, const char* where) 
             where << ": unknown area search " << static_cast<int32_t>(search));
   LMB_CHECK(winner == AreaWinner::kSupport || winner == AreaWinner::kInliers,
             where << ": unknown area winner " << static_cast<int32_t>(winner));
+}
+
+void check_area_threads(int threads, const char* where) {
+  LMB_CHECK(threads >= 1 && threads <= 256, where << ": area_threads = " << threads << " must be in 1..256");
 }
 
 // Adds a scored area's correspondences to the frame's candidate points per keypoint (a landmark
@@ -303,40 +309,81 @@ namespace {
 
 // The areas `selected` localize the frame in this order; nearest_first: the first calibrated
 // localized pose stops the search. `start`: when the call began (total_ms).
+// One area's localization of the frame, or why its model could not be loaded.
+struct AreaRun {
+  std::shared_ptr<const Model> model;  // null when it could not be loaded
+  std::string error;
+  bool loaded_now = false;  // read from its file by this call
+  LocalizeResult result;
+};
+
+// The areas `selected` localize the frame in this order, `threads` at a time (waves of that many,
+// each area on its own thread); nearest_first: the first calibrated localized pose stops the
+// search, and the areas after it in its wave are dropped, so that the result is the one-thread
+// result whatever the thread count. `start`: when the call began (total_ms).
 BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int32_t>& selected, bool nearest_first,
                                        const Camera& camera, const std::vector<Keypoint>& keypoints,
                                        const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
-                                       const LocalizerOptions& options, AreaWinner winner,
+                                       const LocalizerOptions& options, AreaWinner winner, int threads,
                                        std::chrono::steady_clock::time_point start) {
   using Clock = std::chrono::steady_clock;
   BundleLocalizeResult out;
   out.selected = static_cast<int32_t>(selected.size());
+  const auto run_area = [&](int32_t id, AreaRun* run) {
+    // (`loaded_now` is exact for one caller at a time: another may load the same area meanwhile.)
+    run->loaded_now = !bundle.loaded(id);
+    try {
+      run->model = bundle.model(id);
+    } catch (const Error& e) {
+      run->error = e.what();
+      run->loaded_now = false;
+      return;
+    }
+    run->result = Localizer(run->model, options).localize(camera, keypoints, descriptors, gravity_in_cam, options);
+  };
   // Every scored area's matches (per keypoint, distinct 3D points) and its result while it may win.
   std::vector<std::vector<Eigen::Vector3d>> candidates(keypoints.size());
   std::vector<LocalizeResult> posed;  // per scored area: its result when it has a pose
   std::vector<size_t> posed_index;    // per scored area: index into posed, or SIZE_MAX
   bool stopped = false;
-  for (int32_t id : selected) {
-    std::shared_ptr<const Model> model;
-    const int64_t loads_before = bundle.loads();
-    try {
-      model = bundle.model(id);
-    } catch (const Error& e) {
-      out.errors.push_back(e.what());
-      continue;
+  for (size_t next = 0; next < selected.size() && !stopped;) {
+    const size_t wave = std::min(static_cast<size_t>(threads), selected.size() - next);
+    std::vector<AreaRun> runs(wave);
+    if (wave == 1) {
+      run_area(selected[next], &runs[0]);
+    } else {
+      std::vector<std::exception_ptr> failures(wave);
+      std::vector<std::thread> workers;
+      for (size_t i = 0; i < wave && !stopped; ++i) {
+        workers.emplace_back([&, i] {
+          try {
+            run_area(selected[next + i], &runs[i]);
+          } catch (...) {
+            failures[i] = std::current_exception();
+          }
+        });
+      }
+      for (std::thread& w : workers) w.join();
+      for (const std::exception_ptr& f : failures) {
+        if (f) std::rethrow_exception(f);
+      }
     }
-    // (Another thread's load may count here too: `loaded` is exact for one thread at a time.)
-    out.loaded += bundle.loads() > loads_before ? 1 : 0;
-    const Localizer localizer(model, options);
-    LocalizeResult r = localizer.localize(camera, keypoints, descriptors, gravity_in_cam, options);
-    const int inliers = r.pose.success ? r.pose.num_inliers : 0;
-    out.scored.push_back(id);
-    out.inliers.push_back(inliers);
-    add_candidates(*model, r, &candidates);
-    stopped = nearest_first && r.calibrated && r.localized;
-    posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
-    if (r.pose.success) posed.push_back(std::move(r));
-    if (stopped) break;
+    for (size_t i = 0; i < wave && !stopped; ++i) {
+      AreaRun& run = runs[i];
+      out.loaded += run.loaded_now ? 1 : 0;
+      if (!run.model) {
+        out.errors.push_back(std::move(run.error));
+        continue;
+      }
+      LocalizeResult& r = run.result;
+      out.scored.push_back(selected[next + i]);
+      out.inliers.push_back(r.pose.success ? r.pose.num_inliers : 0);
+      add_candidates(*run.model, r, &candidates);
+      stopped = nearest_first && r.calibrated && r.localized;
+      posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
+      if (r.pose.success) posed.push_back(std::move(r));
+    }
+    next += wave;
   }
   // Each pose's support over every scored area's matches; the winner.
   std::vector<Eigen::Vector2d> pixels(keypoints.size());
@@ -393,10 +440,12 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
 BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera,
                                         const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                                         const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior,
-                                        const LocalizerOptions& options, AreaSearch search, AreaWinner winner) {
+                                        const LocalizerOptions& options, AreaSearch search, AreaWinner winner,
+                                        int area_threads) {
   const auto start = std::chrono::steady_clock::now();
   options.check();
   check_area_search(search, winner, "localize_in_bundle");
+  check_area_threads(area_threads, "localize_in_bundle");
   std::vector<int32_t> selected = bundle.select(prior);
   const bool nearest_first = prior != nullptr && search == AreaSearch::kNearestFirst;
   if (nearest_first) {
@@ -406,7 +455,7 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
     });
   }
   BundleLocalizeResult out = localize_selected(bundle, selected, nearest_first, camera, keypoints, descriptors,
-                                               gravity_in_cam, options, winner, start);
+                                               gravity_in_cam, options, winner, area_threads, start);
   out.prior_used = prior != nullptr;
   return out;
 }
@@ -414,10 +463,11 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
 BundleLocalizeResult localize_in_areas(AreaBundle& bundle, const std::vector<int32_t>& ids, const Camera& camera,
                                        const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                                        const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions& options,
-                                       AreaWinner winner) {
+                                       AreaWinner winner, int area_threads) {
   const auto start = std::chrono::steady_clock::now();
   options.check();
   check_area_search(AreaSearch::kAll, winner, "localize_in_areas");
+  check_area_threads(area_threads, "localize_in_areas");
   for (size_t i = 0; i < ids.size(); ++i) {
     LMB_CHECK(ids[i] >= 0 && static_cast<size_t>(ids[i]) < bundle.areas().size(),
               "localize_in_areas: no area " << ids[i] << " (the bundle has " << bundle.areas().size() << ")");
@@ -425,7 +475,8 @@ BundleLocalizeResult localize_in_areas(AreaBundle& bundle, const std::vector<int
                   ids.begin() + static_cast<std::ptrdiff_t>(i),
               "localize_in_areas: area " << ids[i] << " is listed twice");
   }
-  return localize_selected(bundle, ids, false, camera, keypoints, descriptors, gravity_in_cam, options, winner, start);
+  return localize_selected(bundle, ids, false, camera, keypoints, descriptors, gravity_in_cam, options, winner,
+                           area_threads, start);
 }
 
 void BundleLocalizerOptions::check() const {
@@ -433,6 +484,7 @@ void BundleLocalizerOptions::check() const {
   LMB_CHECK(std::isfinite(tracking_radius) && tracking_radius >= 0.0,
             "bundle localizer options: tracking_radius = " << tracking_radius << " must be finite and >= 0");
   check_area_search(search, winner, "bundle localizer options");
+  check_area_threads(area_threads, "bundle localizer options");
 }
 
 BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options)
@@ -445,7 +497,7 @@ BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::
                                                const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
                                                const PositionPrior* prior) const {
   return localize_in_bundle(*bundle_, camera, keypoints, descriptors, gravity_in_cam, prior, options_.localizer,
-                            options_.search, options_.winner);
+                            options_.search, options_.winner, options_.area_threads);
 }
 
 BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,

@@ -196,12 +196,13 @@ enum class AreaWinner : int32_t {
 };
 
 // Localizes a frame in the areas `prior` selects (every area when prior is null), each through
-// its own model with `options`, the winner chosen by `search`. Areas that fail to load are
-// reported in `errors` and skipped. Arguments as Localizer::localize.
+// its own model with `options`, the winner chosen by `search` and `winner`, `area_threads` areas
+// at a time (BundleLocalizerOptions::area_threads). Areas that fail to load are reported in
+// `errors` and skipped. Arguments as Localizer::localize.
 LMB_INFER_EXPORT BundleLocalizeResult localize_in_bundle(
     AreaBundle& bundle, const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
     const Eigen::Vector3d& gravity_in_cam, const PositionPrior* prior, const LocalizerOptions& options = {},
-    AreaSearch search = AreaSearch::kNearestFirst, AreaWinner winner = AreaWinner::kSupport);
+    AreaSearch search = AreaSearch::kNearestFirst, AreaWinner winner = AreaWinner::kSupport, int area_threads = 1);
 
 // The same over areas the caller chose (e.g. by a retrieval of its own), every one scored in the
 // order given (no prior, no early stop), the winner chosen by `winner`. Throws lmb::Error for an id
@@ -211,12 +212,16 @@ LMB_INFER_EXPORT BundleLocalizeResult localize_in_areas(AreaBundle& bundle, cons
                                                         const uint8_t* descriptors,
                                                         const Eigen::Vector3d& gravity_in_cam,
                                                         const LocalizerOptions& options = {},
-                                                        AreaWinner winner = AreaWinner::kSupport);
+                                                        AreaWinner winner = AreaWinner::kSupport, int area_threads = 1);
 
 struct LMB_INFER_EXPORT BundleLocalizerOptions {
   LocalizerOptions localizer;
   AreaSearch search = AreaSearch::kNearestFirst;  // with a prior (and in track()): see AreaSearch
   AreaWinner winner = AreaWinner::kSupport;       // which scored area's pose wins: see AreaWinner
+  // Areas localized at once, each on its own thread (1..256; 1 = the calling thread only). The
+  // result is the same for any count: with nearest first, the areas scored after the one that
+  // stops the search in its wave of `area_threads` are dropped (their work is wasted).
+  int area_threads = 1;
   // track(): the prior is the last tracked camera centre within this many metres (how far the
   // camera may move between two tracked frames; the bundle's reach is added by the selection).
   double tracking_radius = 1.0;

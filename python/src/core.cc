@@ -669,22 +669,26 @@ prior_used, total_ms.)")
 
   py::class_<BundleLocalizer>(m, "BundleLocalizer", R"(Localizes frames in an AreaBundle:
 BundleLocalizer(bundle, options=None, search="nearest_first", winner="support", tracking_radius=1.0,
-relocalize_without_prior=True). search: "nearest_first" (with a prior, the nearest area whose
+relocalize_without_prior=True, area_threads=1). search: "nearest_first" (with a prior, the nearest area whose
 calibrated pose is localized wins and the rest are not scored) or "all"; winner: "support" (the pose
-that explains most keypoints with every scored area's matches) or "inliers". localize() releases
+that explains most keypoints with every scored area's matches) or "inliers"; area_threads: areas
+localized at once, each on its own thread (the same result). localize() releases
 the GIL and may serve several threads; track() keeps the last pose (one camera, one thread).)")
       .def(py::init([](std::shared_ptr<AreaBundle> bundle, const LocalizerOptions* options, const std::string& search,
-                       const std::string& winner, double tracking_radius, bool relocalize_without_prior) {
+                       const std::string& winner, double tracking_radius, bool relocalize_without_prior,
+                       int area_threads) {
              BundleLocalizerOptions o;
              if (options) o.localizer = *options;
              o.search = area_search_from(search);
              o.winner = area_winner_from(winner);
              o.tracking_radius = tracking_radius;
              o.relocalize_without_prior = relocalize_without_prior;
+             o.area_threads = area_threads;
              return BundleLocalizer(std::move(bundle), o);
            }),
            py::arg("bundle"), py::arg("options") = nullptr, py::arg("search") = "nearest_first",
-           py::arg("winner") = "support", py::arg("tracking_radius") = 1.0, py::arg("relocalize_without_prior") = true)
+           py::arg("winner") = "support", py::arg("tracking_radius") = 1.0, py::arg("relocalize_without_prior") = true,
+           py::arg("area_threads") = 1)
       .def_property_readonly("bundle", [](const BundleLocalizer& l) { return l.shared_bundle(); })
       .def(
           "localize",

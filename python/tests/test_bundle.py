@@ -112,6 +112,13 @@ def test_winner_rules_and_tracking(tiny, tmp_path):
         assert a.scored == b.scored == [0, 1] and a.inliers == b.inliers and a.support == b.support
         assert a.inliers[0] == a.inliers[1] and a.support[0] == a.support[1]
         assert a.area == b.area == (0 if a.pose_found else -1)
+    # Areas on two threads: the same results.
+    threaded = lb.BundleLocalizer(bundle, search="all", area_threads=2)
+    for f in frames[:4]:
+        a, b = by_support.localize(*frame_args(m, f)), threaded.localize(*frame_args(m, f))
+        assert (a.scored, a.inliers, a.support, a.area) == (b.scored, b.inliers, b.support, b.area)
+        if a.pose_found:
+            assert a.cam_from_world.translation.tolist() == b.cam_from_world.translation.tolist()
     tracker = lb.BundleLocalizer(bundle, tracking_radius=0.5)
     assert tracker.last_position is None
     first = tracker.track(*frame_args(m, frames[0]))
@@ -146,6 +153,8 @@ def test_bad_input_raises_one_clear_error(tiny, tmp_path):
         lb.BundleLocalizer(bundle, search="first")
     with pytest.raises(lb.Error, match="tracking_radius"):
         lb.BundleLocalizer(bundle, tracking_radius=-1.0)
+    with pytest.raises(lb.Error, match="area_threads"):
+        lb.BundleLocalizer(bundle, area_threads=0)
     (tmp_path / "index.txt").write_text("lmb-bundle 1\nreach x\n")
     with pytest.raises(lb.Error, match=r"index.txt line 2"):
         lb.load(tmp_path / "index.txt")

@@ -543,6 +543,71 @@ TEST_F(AreaBundleTest, NearestFirstStopsAtTheFirstCalibratedLocalizedArea) {
   EXPECT_THROW(run(8.0, 8.0, in_own, static_cast<AreaSearch>(7)), Error);
 }
 
+// Any number of area threads gives the one-thread result, the nearest-first stop included (the
+// areas a wave scores after the stopping one are dropped).
+TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const test::TestFrame& f = world.frame;
+  // Five areas along x, cells [id, id + 1) (the ends open): copies of the frame's model with every
+  // landmark moved 0.3 m a step (look-alike poses); area 2 the true one, calibrated to accept
+  // every pose; area 3's file damaged.
+  std::vector<BundleArea> areas;
+  for (int32_t id = 0; id < 5; ++id) {
+    ModelData d = test::make_code_model_data(world.positions);
+    for (auto& p : d.class_position) p += Eigen::Vector3d(0.3 * (id - 2), 0, 0);
+    if (id == 2) d.calibration = constant_calibration(8.0);
+    areas.push_back(add(Model(std::move(d)), id, id == 0 ? -kInf : id, id == 4 ? kInf : id + 1.0));
+  }
+  write_bundle_index(dir_ / "five.txt", 1.0, areas);
+  std::string image = read_file(dir_ / "area-3.lbm");
+  image[image.size() / 2] ^= 0x10;
+  write_file_atomically(dir_ / "area-3.lbm", image);
+  PositionPrior prior;
+  prior.position = Eigen::Vector3d(0.5, 0, 0);  // nearest first: areas 0, 1, 2 (stops), 3, 4
+  prior.radius = 10.0;
+  for (const PositionPrior* p :
+       {static_cast<const PositionPrior*>(&prior), static_cast<const PositionPrior*>(nullptr)}) {
+    for (AreaSearch search : {AreaSearch::kNearestFirst, AreaSearch::kAll}) {
+      const auto run = [&](int threads) {
+        const auto bundle = AreaBundle::open(dir_ / "five.txt");
+        return localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, p, {}, search,
+                                  AreaWinner::kSupport, threads);
+      };
+      const BundleLocalizeResult one = run(1);
+      if (p != nullptr && search == AreaSearch::kNearestFirst) {
+        EXPECT_EQ(one.scored, (std::vector<int32_t>{0, 1, 2}));
+        EXPECT_EQ(one.area, 2);
+      } else {
+        EXPECT_EQ(one.scored.size(), 4u);  // every area but the damaged one
+        EXPECT_EQ(one.errors.size(), 1u);
+      }
+      for (int threads : {2, 3, 5, 8}) {
+        const BundleLocalizeResult many = run(threads);
+        const std::string what = "threads " + std::to_string(threads) + (p ? " prior" : " no prior");
+        EXPECT_EQ(many.scored, one.scored) << what;
+        EXPECT_EQ(many.inliers, one.inliers) << what;
+        EXPECT_EQ(many.support, one.support) << what;
+        EXPECT_EQ(many.rival_support, one.rival_support) << what;
+        EXPECT_EQ(many.errors, one.errors) << what;
+        EXPECT_EQ(many.area, one.area) << what;
+        EXPECT_EQ(many.localized, one.localized) << what;
+        EXPECT_EQ(many.result.pose.cam_from_world.translation, one.result.pose.cam_from_world.translation) << what;
+        EXPECT_EQ(many.result.pose.inlier_mask, one.result.pose.inlier_mask) << what;
+      }
+    }
+  }
+  const auto bundle = AreaBundle::open(dir_ / "five.txt");
+  for (int bad : {0, -1, 257}) {
+    EXPECT_THROW(localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
+                                    AreaSearch::kAll, AreaWinner::kSupport, bad),
+                 Error)
+        << bad;
+    BundleLocalizerOptions options;
+    options.area_threads = bad;
+    EXPECT_THROW(options.check(), Error) << bad;
+  }
+}
+
 TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne) {
   const NearAndFar n = near_and_far();
   const std::shared_ptr<const Model>& model = n.model;

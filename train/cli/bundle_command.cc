@@ -229,6 +229,10 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, AreaWinner>{{"support", AreaWinner::kSupport}, {"inliers", AreaWinner::kInliers}}))
       ->default_str("support");
+  cmd->add_option("--area-threads", options->area_threads,
+                  "--bundle: areas of a frame localized at once, each on its own thread (the same result; "
+                  "cpu_ms then counts the calling thread only: read wall_ms)")
+      ->capture_default_str();
   cmd->add_option("--prior-seed", options->prior_seed, "--bundle: seed of the prior's direction")
       ->capture_default_str();
   cmd->add_option("--cache-areas", options->cache.max_areas,

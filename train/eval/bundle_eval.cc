@@ -82,6 +82,7 @@ void BundleEvalOptions::check() const {
   LMB_CHECK(!prior_noise.empty() || no_prior, "--bundle needs --prior-noise METRES and/or --no-prior");
   LMB_CHECK(seeds >= 1 && seeds <= 100, "seeds " << seeds << ": must be in 1..100");
   LMB_CHECK(cache.max_areas >= 0, "--cache-areas " << cache.max_areas << ": must be >= 0");
+  LMB_CHECK(area_threads >= 1 && area_threads <= 256, "--area-threads " << area_threads << ": must be in 1..256");
   thresholds.check();
   localizer.check();
 }
@@ -163,9 +164,9 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
       prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(c.options.prior_seed, f);
       prior.radius = mode.noise;
     }
-    BundleLocalizeResult r =
-        localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                           mode.has_prior ? &prior : nullptr, lo, c.options.search, c.options.winner);
+    BundleLocalizeResult r = localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
+                                                mode.has_prior ? &prior : nullptr, lo, c.options.search,
+                                                c.options.winner, c.options.area_threads);
     o.success = r.area >= 0;
     o.pose = r.result.pose.cam_from_world;
     o.inliers = r.result.pose.num_inliers;
@@ -326,6 +327,7 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["prior_seed"] = options.prior_seed;
   report["area_search"] = options.search == AreaSearch::kAll ? "all" : "nearest_first";
   report["area_winner"] = options.winner == AreaWinner::kSupport ? "support" : "inliers";
+  report["area_threads"] = options.area_threads;
   report["reach_m"] = bundle->reach();
   report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
                           {"rotation_deg", options.thresholds.max_rotation_error_deg}};

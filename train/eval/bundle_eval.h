@@ -28,6 +28,7 @@ struct BundleEvalOptions {
   bool no_prior = false;                          // a mode scoring every area
   AreaSearch search = AreaSearch::kNearestFirst;  // how the areas a prior selects compete
   AreaWinner winner = AreaWinner::kSupport;       // which scored area's pose wins
+  int area_threads = 1;                           // areas localized at once (BundleLocalizerOptions)
   uint64_t prior_seed = 1;                        // the prior's direction draw
   LocalizerOptions localizer;                     // pose.seed is the first RANSAC seed
   int seeds = 5;                                  // RANSAC seeds: localizer.pose.seed + 0 .. seeds - 1

@@ -315,6 +315,27 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
   ASSERT_EQ(l.exit_code, 0) << l.err;
   const nlohmann::json j = nlohmann::json::parse(slurp(out));
   ASSERT_EQ(j["modes"].size(), 3u);
+  // The areas of a frame on 3 threads: the same frames, areas, inliers, support and poses.
+  {
+    const fs::path threaded = dir_ / "all_localize_threads.json";
+    const RunResult t =
+        run(localize.substr(0, localize.find(" --out ")) + " --area-threads 3 --out " + threaded.string(), dir_);
+    ASSERT_EQ(t.exit_code, 0) << t.err;
+    const nlohmann::json tj = nlohmann::json::parse(slurp(threaded));
+    EXPECT_EQ(tj["area_threads"], 3);
+    for (size_t m = 0; m < 3; ++m) {
+      const nlohmann::json& one = j["modes"][m]["frames"];
+      const nlohmann::json& three = tj["modes"][m]["frames"];
+      ASSERT_EQ(one.size(), three.size());
+      for (size_t i = 0; i < one.size(); ++i) {
+        for (const char* key : {"success", "area", "scored", "scored_inliers", "scored_support", "rival_support",
+                                "num_inliers", "position_error_m"}) {
+          EXPECT_EQ(one[i].value(key, nlohmann::json()), three[i].value(key, nlohmann::json()))
+              << m << " " << i << " " << key;
+        }
+      }
+    }
+  }
   // The areas each mode selects: the split's own selection (train/areas) for the same prior.
   const LandmarkMap map = read_map_h5(map_);
   std::vector<frame_t> queries;
