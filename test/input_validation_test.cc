@@ -27,6 +27,7 @@
 #include "common/io/gravity_file.h"
 #include "common/io/map_h5.h"
 #include "common/vocabulary.h"
+#include "infer/area_bundle.h"
 #include "infer/detail/model_format.h"
 #include "infer/detail/scoring_index.h"
 #include "infer/model.h"
@@ -108,6 +109,48 @@ std::function<void(const fs::path&)> vocab_with(std::function<std::string()> byt
 std::string with_byte(std::string s, size_t at, char value) {
   s[at] = value;
   return s;
+}
+
+// ---- bundle.txt -------------------------------------------------------------------------------
+
+// Writes DIR/area-ID.lbm for each model and DIR/bundle.txt indexing them (write_bundle_index,
+// version 1), then applies `edit` to the index's text and opens it; `then` (when set) uses it.
+std::function<void(const fs::path&)> bundle_with(std::function<void(std::string&)> edit,
+                                                 std::function<void(AreaBundle&)> then = {},
+                                                 std::vector<ModelData> models = {good_model_data()}) {
+  return [edit, then, models](const fs::path& dir) {
+    std::vector<BundleArea> areas;
+    for (size_t i = 0; i < models.size(); ++i) {
+      BundleArea a;
+      a.id = static_cast<int32_t>(i);
+      a.file = "area-" + std::to_string(i) + ".lbm";
+      const std::string image = as_string(Model(models[i]).to_bytes());
+      write_bytes(dir / a.file, image);
+      a.bytes = image.size();
+      a.crc32 = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
+      a.landmarks = models[i].num_classes;
+      a.cell_lo = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
+      a.cell_hi = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+      a.cell_lo.x() = static_cast<double>(i);
+      if (i + 1 < models.size()) a.cell_hi.x() = static_cast<double>(i + 1);
+      areas.push_back(a);
+    }
+    write_bundle_index(dir / "bundle.txt", 1.0, areas);
+    std::string text = read_bytes(dir / "bundle.txt");
+    if (edit) edit(text);
+    write_bytes(dir / "bundle.txt", text);
+    const auto bundle = AreaBundle::open(dir / "bundle.txt");
+    if (then) then(*bundle);
+  };
+}
+
+// Replaces the first `from` in `text` by `to` (an edit of bundle_with).
+std::function<void(std::string&)> replaced(const std::string& from, const std::string& to) {
+  return [from, to](std::string& text) {
+    const size_t at = text.find(from);
+    if (at == std::string::npos) throw std::logic_error("no '" + from + "' in the index");
+    text.replace(at, from.size(), to);
+  };
 }
 
 // ---- map.h5 ---------------------------------------------------------------------------------
@@ -498,6 +541,45 @@ std::vector<Row> rows() {
   r.push_back(
       {"COLMAP binary", "trailing bytes", colmap_binary_with({}, "points3D.bin", [](std::string& b) { b += "xyz"; }),
        "DIR/sparse/points3D.bin: 3 trailing bytes after the last record (wrong count?) (at byte offset 75 of 78)"});
+  // bundle.txt (infer/area_bundle.h)
+  r.push_back({"bundle.txt", "format version 3", bundle_with(replaced("lmb-bundle 1", "lmb-bundle 3")),
+               "DIR/bundle.txt line 1: format version 3 is not supported (this build reads 1 and 2)"});
+  r.push_back({"bundle.txt", "reach not a number", bundle_with(replaced("reach 1", "reach x")),
+               "DIR/bundle.txt line 3: reach is not a number: 'x'"});
+  r.push_back({"bundle.txt", "version 2 without its calibration line",
+               bundle_with(replaced("lmb-bundle 1", "lmb-bundle 2")),
+               "DIR/bundle.txt line 4: expected 'calibration' and 12 value(s), found 'areas 1'"});
+  r.push_back({"bundle.txt", "calibration threshold 1.5", bundle_with([](std::string& text) {
+                 replaced("lmb-bundle 1", "lmb-bundle 2")(text);
+                 replaced("areas 1", "calibration 0 0 0 0 0 0 0 0 1.5 10 5 0.95\nareas 1")(text);
+               }),
+               "DIR/bundle.txt line 4: calibration: threshold 1.5 is outside [0, 1]"});
+  r.push_back({"bundle.txt", "an area's model damaged (one byte)",
+               bundle_with({},
+                           [](AreaBundle& b) {
+                             const fs::path path = b.index_path().parent_path() / "area-0.lbm";
+                             std::string image = read_bytes(path);
+                             image[image.size() / 2] ^= 0x10;
+                             write_bytes(path, image);
+                             b.model(0);
+                           }),
+               "DIR: area 0 (area-0.lbm): CRC-32 mismatch with the bundle index (a different or damaged file)"});
+  r.push_back({"bundle.txt", "areas of two descriptor lengths",
+               bundle_with({},
+                           [](AreaBundle& b) {
+                             b.model(0);
+                             b.model(1);
+                           },
+                           {good_model_data(),
+                            [] {
+                              ModelData d = good_model_data();
+                              d.descriptor_bytes = 2 * test::kCodeDescriptorBytes;
+                              std::vector<uint8_t> words(4 * static_cast<size_t>(d.descriptor_bytes), 0x5a);
+                              for (size_t i = 0; i < words.size(); ++i) words[i] = static_cast<uint8_t>(i * 37);
+                              d.vocabulary = Vocabulary(d.descriptor_bytes, words);
+                              return d;
+                            }()}),
+               "DIR: area 1 (area-1.lbm): 16-byte descriptors, the bundle's areas loaded before have 8"});
   // gravity.txt
   r.push_back({"gravity.txt", "3 fields", gravity_with("im1.png 0 1\n"),
                "DIR/gravity.txt line 1: expected 4 fields (IMAGE_NAME GX GY GZ), got 3"});
