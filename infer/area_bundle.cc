@@ -345,6 +345,59 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
   std::vector<std::vector<Eigen::Vector3d>> candidates(keypoints.size());
   std::vector<LocalizeResult> posed;  // per scored area: its result when it has a pose
   std::vector<size_t> posed_index;    // per scored area: index into posed, or SIZE_MAX
+  std::vector<Eigen::Vector2d> pixels(keypoints.size());
+  for (size_t k = 0; k < keypoints.size(); ++k) pixels[k] = Eigen::Vector2d(keypoints[k].x, keypoints[k].y);
+  const bool calibrated = bundle.calibrated();
+  const double threshold = !calibrated                     ? -1.0
+                           : options.min_confidence >= 0.0 ? options.min_confidence
+                                                           : bundle.calibration().threshold;
+  // The verdict over the areas scored so far: each pose's support over their matches, the winner
+  // (`forced`: that scored index, else by the winner rule), its rival and the bundle's evidence and
+  // confidence (-1 without a calibration).
+  struct Verdict {
+    size_t best = SIZE_MAX;
+    std::vector<int32_t> support;  // per scored area
+    int32_t rival = 0;
+    PoseEvidence evidence;
+    double confidence = -1.0;
+  };
+  const auto judge = [&](size_t forced) {
+    Verdict v;
+    std::vector<Rigid3d> poses;
+    for (const LocalizeResult& r : posed) poses.push_back(r.pose.cam_from_world);
+    const std::vector<int> support =
+        count_explained_keypoints(camera, pixels, candidates, poses, options.pose.max_reprojection_error_px);
+    v.support.assign(out.scored.size(), 0);
+    for (size_t i = 0; i < out.scored.size(); ++i) {
+      if (posed_index[i] == SIZE_MAX) continue;
+      v.support[i] = support[posed_index[i]];
+      const auto key = [&](size_t j) {
+        const int32_t rule = winner == AreaWinner::kSupport ? v.support[j] : 0;
+        return std::make_tuple(rule, out.inliers[j], -out.scored[j]);
+      };
+      if (v.best == SIZE_MAX || key(i) > key(v.best)) v.best = i;
+    }
+    if (forced != SIZE_MAX) v.best = forced;
+    if (v.best == SIZE_MAX) return v;
+    const Rigid3d winner_pose = poses[posed_index[v.best]];
+    const std::vector<int> rival = count_explained_keypoints(camera, pixels, candidates, poses,
+                                                             options.pose.max_reprojection_error_px, &winner_pose);
+    for (size_t j = 0; j < rival.size(); ++j) {
+      if (j != posed_index[v.best]) v.rival = std::max(v.rival, rival[j]);
+    }
+    PoseEvidence& e = v.evidence;
+    e = posed[posed_index[v.best]].evidence;  // its area's inlier rank and spread
+    e.num_keypoints = static_cast<int>(keypoints.size());
+    e.num_correspondences = static_cast<int>(
+        std::count_if(candidates.begin(), candidates.end(), [](const auto& list) { return !list.empty(); }));
+    e.num_inliers = v.support[v.best];
+    e.runner_up_inliers = v.rival;
+    if (calibrated) v.confidence = bundle.calibration().probability(e);
+    return v;
+  };
+  Verdict verdict;
+  bool verdict_current = false;  // `verdict` is over every area scored
+  size_t forced = SIZE_MAX;      // an area's own calibrated pose stopped the search: it wins
   bool stopped = false;
   for (size_t next = 0; next < selected.size() && !stopped;) {
     const size_t wave = std::min(static_cast<size_t>(threads), selected.size() - next);
@@ -379,55 +432,34 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
       out.scored.push_back(selected[next + i]);
       out.inliers.push_back(r.pose.success ? r.pose.num_inliers : 0);
       add_candidates(*run.model, r, &candidates);
-      stopped = nearest_first && r.calibrated && r.localized;
+      const bool area_stops = !calibrated && nearest_first && r.calibrated && r.localized;
       posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
       if (r.pose.success) posed.push_back(std::move(r));
+      verdict_current = false;
+      if (area_stops) {
+        stopped = true;
+        forced = out.scored.size() - 1;
+      } else if (calibrated && nearest_first) {
+        // A calibrated bundle stops at the first point where its verdict is localized.
+        verdict = judge(SIZE_MAX);
+        verdict_current = true;
+        stopped = verdict.best != SIZE_MAX && verdict.confidence >= threshold;
+      }
     }
     next += wave;
   }
-  // Each pose's support over every scored area's matches; the winner.
-  std::vector<Eigen::Vector2d> pixels(keypoints.size());
-  for (size_t k = 0; k < keypoints.size(); ++k) pixels[k] = Eigen::Vector2d(keypoints[k].x, keypoints[k].y);
-  std::vector<Rigid3d> poses;
-  for (const LocalizeResult& r : posed) poses.push_back(r.pose.cam_from_world);
-  const std::vector<int> support =
-      count_explained_keypoints(camera, pixels, candidates, poses, options.pose.max_reprojection_error_px);
-  size_t best = SIZE_MAX;
-  out.support.assign(out.scored.size(), 0);
-  for (size_t i = 0; i < out.scored.size(); ++i) {
-    if (posed_index[i] == SIZE_MAX) continue;
-    out.support[i] = support[posed_index[i]];
-    if (stopped) continue;  // the last area scored wins
-    const auto key = [&](size_t j) {
-      const int32_t rule = winner == AreaWinner::kSupport ? out.support[j] : 0;
-      return std::make_tuple(rule, out.inliers[j], -out.scored[j]);
-    };
-    if (best == SIZE_MAX || key(i) > key(best)) best = i;
-  }
-  if (stopped) best = out.scored.size() - 1;
-  if (best != SIZE_MAX) {
-    const Rigid3d winner_pose = poses[posed_index[best]];
-    const std::vector<int> rival = count_explained_keypoints(camera, pixels, candidates, poses,
-                                                             options.pose.max_reprojection_error_px, &winner_pose);
-    for (size_t j = 0; j < rival.size(); ++j) {
-      if (j != posed_index[best]) out.rival_support = std::max(out.rival_support, rival[j]);
-    }
-    out.area = out.scored[best];
-    out.result = std::move(posed[posed_index[best]]);
-    // The bundle's evidence for the winning pose.
-    PoseEvidence& e = out.evidence;
-    e = out.result.evidence;  // its area's inlier rank and spread
-    e.num_keypoints = static_cast<int>(keypoints.size());
-    e.num_correspondences = static_cast<int>(
-        std::count_if(candidates.begin(), candidates.end(), [](const auto& list) { return !list.empty(); }));
-    e.num_inliers = out.support[best];
-    e.runner_up_inliers = out.rival_support;
+  if (!verdict_current) verdict = judge(forced);
+  out.support = std::move(verdict.support);
+  if (verdict.best != SIZE_MAX) {
+    out.area = out.scored[verdict.best];
+    out.rival_support = verdict.rival;
+    out.evidence = verdict.evidence;
+    out.result = std::move(posed[posed_index[verdict.best]]);
     out.localized = out.result.localized;
-    if (bundle.calibrated()) {
+    if (calibrated) {
       out.calibrated = true;
-      out.confidence = bundle.calibration().probability(e);
-      out.confidence_threshold =
-          options.min_confidence >= 0.0 ? options.min_confidence : bundle.calibration().threshold;
+      out.confidence = verdict.confidence;
+      out.confidence_threshold = threshold;
       out.localized = out.confidence >= out.confidence_threshold;
     }
   }

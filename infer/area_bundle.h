@@ -172,12 +172,14 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
 // How the areas a prior selects compete.
 enum class AreaSearch : int32_t {
   // The selected areas in the order of their cell's distance from the prior's position (the cell
-  // holding it first; ties: the smaller id); the first area whose model is calibrated and whose
-  // pose is localized (its confidence reaches the operating point) wins and the rest are not
-  // scored. An uncalibrated model's pose never stops the search (its inlier count alone is not
-  // trusted: wrong poses with dozens of inliers are common where areas cut a view). When no area
-  // stops it, every selected area has been scored and the rule of kAll decides. Without a
-  // prior: kAll.
+  // holding it first; ties: the smaller id). With a calibrated bundle (AreaBundle::calibrated),
+  // the search stops as soon as the bundle's verdict over the areas scored so far is localized
+  // (the winner by AreaWinner, its confidence at the operating point) and the rest are not scored.
+  // Without one, the first area whose model is calibrated and whose pose is localized (its
+  // confidence reaches the operating point) wins and the rest are not scored; an uncalibrated
+  // model's pose never stops the search (its inlier count alone is not trusted: wrong poses with
+  // dozens of inliers are common where areas cut a view). When nothing stops it, every selected
+  // area has been scored and the rule of kAll decides. Without a prior: kAll.
   kNearestFirst = 0,
   // Every selected area is scored; AreaWinner decides.
   kAll = 1,

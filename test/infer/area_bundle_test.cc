@@ -596,6 +596,32 @@ TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
       }
     }
   }
+  // A calibrated bundle stops nearest first as soon as its verdict over the areas scored so far is
+  // localized (the areas' own calibrations no longer stop it): accepting every pose, after the
+  // nearest area; accepting none, never. The same for any thread count.
+  for (double bias : {50.0, -50.0}) {
+    PoseCalibration c;
+    c.bias = bias;
+    c.threshold = 0.5;
+    write_bundle_index(dir_ / "five_cal.txt", 1.0, areas, &c);
+    for (int threads : {1, 3}) {
+      const auto calibrated = AreaBundle::open(dir_ / "five_cal.txt");
+      const BundleLocalizeResult r =
+          localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior, {},
+                             AreaSearch::kNearestFirst, AreaWinner::kSupport, threads);
+      if (bias > 0) {
+        EXPECT_EQ(r.scored, std::vector<int32_t>{0}) << threads;
+        EXPECT_EQ(r.area, 0);
+        EXPECT_TRUE(r.localized);
+      } else {
+        EXPECT_EQ(r.scored, (std::vector<int32_t>{0, 1, 2, 4})) << threads;  // area 3 is damaged
+        EXPECT_FALSE(r.localized);
+        EXPECT_EQ(r.area, localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
+                                             &prior, {}, AreaSearch::kAll)
+                              .area);
+      }
+    }
+  }
   const auto bundle = AreaBundle::open(dir_ / "five.txt");
   for (int bad : {0, -1, 257}) {
     EXPECT_THROW(localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
