@@ -17,10 +17,11 @@
 //
 // Localizing with a prior (position within `radius` metres): the areas whose cell lies within
 // radius + reach of the position are candidates, each localized with its own model, nearest first;
-// the first whose calibrated confidence reaches its operating point wins and the others are not
-// scored (AreaSearch). When none does, or without a prior (every area, in id order), the areas'
-// poses compete (AreaWinner): by default the pose that explains most of the frame's keypoints with
-// the matches of EVERY scored area wins, not the one with most inliers among its own area's
+// the search stops as soon as the bundle's calibrated verdict over the areas scored so far is
+// localized (a calibrated bundle), or at the first area whose own calibrated confidence reaches
+// its operating point (an uncalibrated one), and the others are not scored (AreaSearch). When none does, or without a
+// prior (every area, in id order), the areas' poses compete (AreaWinner): by default the pose that explains most of the
+// frame's keypoints with the matches of EVERY scored area wins, not the one with most inliers among its own area's
 // matches (in an aliased place an area that does not hold the frame's landmarks matches their
 // look-alikes and gives a wrong pose with more inliers than the right one; docs/areas.md).
 //
