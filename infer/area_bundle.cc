@@ -534,6 +534,9 @@ BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::
 
 BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,
                                             const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) {
+  // A pose to track from: with a calibrated bundle one it reports localized (a wrong pose must not
+  // become the next prior), else any winning pose.
+  const auto trusted = [](const BundleLocalizeResult& x) { return x.calibrated ? x.localized : x.area >= 0; };
   BundleLocalizeResult r;
   bool done = false;
   if (last_position_) {
@@ -541,7 +544,7 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
     prior.position = *last_position_;
     prior.radius = options_.tracking_radius;
     r = localize(camera, keypoints, descriptors, gravity_in_cam, &prior);
-    done = r.area >= 0 || !options_.relocalize_without_prior;
+    done = trusted(r) || !options_.relocalize_without_prior;
   }
   if (!done) {
     const double ms = r.total_ms;
@@ -556,7 +559,7 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
     }
     r.errors = std::move(errors);
   }
-  if (r.area >= 0) last_position_ = r.result.pose.cam_from_world.center();
+  if (trusted(r)) last_position_ = r.result.pose.cam_from_world.center();
   return r;
 }
 

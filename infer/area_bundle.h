@@ -249,7 +249,9 @@ class LMB_INFER_EXPORT BundleLocalizer {
   // Tracking mode: the prior is the last successful track()'s camera centre within
   // options.tracking_radius; without one (first frame, after reset_tracking()), or when those
   // areas give no pose and relocalize_without_prior is set, every area is scored
-  // (result.prior_used false). A successful pose becomes the next frame's prior.
+  // (result.prior_used false). A successful pose becomes the next frame's prior. With a
+  // calibrated bundle "successful" is `localized` (a pose it does not trust neither ends the
+  // tracking attempt nor becomes the next prior); without one, any winning pose.
   BundleLocalizeResult track(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                              const Eigen::Vector3d& gravity_in_cam);
   void reset_tracking() { last_position_.reset(); }

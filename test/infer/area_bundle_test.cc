@@ -694,6 +694,27 @@ TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne
   EXPECT_EQ(c.area, -1);
   EXPECT_TRUE(c.scored.empty());
   EXPECT_TRUE(strict.last_position().has_value());
+  // A calibrated bundle tracks from the poses it reports localized only: one that trusts no pose
+  // relocalizes every frame and keeps no last pose; one that trusts every pose tracks.
+  options.relocalize_without_prior = true;
+  for (double bias : {-50.0, 50.0}) {
+    const fs::path folder = dir_ / (bias > 0 ? "trusting" : "distrusting");
+    fs::create_directories(folder);
+    PoseCalibration constant;
+    constant.bias = bias;
+    constant.threshold = 0.5;
+    write_bundle_index(folder / "bundle.txt", 1.0,
+                       {add(far_model, 0, 25.0, kInf, folder), add(*model, 1, -kInf, 25.0, folder)}, &constant);
+    BundleLocalizer calibrated(AreaBundle::open(folder / "bundle.txt"), options);
+    const BundleLocalizeResult one = calibrated.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+    const BundleLocalizeResult two = calibrated.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+    EXPECT_EQ(one.area, 1) << bias;
+    EXPECT_EQ(two.area, 1) << bias;
+    EXPECT_EQ(two.localized, bias > 0);
+    EXPECT_FALSE(one.prior_used) << bias;
+    EXPECT_EQ(two.prior_used, bias > 0);
+    EXPECT_EQ(calibrated.last_position().has_value(), bias > 0);
+  }
   options.tracking_radius = -1.0;
   EXPECT_THROW(BundleLocalizer(AreaBundle::open(dir_ / "two.txt"), options), Error);
   EXPECT_THROW(BundleLocalizer(nullptr), Error);
