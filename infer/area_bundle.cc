@@ -293,6 +293,17 @@ int32_t AreaBundle::descriptor_bytes() const {
   return descriptor_bytes_;
 }
 
+int32_t AreaBundle::descriptor_bytes(const std::vector<int32_t>& ids) {
+  for (size_t i = 0; descriptor_bytes() < 0 && i < ids.size(); ++i) {
+    try {
+      model(ids[i]);
+    } catch (const Error&) {
+      // A missing or damaged area: the next one may tell.
+    }
+  }
+  return descriptor_bytes();
+}
+
 bool AreaBundle::loaded(int32_t id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   return id >= 0 && static_cast<size_t>(id) < models_.size() && models_[static_cast<size_t>(id)] != nullptr;
@@ -307,8 +318,6 @@ void AreaBundle::release_except(const std::vector<int32_t>& keep) {
 
 namespace {
 
-// The areas `selected` localize the frame in this order; nearest_first: the first calibrated
-// localized pose stops the search. `start`: when the call began (total_ms).
 // One area's localization of the frame, or why its model could not be loaded.
 struct AreaRun {
   std::shared_ptr<const Model> model;  // null when it could not be loaded
@@ -318,9 +327,9 @@ struct AreaRun {
 };
 
 // The areas `selected` localize the frame in this order, `threads` at a time (waves of that many,
-// each area on its own thread); nearest_first: the first calibrated localized pose stops the
-// search, and the areas after it in its wave are dropped, so that the result is the one-thread
-// result whatever the thread count. `start`: when the call began (total_ms).
+// each area on its own thread); nearest_first: the search stops as AreaSearch::kNearestFirst says,
+// and the areas after the stopping one in its wave are dropped, so that the result is the
+// one-thread result whatever the thread count. `start`: when the call began (total_ms).
 BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int32_t>& selected, bool nearest_first,
                                        const Camera& camera, const std::vector<Keypoint>& keypoints,
                                        const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
@@ -347,6 +356,7 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
   std::vector<size_t> posed_index;    // per scored area: index into posed, or SIZE_MAX
   std::vector<Eigen::Vector2d> pixels(keypoints.size());
   for (size_t k = 0; k < keypoints.size(); ++k) pixels[k] = Eigen::Vector2d(keypoints[k].x, keypoints[k].y);
+  const std::vector<Eigen::Vector3d> bearings = keypoint_bearings(camera, pixels);  // once: judged per area
   const bool calibrated = bundle.calibrated();
   const double threshold = !calibrated                     ? -1.0
                            : options.min_confidence >= 0.0 ? options.min_confidence
@@ -366,7 +376,7 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
     std::vector<Rigid3d> poses;
     for (const LocalizeResult& r : posed) poses.push_back(r.pose.cam_from_world);
     const std::vector<int> support =
-        count_explained_keypoints(camera, pixels, candidates, poses, options.pose.max_reprojection_error_px);
+        count_explained_keypoints(camera, bearings, candidates, poses, options.pose.max_reprojection_error_px);
     v.support.assign(out.scored.size(), 0);
     for (size_t i = 0; i < out.scored.size(); ++i) {
       if (posed_index[i] == SIZE_MAX) continue;
@@ -380,7 +390,7 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
     if (forced != SIZE_MAX) v.best = forced;
     if (v.best == SIZE_MAX) return v;
     const Rigid3d winner_pose = poses[posed_index[v.best]];
-    const std::vector<int> rival = count_explained_keypoints(camera, pixels, candidates, poses,
+    const std::vector<int> rival = count_explained_keypoints(camera, bearings, candidates, poses,
                                                              options.pose.max_reprojection_error_px, &winner_pose);
     for (size_t j = 0; j < rival.size(); ++j) {
       if (j != posed_index[v.best]) v.rival = std::max(v.rival, rival[j]);
@@ -407,7 +417,7 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
     } else {
       std::vector<std::exception_ptr> failures(wave);
       std::vector<std::thread> workers;
-      for (size_t i = 0; i < wave && !stopped; ++i) {
+      for (size_t i = 0; i < wave; ++i) {
         workers.emplace_back([&, i] {
           try {
             run_area(selected[next + i], &runs[i]);

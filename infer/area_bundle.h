@@ -121,6 +121,9 @@ class LMB_INFER_EXPORT AreaBundle {
   // The descriptor length of the areas (-1 until one has loaded). Every area must have the first
   // loaded area's: one with another fails to load, naming both lengths.
   int32_t descriptor_bytes() const;
+  // The same, first loading the first of `ids` that loads when no area has loaded yet (-1 when
+  // none does: then none of them can be scored and a frame's descriptors are not read).
+  int32_t descriptor_bytes(const std::vector<int32_t>& ids);
 
  private:
   void evict_locked(int32_t keep);  // mutex_ held

@@ -1,7 +1,6 @@
 #include "infer/c_api.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
@@ -25,7 +24,6 @@ struct lmb_model {
 struct lmb_bundle {
   std::shared_ptr<lmb::AreaBundle> bundle;
   std::unique_ptr<lmb::BundleLocalizer> tracker;  // lmb_bundle_track's state
-  std::atomic<int> descriptor_bytes{-1};          // of the first area loaded (-1: none yet)
 };
 
 namespace {
@@ -282,31 +280,18 @@ lmb_status bundle_call(const char* fn, lmb_bundle* bundle, const lmb_camera* cam
   if (camera->num_params < 0 || (camera->num_params > 0 && camera->params == nullptr)) {
     return fail(LMB_ERROR_INVALID_ARGUMENT, std::string(fn) + ": camera params NULL or num_params < 0");
   }
-  if (bundle->descriptor_bytes >= 0 && descriptor_bytes != bundle->descriptor_bytes) {
-    return fail(LMB_ERROR_INVALID_ARGUMENT, std::string(fn) + ": descriptors have " + std::to_string(descriptor_bytes) +
-                                                " bytes, the bundle's models expect " +
-                                                std::to_string(bundle->descriptor_bytes));
-  }
   return guarded(LMB_ERROR_INVALID_ARGUMENT, fn, [&] {
     BundleFrame frame;
     frame.camera = to_camera(*camera);
     frame.camera.check("camera");
     frame.keypoints = to_keypoints(keypoints, n);
     frame.gravity = Eigen::Vector3d(gravity_in_cam[0], gravity_in_cam[1], gravity_in_cam[2]);
-    if (bundle->descriptor_bytes < 0) {
-      // The first area that loads tells the descriptor length (every area shares the vocabulary).
-      for (int32_t id = 0; id < static_cast<int32_t>(bundle->bundle->areas().size()); ++id) {
-        try {
-          bundle->descriptor_bytes = bundle->bundle->model(id)->descriptor_bytes();
-          break;
-        } catch (const lmb::Error&) {
-        }
-      }
-      if (bundle->descriptor_bytes >= 0 && descriptor_bytes != bundle->descriptor_bytes) {
-        return fail(LMB_ERROR_INVALID_ARGUMENT,
-                    std::string(fn) + ": descriptors have " + std::to_string(descriptor_bytes) +
-                        " bytes, the bundle's models expect " + std::to_string(bundle->descriptor_bytes));
-      }
+    // The first area that loads tells the descriptor length (the bundle holds every area to it).
+    const int32_t expected = bundle->bundle->descriptor_bytes(bundle->bundle->select(nullptr));
+    if (expected >= 0 && descriptor_bytes != expected) {
+      return fail(LMB_ERROR_INVALID_ARGUMENT, std::string(fn) + ": descriptors have " +
+                                                  std::to_string(descriptor_bytes) +
+                                                  " bytes, the bundle's models expect " + std::to_string(expected));
     }
     const lmb::BundleLocalizeResult r = localize(frame);
     if (r.scored.empty() && !r.errors.empty()) {

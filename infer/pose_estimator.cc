@@ -285,10 +285,8 @@ PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen:
   // takes no part), in sampling order: decreasing quality, ties in input order.
   std::vector<int> order;
   order.reserve(n);
-  std::vector<Eigen::Vector3d> all_bearings(n);
+  const std::vector<Eigen::Vector3d> all_bearings = keypoint_bearings(camera, pixels);
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d normalized = camera.cam_from_img(pixels[i]);
-    all_bearings[i] = Eigen::Vector3d(normalized.x(), normalized.y(), 1.0).normalized();
     if (all_bearings[i].allFinite()) order.push_back(static_cast<int>(i));
   }
   const bool progressive = options.progressive_sampling && !quality.empty();
@@ -343,12 +341,31 @@ PoseResult estimate_absolute_pose(const Camera& camera, const std::vector<Eigen:
   return result;
 }
 
+std::vector<Eigen::Vector3d> keypoint_bearings(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels) {
+  std::vector<Eigen::Vector3d> bearings(pixels.size());
+  for (size_t k = 0; k < pixels.size(); ++k) {
+    const Eigen::Vector2d normalized = camera.cam_from_img(pixels[k]);
+    bearings[k] = Eigen::Vector3d(normalized.x(), normalized.y(), 1.0).normalized();
+  }
+  return bearings;
+}
+
 std::vector<int> count_explained_keypoints(const Camera& camera, const std::vector<Eigen::Vector2d>& pixels,
                                            const std::vector<std::vector<Eigen::Vector3d>>& points,
                                            const std::vector<Rigid3d>& cam_from_world, double max_reprojection_error_px,
                                            const Rigid3d* unless_explained_by) {
   LMB_CHECK(points.size() == pixels.size(),
             "count_explained_keypoints: " << points.size() << " point lists for " << pixels.size() << " pixels");
+  return count_explained_keypoints(camera, keypoint_bearings(camera, pixels), points, cam_from_world,
+                                   max_reprojection_error_px, unless_explained_by);
+}
+
+std::vector<int> count_explained_keypoints(const Camera& camera, const std::vector<Eigen::Vector3d>& all_bearings,
+                                           const std::vector<std::vector<Eigen::Vector3d>>& points,
+                                           const std::vector<Rigid3d>& cam_from_world, double max_reprojection_error_px,
+                                           const Rigid3d* unless_explained_by) {
+  LMB_CHECK(points.size() == all_bearings.size(), "count_explained_keypoints: " << points.size() << " point lists for "
+                                                                                << all_bearings.size() << " bearings");
   LMB_CHECK(std::isfinite(max_reprojection_error_px) && max_reprojection_error_px > 0.0,
             "count_explained_keypoints: max_reprojection_error_px = " << max_reprojection_error_px
                                                                       << " must be finite and > 0");
@@ -358,13 +375,10 @@ std::vector<int> count_explained_keypoints(const Camera& camera, const std::vect
   // The keypoints with candidates and a bearing.
   std::vector<size_t> keypoints;
   std::vector<Eigen::Vector3d> bearings;
-  for (size_t k = 0; k < pixels.size(); ++k) {
-    if (points[k].empty()) continue;
-    const Eigen::Vector2d normalized = camera.cam_from_img(pixels[k]);
-    const Eigen::Vector3d bearing = Eigen::Vector3d(normalized.x(), normalized.y(), 1.0).normalized();
-    if (!bearing.allFinite()) continue;
+  for (size_t k = 0; k < all_bearings.size(); ++k) {
+    if (points[k].empty() || !all_bearings[k].allFinite()) continue;
     keypoints.push_back(k);
-    bearings.push_back(bearing);
+    bearings.push_back(all_bearings[k]);
   }
   const auto passes = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const Eigen::Vector3d& p,
                           const Eigen::Vector3d& bearing) {

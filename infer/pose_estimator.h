@@ -112,5 +112,17 @@ LMB_INFER_EXPORT std::vector<int> count_explained_keypoints(const Camera& camera
                                                             const std::vector<Rigid3d>& cam_from_world,
                                                             double max_reprojection_error_px,
                                                             const Rigid3d* unless_explained_by = nullptr);
+// The same from the keypoints' bearings (keypoint_bearings: each pixel through Camera::cam_from_img,
+// as a unit vector; a non-finite one counts for nothing), for a caller counting many times a frame.
+LMB_INFER_EXPORT std::vector<int> count_explained_keypoints(const Camera& camera,
+                                                            const std::vector<Eigen::Vector3d>& bearings,
+                                                            const std::vector<std::vector<Eigen::Vector3d>>& points,
+                                                            const std::vector<Rigid3d>& cam_from_world,
+                                                            double max_reprojection_error_px,
+                                                            const Rigid3d* unless_explained_by = nullptr);
+// The unit bearing of each pixel (camera.cam_from_img, normalized; non-finite where it does not
+// undistort), as the estimator computes it.
+LMB_INFER_EXPORT std::vector<Eigen::Vector3d> keypoint_bearings(const Camera& camera,
+                                                                const std::vector<Eigen::Vector2d>& pixels);
 
 }  // namespace lmb

@@ -188,18 +188,6 @@ std::optional<PositionPrior> prior_from(const py::object& prior) {
   return p;
 }
 
-// The bundle's descriptor length: known once an area has loaded, else the first of `ids` that
-// loads tells it (-1 when none does: then no area is scored and the frame's descriptors are not read).
-int bundle_descriptor_bytes(AreaBundle& bundle, const std::vector<int32_t>& ids) {
-  for (size_t i = 0; bundle.descriptor_bytes() < 0 && i < ids.size(); ++i) {
-    try {
-      bundle.model(ids[i]);
-    } catch (const Error&) {
-    }
-  }
-  return bundle.descriptor_bytes();
-}
-
 // The frame of a bundle call: keypoints and descriptors checked against the bundle's length.
 struct BundleFrameArgs {
   std::vector<Keypoint> keypoints;
@@ -211,7 +199,7 @@ BundleFrameArgs bundle_frame(AreaBundle& bundle, const std::vector<int32_t>& ids
                              const py::array& descriptors) {
   BundleFrameArgs f;
   f.keypoints = keypoints_from(keypoints);
-  int bytes = bundle_descriptor_bytes(bundle, ids);
+  int bytes = bundle.descriptor_bytes(ids);
   if (bytes < 0) bytes = descriptors.ndim() == 2 ? static_cast<int>(descriptors.shape(1)) : 0;
   f.descriptors = descriptors_from(descriptors, f.keypoints.size(), bytes);
   return f;
@@ -624,8 +612,9 @@ damaged area fails alone; the others still load.)")
       .def_property_readonly("loads", &AreaBundle::loads, "Reads of area models from their files.")
       .def_property_readonly("calibrated", &AreaBundle::calibrated,
                              "Whether the index holds the bundle's pose calibration (lboost bundle --map).")
-      .def_property_readonly("descriptor_bytes", &AreaBundle::descriptor_bytes,
-                             "The areas' descriptor length (-1 until an area has loaded).")
+      .def_property_readonly(
+          "descriptor_bytes", [](const AreaBundle& b) { return b.descriptor_bytes(); },
+          "The areas' descriptor length (-1 until an area has loaded).")
       .def("__repr__", [](const AreaBundle& b) {
         return "<landmarkboost.AreaBundle: " + std::to_string(b.areas().size()) + " areas, " +
                std::to_string(b.loaded_ids().size()) + " loaded, " + b.index_path().string() + ">";

@@ -65,9 +65,9 @@ struct Outcome {
   int32_t selected = 0, loaded = 0;
   // The areas scored, in order, their poses' inliers and support (BundleLocalizeResult).
   std::vector<int32_t> scored, scored_inliers, scored_support;
-  int32_t support = 0, rival_support = 0;  // the winner's support and its rival's
-  bool localized = false;                  // the answer to act on (BundleLocalizeResult::localized)
-  double confidence = -1.0;                // the calibrated confidence (-1: uncalibrated)
+  int32_t rival_support = 0;  // the winner's rival (BundleLocalizeResult)
+  bool localized = false;     // the answer to act on (BundleLocalizeResult::localized)
+  double confidence = -1.0;   // the calibrated confidence (-1: uncalibrated)
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -174,9 +174,6 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.selected = r.selected;
     o.scored = std::move(r.scored);
     o.scored_inliers = std::move(r.inliers);
-    for (size_t i = 0; i < o.scored.size(); ++i) {
-      if (o.scored[i] == r.area) o.support = r.support[i];
-    }
     o.rival_support = r.rival_support;
     o.localized = r.localized;
     o.confidence = r.confidence;
@@ -200,7 +197,8 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
     jf["scored"] = o.scored;
     jf["scored_inliers"] = o.scored_inliers;
     jf["scored_support"] = o.scored_support;
-    jf["support"] = o.support;
+    const auto winner = std::find(o.scored.begin(), o.scored.end(), o.area);
+    jf["support"] = winner == o.scored.end() ? 0 : o.scored_support[static_cast<size_t>(winner - o.scored.begin())];
     jf["rival_support"] = o.rival_support;
     jf["areas_loaded"] = o.loaded;
     if (!o.errors.empty()) jf["errors"] = o.errors;
