@@ -169,6 +169,7 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
   LMB_CHECK(!in.next(), in.where() << ": unexpected line after the last area");
   bundle->models_.resize(bundle->areas_.size());
   bundle->last_use_.assign(bundle->areas_.size(), 0);
+  bundle->view_samples_.resize(bundle->areas_.size());
   return bundle;
 }
 
@@ -218,6 +219,15 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
   descriptor_bytes_ = model->descriptor_bytes();
   const size_t i = static_cast<size_t>(id);
   last_use_[i] = ++use_clock_;
+  if (!view_samples_[i]) {
+    // Every landmark up to kViewSample, else an even stride over the classes (deterministic).
+    auto sample = std::make_shared<std::vector<Eigen::Vector3d>>();
+    const size_t n = static_cast<size_t>(model->num_classes());
+    const size_t count = std::min(n, kViewSample);
+    sample->reserve(count);
+    for (size_t k = 0; k < count; ++k) sample->push_back(model->class_position(static_cast<int32_t>(k * n / count)));
+    view_samples_[i] = std::move(sample);
+  }
   if (!models_[i]) {
     models_[i] = std::move(model);
     ++loads_;
@@ -288,6 +298,27 @@ int64_t AreaBundle::loads() const {
   return loads_;
 }
 
+int32_t AreaBundle::visible_landmarks(int32_t id, const Camera& camera, const Rigid3d& cam_from_world) {
+  std::shared_ptr<const std::vector<Eigen::Vector3d>> sample;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (id >= 0 && static_cast<size_t>(id) < view_samples_.size()) sample = view_samples_[static_cast<size_t>(id)];
+  }
+  if (!sample) {
+    model(id);  // loads it (or throws naming it)
+    std::lock_guard<std::mutex> lock(mutex_);
+    sample = view_samples_[static_cast<size_t>(id)];
+  }
+  int32_t visible = 0;
+  for (const Eigen::Vector3d& p : *sample) {
+    const Eigen::Vector3d in_cam = cam_from_world * p;
+    Eigen::Vector2d px;
+    if (in_cam.z() <= 0.0 || (reach_ > 0.0 && in_cam.norm() > reach_) || !camera.project(in_cam, &px)) continue;
+    visible += px.x() >= 0.0 && px.y() >= 0.0 && px.x() < camera.width && px.y() < camera.height;
+  }
+  return visible;
+}
+
 int32_t AreaBundle::descriptor_bytes() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return descriptor_bytes_;
@@ -329,12 +360,15 @@ struct AreaRun {
 // The areas `selected` localize the frame in this order, `threads` at a time (waves of that many,
 // each area on its own thread); nearest_first: the search stops as AreaSearch::kNearestFirst says,
 // and the areas after the stopping one in its wave are dropped, so that the result is the
-// one-thread result whatever the thread count. `start`: when the call began (total_ms).
+// one-thread result whatever the thread count. `gate` (track()): once `gate_areas` areas are scored,
+// the search also stops where the verdict's winner lies within the gate, and an area's own
+// calibration no longer stops it; result.tracked: the winner lies within the gate, however the
+// search ended. `start`: when the call began (total_ms).
 BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int32_t>& selected, bool nearest_first,
-                                       const Camera& camera, const std::vector<Keypoint>& keypoints,
-                                       const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
-                                       const LocalizerOptions& options, AreaWinner winner, int threads,
-                                       std::chrono::steady_clock::time_point start) {
+                                       const PositionPrior* gate, int gate_areas, const Camera& camera,
+                                       const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                                       const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions& options,
+                                       AreaWinner winner, int threads, std::chrono::steady_clock::time_point start) {
   using Clock = std::chrono::steady_clock;
   BundleLocalizeResult out;
   out.selected = static_cast<int32_t>(selected.size());
@@ -405,6 +439,12 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
     if (calibrated) v.confidence = bundle.calibration().probability(e);
     return v;
   };
+  // Whether the verdict's winner passes the gate: its pose lies within it and explains more
+  // keypoints than its rival (a look-alike pose as strong as another is no track to follow).
+  const auto passes_gate = [&](const Verdict& v) {
+    return gate != nullptr && v.best != SIZE_MAX && posed_index[v.best] != SIZE_MAX && v.support[v.best] > v.rival &&
+           (posed[posed_index[v.best]].pose.cam_from_world.center() - gate->position).norm() <= gate->radius;
+  };
   Verdict verdict;
   bool verdict_current = false;  // `verdict` is over every area scored
   size_t forced = SIZE_MAX;      // an area's own calibrated pose stopped the search: it wins
@@ -446,19 +486,26 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
       posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
       if (r.pose.success) posed.push_back(std::move(r));
       verdict_current = false;
-      if (area_stops) {
+      // With a gate, the gate and the bundle's calibration decide, not an area's own calibration.
+      // (Fewer areas than gate_areas selected: the gate opens once all are scored.)
+      const bool gate_open =
+          gate != nullptr && out.scored.size() >= std::min(static_cast<size_t>(gate_areas), selected.size());
+      if (area_stops && gate == nullptr) {
         stopped = true;
         forced = out.scored.size() - 1;
-      } else if (calibrated && nearest_first) {
-        // A calibrated bundle stops at the first point where its verdict is localized.
+      } else if ((calibrated && nearest_first) || gate_open) {
+        // A calibrated bundle stops at the first point where its verdict is localized; the motion
+        // gate where the verdict's winner lies within it.
         verdict = judge(SIZE_MAX);
         verdict_current = true;
-        stopped = verdict.best != SIZE_MAX && verdict.confidence >= threshold;
+        stopped = (gate_open && passes_gate(verdict)) ||
+                  (calibrated && nearest_first && verdict.best != SIZE_MAX && verdict.confidence >= threshold);
       }
     }
     next += wave;
   }
   if (!verdict_current) verdict = judge(forced);
+  out.tracked = passes_gate(verdict);  // however the search ended
   out.support = std::move(verdict.support);
   if (verdict.best != SIZE_MAX) {
     out.area = out.scored[verdict.best];
@@ -496,8 +543,8 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
       return areas[a].distance(prior->position) < areas[b].distance(prior->position);
     });
   }
-  BundleLocalizeResult out = localize_selected(bundle, selected, nearest_first, camera, keypoints, descriptors,
-                                               gravity_in_cam, options, winner, area_threads, start);
+  BundleLocalizeResult out = localize_selected(bundle, selected, nearest_first, nullptr, 1, camera, keypoints,
+                                               descriptors, gravity_in_cam, options, winner, area_threads, start);
   out.prior_used = prior != nullptr;
   return out;
 }
@@ -517,8 +564,8 @@ BundleLocalizeResult localize_in_areas(AreaBundle& bundle, const std::vector<int
                   ids.begin() + static_cast<std::ptrdiff_t>(i),
               "localize_in_areas: area " << ids[i] << " is listed twice");
   }
-  return localize_selected(bundle, ids, false, camera, keypoints, descriptors, gravity_in_cam, options, winner,
-                           area_threads, start);
+  return localize_selected(bundle, ids, false, nullptr, 1, camera, keypoints, descriptors, gravity_in_cam, options,
+                           winner, area_threads, start);
 }
 
 void BundleLocalizerOptions::check() const {
@@ -527,6 +574,8 @@ void BundleLocalizerOptions::check() const {
             "bundle localizer options: tracking_radius = " << tracking_radius << " must be finite and >= 0");
   check_area_search(search, winner, "bundle localizer options");
   check_area_threads(area_threads, "bundle localizer options");
+  LMB_CHECK(tracking_areas >= 1 && tracking_areas <= 256,
+            "bundle localizer options: tracking_areas = " << tracking_areas << " must be in 1..256");
 }
 
 BundleLocalizer::BundleLocalizer(std::shared_ptr<AreaBundle> bundle, const BundleLocalizerOptions& options)
@@ -544,33 +593,77 @@ BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::
 
 BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,
                                             const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) {
-  // A pose to track from: with a calibrated bundle one it reports localized (a wrong pose must not
-  // become the next prior), else any winning pose.
+  const auto start = std::chrono::steady_clock::now();
+  // A pose to track from: one within the motion gate of the last tracked pose, or with a calibrated
+  // bundle one it reports localized (a wrong pose must not become the next prior), else any winning pose.
   const auto trusted = [](const BundleLocalizeResult& x) { return x.calibrated ? x.localized : x.area >= 0; };
   BundleLocalizeResult r;
   bool done = false;
+  PositionPrior prior;  // with a last position: the tracked areas' prior and the motion gate
   if (last_position_) {
-    PositionPrior prior;
     prior.position = *last_position_;
-    prior.radius = options_.tracking_radius;
-    r = localize(camera, keypoints, descriptors, gravity_in_cam, &prior);
-    done = trusted(r) || !options_.relocalize_without_prior;
+    // The camera moves at most tracking_radius a frame: after frames without a tracked pose, further.
+    prior.radius = options_.tracking_radius * static_cast<double>(1 + frames_since_pose_);
+    const bool nearest_first = options_.search == AreaSearch::kNearestFirst;
+    std::vector<int32_t> selected = bundle_->select(&prior);
+    const int64_t loads_before = bundle_->loads();
+    if (nearest_first) {
+      // The areas that see most of the last pose's view first (by a sample of their landmarks), then
+      // the nearest, then the smaller id. An area that cannot load counts 0 (scoring reports it).
+      std::vector<std::tuple<int32_t, double, int32_t>> order;
+      for (int32_t id : selected) {
+        int32_t visible = 0;
+        if (last_pose_) {
+          try {
+            visible = bundle_->visible_landmarks(id, camera, *last_pose_);
+          } catch (const Error&) {
+            visible = 0;
+          }
+        }
+        order.emplace_back(-visible, bundle_->areas()[static_cast<size_t>(id)].distance(prior.position), id);
+      }
+      std::sort(order.begin(), order.end());
+      for (size_t i = 0; i < order.size(); ++i) selected[i] = std::get<2>(order[i]);
+    }
+    const int32_t ranked_loads = static_cast<int32_t>(bundle_->loads() - loads_before);
+    r = localize_selected(*bundle_, selected, nearest_first, nearest_first ? &prior : nullptr, options_.tracking_areas,
+                          camera, keypoints, descriptors, gravity_in_cam, options_.localizer, options_.winner,
+                          options_.area_threads, start);
+    r.loaded += ranked_loads;
+    r.prior_used = true;
+    done = r.tracked || trusted(r) || !options_.relocalize_without_prior;
   }
   if (!done) {
-    const double ms = r.total_ms;
     const int32_t loaded = r.loaded;
     std::vector<std::string> errors = std::move(r.errors);
-    r = localize(camera, keypoints, descriptors, gravity_in_cam, nullptr);
+    // Every area; with a last pose, a winner inside its gate is tracked too (judged once all are
+    // scored, so the search does not stop early), e.g. the right pose after a lost frame.
+    const std::vector<int32_t> every = bundle_->select(nullptr);
+    r = last_position_ ? localize_selected(*bundle_, every, false, &prior, static_cast<int>(every.size()), camera,
+                                           keypoints, descriptors, gravity_in_cam, options_.localizer, options_.winner,
+                                           options_.area_threads, start)
+                       : localize(camera, keypoints, descriptors, gravity_in_cam, nullptr);
     // The failed tracking attempt's time and loads count too.
-    r.total_ms += ms;
+    r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     r.loaded += loaded;
     for (std::string& e : r.errors) {
       if (std::find(errors.begin(), errors.end(), e) == errors.end()) errors.push_back(std::move(e));
     }
     r.errors = std::move(errors);
   }
-  if (trusted(r)) last_position_ = r.result.pose.cam_from_world.center();
+  if (r.tracked || trusted(r)) {
+    set_last_pose(r.result.pose.cam_from_world);
+  } else if (last_position_) {
+    ++frames_since_pose_;
+  }
   return r;
+}
+
+void BundleLocalizer::set_last_pose(const std::optional<Rigid3d>& cam_from_world) {
+  last_pose_ = cam_from_world;
+  last_position_.reset();
+  frames_since_pose_ = 0;
+  if (cam_from_world) last_position_ = cam_from_world->center();
 }
 
 }  // namespace lmb

@@ -118,6 +118,14 @@ class LMB_INFER_EXPORT AreaBundle {
   uint64_t loaded_bytes() const;
   // How many times an area's model was read from its file (loads after an eviction count again).
   int64_t loads() const;
+  // How many of area `id`'s landmarks a camera at `cam_from_world` sees: in front of it, within
+  // reach() (when > 0) and inside `camera`'s image. Counted over a fixed sample of at most
+  // kViewSample of the area's landmarks, taken when the area first loads and kept after it is freed
+  // (so ranking areas by view does not keep them in memory); the first call loads the area. Throws
+  // as model().
+  static constexpr size_t kViewSample = 1024;
+  int32_t visible_landmarks(int32_t id, const Camera& camera, const Rigid3d& cam_from_world);
+
   // The descriptor length of the areas (-1 until one has loaded). Every area must have the first
   // loaded area's: one with another fails to load, naming both lengths.
   int32_t descriptor_bytes() const;
@@ -135,6 +143,8 @@ class LMB_INFER_EXPORT AreaBundle {
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<const Model>> models_;  // per area, null until loaded
   std::vector<uint64_t> last_use_;                    // per area: the use clock at its last use
+  // Per area: a sample of its landmark positions (visible_landmarks), empty until it first loads.
+  std::vector<std::shared_ptr<const std::vector<Eigen::Vector3d>>> view_samples_;
   uint64_t use_clock_ = 0;
   int64_t loads_ = 0;
   int32_t descriptor_bytes_ = -1;
@@ -170,7 +180,10 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
   int32_t selected = 0;             // areas the prior selected (every area without one)
   int32_t loaded = 0;               // areas read from their files during this call
   bool prior_used = false;          // a prior restricted the areas (track(): false = relocalized)
-  double total_ms = 0.0;            // the whole call, steady clock (loads included)
+  // track(): the winning pose lies within the motion gate of the last tracked pose
+  // (BundleLocalizer::track). The tracker's own evidence, apart from `localized`.
+  bool tracked = false;
+  double total_ms = 0.0;  // the whole call, steady clock (loads included)
 };
 
 // How the areas a prior selects compete.
@@ -229,8 +242,13 @@ struct LMB_INFER_EXPORT BundleLocalizerOptions {
   // stops the search in its wave of `area_threads` are dropped (their work is wasted).
   int area_threads = 1;
   // track(): the prior is the last tracked camera centre within this many metres (how far the
-  // camera may move between two tracked frames; the bundle's reach is added by the selection).
+  // camera may move between two tracked frames; the bundle's reach is added by the selection), and
+  // the motion gate: the first area whose pose lies this close to the last tracked pose wins.
   double tracking_radius = 1.0;
+  // track(): the motion gate is judged once this many areas are scored (1..256): the pose that wins
+  // among them (AreaWinner) must lie within tracking_radius. More areas cost more time and let the
+  // support rule reject a look-alike pose that happens to lie within the gate.
+  int tracking_areas = 2;
   // track(): without a last pose, or when the prior's areas give none, localize in every area.
   bool relocalize_without_prior = true;
   // Throws lmb::Error naming the field.
@@ -249,20 +267,38 @@ class LMB_INFER_EXPORT BundleLocalizer {
   BundleLocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
                                 const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
                                 const PositionPrior* prior) const;
-  // Tracking mode: the prior is the last successful track()'s camera centre within
-  // options.tracking_radius; without one (first frame, after reset_tracking()), or when those
-  // areas give no pose and relocalize_without_prior is set, every area is scored
-  // (result.prior_used false). A successful pose becomes the next frame's prior. With a
-  // calibrated bundle "successful" is `localized` (a pose it does not trust neither ends the
-  // tracking attempt nor becomes the next prior); without one, any winning pose.
+  // Tracking mode. With a last tracked pose, the areas within options.tracking_radius of its
+  // centre (times 1 + the frames since it was set: the camera moves at most that far a frame; plus
+  // the reach) are scored in the order of how many of their landmarks that pose sees (most first; by
+  // distance when only a position is known). With AreaSearch::kNearestFirst, once tracking_areas
+  // areas are scored the search stops where the winning pose lies within that radius of the last
+  // one and its support exceeds its rival's: the motion gate (result.tracked; `localized` keeps its
+  // meaning, the bundle's calibrated verdict). The calibrated stop of kNearestFirst applies too, an
+  // area's own calibration does not. Without a last pose (first frame, after reset_tracking()), or
+  // when the tracked areas give neither a gated nor a trusted pose and relocalize_without_prior is
+  // set, every area is scored (result.prior_used false; with a last pose, a winner that passes the
+  // gate is tracked too). A tracked pose, or a trusted one (with a calibrated bundle `localized`,
+  // without one any winning pose), becomes the last pose. A look-alike pose can pass the gate:
+  // tracking_areas > 1 lets a second area's matches reject most of them (docs/areas.md).
   BundleLocalizeResult track(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                              const Eigen::Vector3d& gravity_in_cam);
-  void reset_tracking() { last_position_.reset(); }
-  // Sets the last tracked camera centre (e.g. from another source, or none).
-  void set_last_position(const std::optional<Eigen::Vector3d>& position) { last_position_ = position; }
-  // The last tracked camera centre (world frame), if any.
+  void reset_tracking() { set_last_pose(std::nullopt); }
+  // Sets the last tracked pose (cam_from_world), e.g. predicted by odometry, or none.
+  void set_last_pose(const std::optional<Rigid3d>& cam_from_world);
+  // Sets the last tracked camera centre without an orientation (areas then by distance), or none.
+  void set_last_position(const std::optional<Eigen::Vector3d>& position) {
+    last_pose_.reset();
+    last_position_ = position;
+    frames_since_pose_ = 0;
+  }
+  // The last tracked pose and camera centre (world frame), if any.
+  const std::optional<Rigid3d>& last_pose() const { return last_pose_; }
   const std::optional<Eigen::Vector3d>& last_position() const { return last_position_; }
-
+  // New options (checked; throws lmb::Error naming the field); the tracking state is kept.
+  void set_options(const BundleLocalizerOptions& options) {
+    options.check();
+    options_ = options;
+  }
   AreaBundle& bundle() const { return *bundle_; }
   const std::shared_ptr<AreaBundle>& shared_bundle() const { return bundle_; }
   const BundleLocalizerOptions& options() const { return options_; }
@@ -270,7 +306,9 @@ class LMB_INFER_EXPORT BundleLocalizer {
  private:
   std::shared_ptr<AreaBundle> bundle_;
   BundleLocalizerOptions options_;
+  std::optional<Rigid3d> last_pose_;  // set with last_position_, or absent (a position only)
   std::optional<Eigen::Vector3d> last_position_;
+  int64_t frames_since_pose_ = 0;  // track() calls since the last pose was set
 };
 
 }  // namespace lmb

@@ -382,11 +382,12 @@ lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera, const 
                        bo.localizer = to_localizer_options(options);
                        bo.tracking_radius = tracking_radius;
                        bo.check();
-                       std::optional<Eigen::Vector3d> last;
-                       if (bundle->tracker) last = bundle->tracker->last_position();
-                       // New options each call; the last position carries over.
-                       bundle->tracker = std::make_unique<lmb::BundleLocalizer>(bundle->bundle, bo);
-                       bundle->tracker->set_last_position(last);
+                       // New options each call; the tracking state carries over.
+                       if (bundle->tracker) {
+                         bundle->tracker->set_options(bo);
+                       } else {
+                         bundle->tracker = std::make_unique<lmb::BundleLocalizer>(bundle->bundle, bo);
+                       }
                        return bundle->tracker->track(f.camera, f.keypoints, descriptors, f.gravity);
                      });
 }

@@ -598,6 +598,10 @@ damaged area fails alone; the others still load.)")
       .def(
           "model", [](AreaBundle& b, int32_t id) { return std::const_pointer_cast<Model>(b.model(id)); }, py::arg("id"),
           "Area id's model, read on first use; raises landmarkboost.Error naming the area.")
+      .def("visible_landmarks", &AreaBundle::visible_landmarks, py::arg("id"), py::arg("camera"),
+           py::arg("cam_from_world"),
+           "How many of area id's landmarks (a sample of at most 1,024) a camera at cam_from_world sees: in front, "
+           "within the reach, inside the image; what track() orders the areas by.")
       .def("loaded", &AreaBundle::loaded, py::arg("id"))
       .def("release_except", &AreaBundle::release_except, py::arg("keep"), "Frees the models of the areas not in keep.")
       .def(
@@ -649,6 +653,9 @@ prior_used, total_ms.)")
       .def_property_readonly("selected", [](const BundleResult& b) { return b.r.selected; })
       .def_property_readonly("loaded", [](const BundleResult& b) { return b.r.loaded; })
       .def_property_readonly("prior_used", [](const BundleResult& b) { return b.r.prior_used; })
+      .def_property_readonly(
+          "tracked", [](const BundleResult& b) { return b.r.tracked; },
+          "track(): the pose passed the motion gate of the last tracked pose.")
       .def_property_readonly("total_ms", [](const BundleResult& b) { return b.r.total_ms; })
       .def("__repr__", [](const BundleResult& b) {
         return "<landmarkboost.BundleLocalizeResult: area " + std::to_string(b.r.area) + ", " +
@@ -658,14 +665,16 @@ prior_used, total_ms.)")
 
   py::class_<BundleLocalizer>(m, "BundleLocalizer", R"(Localizes frames in an AreaBundle:
 BundleLocalizer(bundle, options=None, search="nearest_first", winner="support", tracking_radius=1.0,
-relocalize_without_prior=True, area_threads=1). search: "nearest_first" (with a prior, the nearest area whose
+relocalize_without_prior=True, area_threads=1, tracking_areas=2). search: "nearest_first" (with a prior, the nearest area whose
 calibrated pose is localized wins and the rest are not scored) or "all"; winner: "support" (the pose
 that explains most keypoints with every scored area's matches) or "inliers"; area_threads: areas
-localized at once, each on its own thread (the same result). localize() releases
+localized at once, each on its own thread (the same result); tracking_radius: how far the camera
+moves between two tracked frames (the motion gate); tracking_areas: areas scored before the gate judges
+the winning pose. localize() releases
 the GIL and may serve several threads; track() keeps the last pose (one camera, one thread).)")
       .def(py::init([](std::shared_ptr<AreaBundle> bundle, const LocalizerOptions* options, const std::string& search,
                        const std::string& winner, double tracking_radius, bool relocalize_without_prior,
-                       int area_threads) {
+                       int area_threads, int tracking_areas) {
              BundleLocalizerOptions o;
              if (options) o.localizer = *options;
              o.search = area_search_from(search);
@@ -673,11 +682,12 @@ the GIL and may serve several threads; track() keeps the last pose (one camera, 
              o.tracking_radius = tracking_radius;
              o.relocalize_without_prior = relocalize_without_prior;
              o.area_threads = area_threads;
+             o.tracking_areas = tracking_areas;
              return BundleLocalizer(std::move(bundle), o);
            }),
            py::arg("bundle"), py::arg("options") = nullptr, py::arg("search") = "nearest_first",
            py::arg("winner") = "support", py::arg("tracking_radius") = 1.0, py::arg("relocalize_without_prior") = true,
-           py::arg("area_threads") = 1)
+           py::arg("area_threads") = 1, py::arg("tracking_areas") = 2)
       .def_property_readonly("bundle", [](const BundleLocalizer& l) { return l.shared_bundle(); })
       .def(
           "localize",
@@ -711,11 +721,16 @@ landmarkboost.Error for invalid input; areas that cannot be loaded are listed in
             return bundle_result(std::move(r));
           },
           py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
-          R"(Tracking: the prior is the last tracked camera centre within tracking_radius; the first frame,
-and a frame those areas do not localize, are localized in every area (result.prior_used False).)")
+          R"(Tracking: the areas near the last tracked pose, those that see most of its view first, until the
+pose that wins among tracking_areas or more of them lies within tracking_radius of it (result.tracked); the
+first frame, and a frame those areas do not localize, are localized in every area (result.prior_used False).)")
       .def("reset_tracking", &BundleLocalizer::reset_tracking)
       .def_property(
           "last_position", [](const BundleLocalizer& l) { return l.last_position(); },
           [](BundleLocalizer& l, const std::optional<Eigen::Vector3d>& p) { l.set_last_position(p); },
-          "The last tracked camera centre (world frame), or None.");
+          "The last tracked camera centre (world frame), or None; setting it forgets the last orientation.")
+      .def_property(
+          "last_pose", [](const BundleLocalizer& l) { return l.last_pose(); },
+          [](BundleLocalizer& l, const std::optional<Rigid3d>& p) { l.set_last_pose(p); },
+          "The last tracked pose (cam_from_world), or None; set it from odometry to predict the next frame's view.");
 }

@@ -127,10 +127,30 @@ def test_winner_rules_and_tracking(tiny, tmp_path):
         assert np.allclose(tracker.last_position, first.cam_from_world.center())
         second = tracker.track(*frame_args(m, frames[1]))
         assert second.prior_used or second.selected == 2
+    # A known last pose: the same frame again lies inside the motion gate. Two areas are judged by
+    # default, one on request; either way the pose is tracked (`localized` keeps its own meaning).
+    if first.pose_found:
+        for areas in (2, 1):
+            gated = lb.BundleLocalizer(bundle, tracking_radius=50.0, tracking_areas=areas)  # selects both
+            gated.last_pose = first.cam_from_world
+            assert np.allclose(gated.last_position, first.cam_from_world.center())
+            again = gated.track(*frame_args(m, frames[0]))
+            assert again.prior_used and again.tracked and again.localized == again.result.success
+            assert again.selected == 2 and len(again.scored) == areas
+            assert np.allclose(gated.last_pose.translation, first.cam_from_world.translation)
+        # What track() orders the areas by: two copies of one model see the same from the frame's
+        # pose (with a reach beyond the world: the bundle above sees 1 m only).
+        wide = lb.load(write_bundle(tmp_path / "wide", tiny.model, [("-inf", "0"), ("0", "inf")], reach=1000.0))
+        camera = frame_args(m, frames[0])[0]
+        seen = [wide.visible_landmarks(i, camera, first.cam_from_world) for i in range(2)]
+        assert seen[0] == seen[1] > 0
+        assert bundle.visible_landmarks(0, camera, first.cam_from_world) <= seen[0]
+    with pytest.raises(lb.Error, match="tracking_areas"):
+        lb.BundleLocalizer(bundle, tracking_areas=0)
     tracker.reset_tracking()
-    assert tracker.last_position is None
+    assert tracker.last_position is None and tracker.last_pose is None
     tracker.last_position = np.array([0.5, 0.0, 0.0])
-    assert tracker.last_position.tolist() == [0.5, 0.0, 0.0]
+    assert tracker.last_position.tolist() == [0.5, 0.0, 0.0] and tracker.last_pose is None
     assert tracker.bundle.num_areas == 2
 
 

@@ -79,6 +79,26 @@ class AreaBundleTest : public ::testing::Test {
     n.far_model = std::make_shared<const Model>(test::make_code_model_data(far, 7));
     return n;
   }
+  // The frame's landmark classes, in keypoint order.
+  static std::vector<int32_t> frame_classes(const test::TestFrame& f) {
+    std::vector<int32_t> seen;
+    for (int32_t c : f.keypoint_class) {
+      if (c >= 0 && std::find(seen.begin(), seen.end(), c) == seen.end()) seen.push_back(c);
+    }
+    return seen;
+  }
+  // A model that knows every code of `world` but holds only seen[first, first + count) where they
+  // are plus `offset`; every other class sits at a random point ~1 km away (random, so that these
+  // points form no pose of their own, and beyond any reach of these tests).
+  static std::shared_ptr<const Model> area_model(const test::TestWorld& world, const std::vector<int32_t>& seen,
+                                                 Rng& rng, size_t first, size_t count, const Eigen::Vector3d& offset) {
+    ModelData d = test::make_code_model_data(world.positions);
+    for (auto& p : d.class_position) {
+      p = Eigen::Vector3d(rng.uniform(500, 1500), rng.uniform(-500, 500), rng.uniform(-500, 500));
+    }
+    for (size_t i = first; i < first + count; ++i) d.class_position[seen[i]] = world.positions[seen[i]] + offset;
+    return std::make_shared<const Model>(std::move(d));
+  }
   fs::path dir_;
 };
 
@@ -341,22 +361,12 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
 TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
   const test::TestFrame& f = world.frame;
-  std::vector<int32_t> seen;  // the frame's landmark classes, in keypoint order
-  for (int32_t c : f.keypoint_class) {
-    if (c >= 0 && std::find(seen.begin(), seen.end(), c) == seen.end()) seen.push_back(c);
-  }
+  const std::vector<int32_t> seen = frame_classes(f);
   ASSERT_EQ(seen.size(), 60u);
-  // Every area knows every code; a class the area does not hold sits at a random point ~1 km away
-  // (random, so that these points form no pose of their own).
   const Eigen::Vector3d shift(0.8, 0, 0);
   Rng rng(17);
   const auto area_model = [&](size_t first, size_t count, const Eigen::Vector3d& offset) {
-    ModelData d = test::make_code_model_data(world.positions);
-    for (auto& p : d.class_position) {
-      p = Eigen::Vector3d(rng.uniform(500, 1500), rng.uniform(-500, 500), rng.uniform(-500, 500));
-    }
-    for (size_t i = first; i < first + count; ++i) d.class_position[seen[i]] = world.positions[seen[i]] + offset;
-    return std::make_shared<const Model>(std::move(d));
+    return AreaBundleTest::area_model(world, seen, rng, first, count, offset);
   };
   write_bundle_index(dir_ / "aliased.txt", 1.0,
                      {add(*area_model(0, 36, shift), 0, -kInf, 0.0), add(*area_model(0, 30, {0, 0, 0}), 1, 0.0, 1.0),
@@ -718,6 +728,167 @@ TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne
   options.tracking_radius = -1.0;
   EXPECT_THROW(BundleLocalizer(AreaBundle::open(dir_ / "two.txt"), options), Error);
   EXPECT_THROW(BundleLocalizer(nullptr), Error);
+}
+
+TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMotionGate) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const test::TestFrame& f = world.frame;
+  const std::vector<int32_t> seen = frame_classes(f);
+  ASSERT_EQ(seen.size(), 60u);
+  Rng rng(23);
+  const auto area_model = [&](size_t count, const Eigen::Vector3d& offset) {
+    return AreaBundleTest::area_model(world, seen, rng, 0, count, offset);
+  };
+  const Eigen::Vector3d centre = f.cam_from_world.center();
+  const Eigen::Vector3d axis = f.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitZ();  // optical axis
+  const double x = centre.x();
+  // 0: a look-alike of 45 of the landmarks, 3 m further along the optical axis (its pose lies 3 m
+  // behind the camera), in the cell holding the camera; 1: all 60 where they are, 1 m away; 2: 20
+  // of them, 2 m away; 3: none, 1 m away on the other side.
+  write_bundle_index(dir_ / "track.txt", 50.0,
+                     {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0),
+                      add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0),
+                      add(*area_model(20, Eigen::Vector3d::Zero()), 2, x + 2.0, kInf),
+                      add(*area_model(0, Eigen::Vector3d::Zero()), 3, -kInf, x - 1.0)});
+  const auto bundle = AreaBundle::open(dir_ / "track.txt");
+  // What the camera sees of each area (every landmark is sampled: fewer than kViewSample).
+  EXPECT_EQ(bundle->visible_landmarks(0, f.camera, f.cam_from_world), 45);
+  EXPECT_EQ(bundle->visible_landmarks(1, f.camera, f.cam_from_world), 60);
+  EXPECT_EQ(bundle->visible_landmarks(2, f.camera, f.cam_from_world), 20);
+  EXPECT_EQ(bundle->visible_landmarks(3, f.camera, f.cam_from_world), 0);
+  // The sample outlives the area's model, and a missing area fails as model() does.
+  bundle->release_except({});
+  EXPECT_EQ(bundle->visible_landmarks(1, f.camera, f.cam_from_world), 60);
+  EXPECT_FALSE(bundle->loaded(1));
+  EXPECT_THROW(bundle->visible_landmarks(4, f.camera, f.cam_from_world), Error);
+
+  for (int threads : {1, 3}) {
+    BundleLocalizerOptions options;
+    options.tracking_radius = 1.0;
+    options.tracking_areas = 1;
+    options.area_threads = threads;
+    BundleLocalizer localizer(bundle, options);
+    const auto track = [&] { return localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam); };
+    // The last pose known: the area that sees most of its view first; its pose lies within the gate.
+    localizer.set_last_pose(f.cam_from_world);
+    const BundleLocalizeResult seen_first = track();
+    EXPECT_TRUE(seen_first.prior_used);
+    EXPECT_EQ(seen_first.selected, 4);
+    EXPECT_EQ(seen_first.scored, std::vector<int32_t>{1}) << threads;
+    EXPECT_EQ(seen_first.area, 1);
+    EXPECT_TRUE(seen_first.tracked);
+    EXPECT_EQ(seen_first.localized, seen_first.result.localized);  // uncalibrated bundle: the area's own answer
+    EXPECT_LT(position_error(*localizer.last_pose(), f.cam_from_world), 1e-6);
+    // Two areas judged: the second (the look-alike) is scored too, and the support rule keeps the right pose.
+    options.tracking_areas = 2;
+    localizer.set_options(options);
+    const BundleLocalizeResult two = track();
+    EXPECT_EQ(two.scored, (std::vector<int32_t>{1, 0})) << threads;
+    EXPECT_EQ(two.support, (std::vector<int32_t>{60, 45}));
+    EXPECT_EQ(two.area, 1);
+    EXPECT_TRUE(two.tracked);
+    // Only a position known: the nearest cell first. The look-alike's pose lies 3 m away, outside
+    // the gate; after the next area the right pose wins on support, inside it.
+    options.tracking_areas = 1;
+    localizer.set_options(options);
+    localizer.set_last_position(centre);
+    EXPECT_FALSE(localizer.last_pose().has_value());
+    const BundleLocalizeResult by_distance = track();
+    EXPECT_EQ(by_distance.scored, (std::vector<int32_t>{0, 1})) << threads;
+    EXPECT_EQ(by_distance.inliers, (std::vector<int32_t>{45, 60}));
+    EXPECT_EQ(by_distance.area, 1);
+    EXPECT_TRUE(by_distance.tracked);
+    ASSERT_TRUE(localizer.last_pose().has_value());
+    EXPECT_LT(position_error(*localizer.last_pose(), f.cam_from_world), 1e-6);
+    // A last pose 5 m away: no pose lies within the gate, every area is scored and the support
+    // rule decides (not tracked; the uncalibrated bundle trusts the winner, which becomes the last pose).
+    localizer.set_last_pose(
+        Rigid3d(f.cam_from_world.rotation, f.cam_from_world.translation + Eigen::Vector3d(5, 0, 0)));
+    const BundleLocalizeResult far = track();
+    EXPECT_TRUE(far.prior_used);
+    EXPECT_EQ(far.scored.size(), 4u) << threads;
+    EXPECT_FALSE(far.tracked);
+    EXPECT_EQ(far.area, 1);
+    EXPECT_EQ(far.localized, far.result.localized);
+    EXPECT_LT(position_error(*localizer.last_pose(), f.cam_from_world), 1e-6);
+  }
+
+  // A look-alike of all 60 landmarks 0.8 m to the side (inside the gate too): both poses explain
+  // 60 keypoints, each the other's rival. Neither is a clear winner: not tracked.
+  const Eigen::Vector3d side = f.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitX();
+  write_bundle_index(
+      dir_ / "tie.txt", 50.0,
+      {add(*area_model(60, Eigen::Vector3d::Zero()), 0, -kInf, x), add(*area_model(60, 0.8 * side), 1, x, kInf)});
+  {
+    BundleLocalizerOptions options;
+    options.tracking_radius = 1.0;
+    BundleLocalizer localizer(AreaBundle::open(dir_ / "tie.txt"), options);
+    localizer.set_last_pose(f.cam_from_world);
+    const BundleLocalizeResult tie = localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+    EXPECT_EQ(tie.scored.size(), 2u);
+    EXPECT_EQ(tie.support, (std::vector<int32_t>{60, 60}));
+    EXPECT_EQ(tie.rival_support, 60);
+    EXPECT_EQ(tie.area, 0);  // ties: the smaller id
+    EXPECT_FALSE(tie.tracked);
+  }
+
+  // The gate grows with the frames since the last pose (the camera moves at most tracking_radius a
+  // frame): a calibration that trusts no pose and no relocalization, the last pose 1.5 m away. A
+  // tracked pose becomes the last pose though the calibration does not trust it.
+  PoseCalibration distrust;
+  distrust.bias = -50.0;
+  distrust.threshold = 0.5;
+  const fs::path folder = dir_ / "distrusting";
+  fs::create_directories(folder);
+  write_bundle_index(folder / "bundle.txt", 50.0,
+                     {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0, folder),
+                      add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0, folder)},
+                     &distrust);
+  BundleLocalizerOptions options;
+  options.tracking_radius = 1.0;
+  options.relocalize_without_prior = false;
+  BundleLocalizer localizer(AreaBundle::open(folder / "bundle.txt"), options);
+  const Rigid3d away(f.cam_from_world.rotation,
+                     f.cam_from_world.translation + f.cam_from_world.rotation * Eigen::Vector3d(1.5, 0, 0));
+  ASSERT_NEAR((away.center() - centre).norm(), 1.5, 1e-9);
+  localizer.set_last_pose(away);
+  const auto track = [&] { return localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam); };
+  const BundleLocalizeResult first = track();  // gate 1 m: the right pose lies 1.5 m away
+  EXPECT_FALSE(first.tracked);
+  EXPECT_FALSE(first.localized);
+  EXPECT_EQ(first.area, 1);
+  EXPECT_LT((localizer.last_pose()->center() - away.center()).norm(), 1e-9);  // kept
+  const BundleLocalizeResult second = track();                                // gate 2 m
+  EXPECT_TRUE(second.tracked);
+  EXPECT_FALSE(second.localized);  // the calibration's verdict, apart from the gate
+  EXPECT_LT(second.confidence, 0.5);
+  EXPECT_LT(position_error(*localizer.last_pose(), f.cam_from_world), 1e-6);
+
+  // A relocalized winner inside the gate is tracked too: the right area's cell lies beyond the
+  // tracked selection (reach 0.5 m), so only the look-alike is scored there (its pose 3 m away,
+  // outside the gate) and the distrusting calibration sends the frame to every area.
+  const fs::path beyond = dir_ / "beyond";
+  fs::create_directories(beyond);
+  write_bundle_index(beyond / "bundle.txt", 0.5,
+                     {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0, beyond),
+                      add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 5.0, kInf, beyond)},
+                     &distrust);
+  options.relocalize_without_prior = true;
+  BundleLocalizer relocalizing(AreaBundle::open(beyond / "bundle.txt"), options);
+  relocalizing.set_last_pose(f.cam_from_world);
+  const BundleLocalizeResult relocalized =
+      relocalizing.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_FALSE(relocalized.prior_used);
+  EXPECT_EQ(relocalized.scored, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(relocalized.area, 1);
+  EXPECT_TRUE(relocalized.tracked);
+  EXPECT_FALSE(relocalized.localized);
+
+  options.tracking_areas = 0;
+  EXPECT_THROW(options.check(), Error);
+  EXPECT_THROW(localizer.set_options(options), Error);
+  options.tracking_areas = 257;
+  EXPECT_THROW(options.check(), Error);
 }
 
 }  // namespace

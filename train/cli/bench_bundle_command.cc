@@ -1,9 +1,12 @@
 // `lboost bench bundle`: per-frame time of localization through a bundle of area models with a
-// position prior, without a prior, and of the single model, single thread, in the same run
+// position prior, without a prior, tracking (--track), and of the single model, single thread, in the same run
 // (train/eval/bundle_eval.h; docs/areas.md). Prints one line with the ratios.
+#include <algorithm>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -20,18 +23,34 @@ namespace {
 struct BenchBundleArgs {
   BundleEvalOptions options;
   double prior_noise = 5.0;
+  double track = 0.0;  // > 0: a tracking mode with this radius
   std::string json;
 };
+
+// Median thread CPU ms of a mode's frames (the first seed's) that `pick` accepts; NaN without one.
+template <typename Pick>
+double median_frame_ms(const nlohmann::json& mode, Pick pick) {
+  std::vector<double> ms;
+  for (const nlohmann::json& f : mode.at("frames")) {
+    if (pick(f)) ms.push_back(f.at("cpu_ms").get<double>());
+  }
+  if (ms.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(ms.begin(), ms.end());
+  const size_t n = ms.size();
+  return n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
+}
 
 void run_bench_bundle(BenchBundleArgs a) {
   LMB_CHECK(!a.options.model.empty(), "bench bundle: --model (the single model to compare) is required");
   a.options.prior_noise = {a.prior_noise};
   a.options.no_prior = true;
+  if (a.track > 0.0) a.options.track = {a.track};
   a.options.memory_per_area = false;
   const BundleEvalResult r = evaluate_bundle(a.options);
   const nlohmann::json& modes = r.report.at("modes");
   const auto ms = [&](size_t i) { return modes.at(i).at("cpu_ms_per_frame").at("mean").get<double>(); };
-  const double prior = ms(0), none = ms(1), single = ms(2);
+  const size_t single_mode = a.track > 0.0 ? 3 : 2;  // prior, no prior, [tracking,] single
+  const double prior = ms(0), none = ms(1), single = ms(single_mode);
   std::printf(
       "bench bundle (%s, %zu frames x %d seeds, single thread, thread CPU ms per frame): prior %g m %.2f ms "
       "(%.2f areas scored, %.2fx the single model), no prior %.2f ms (%.2f areas, %.2fx the single model, %.2fx the "
@@ -39,6 +58,21 @@ void run_bench_bundle(BenchBundleArgs a) {
       machine_info().summary().c_str(), r.report.at("frames").get<size_t>(), a.options.seeds, a.prior_noise, prior,
       modes.at(0).at("areas_scored_per_frame").get<double>(), prior / single, none,
       modes.at(1).at("areas_scored_per_frame").get<double>(), none / single, none / prior, single, r.table.c_str());
+  if (a.track > 0.0) {
+    // Tracking: the mean includes the frames relocalized in every area; the medians show a frame's
+    // usual cost and a tracked frame's.
+    const nlohmann::json& t = modes.at(2);
+    const double median_all = t.at("cpu_ms_per_frame").at("median").get<double>();
+    const double median_tracked =
+        median_frame_ms(t, [](const nlohmann::json& f) { return f.at("tracked").get<bool>(); });
+    std::printf(
+        "tracking %g m: %.2f ms mean (%.2fx the single model), median %.2f ms, tracked frames (seed 0) median %.2f ms "
+        "(%.2fx the single model's mean); %.3f of the frames tracked, %.3f relocalized in every area, %.2f areas "
+        "scored\n",
+        a.track, ms(2), ms(2) / single, median_all, median_tracked, median_tracked / single,
+        t.at("tracked_per_frame").get<double>(), t.at("relocalized_per_frame").get<double>(),
+        t.at("areas_scored_per_frame").get<double>());
+  }
   if (!a.json.empty()) write_file_atomically(a.json, r.report.dump(1) + "\n");
 }
 
@@ -58,6 +92,15 @@ void add_bench_bundle_command(CLI::App& app) {
   cmd->add_option("--model", o.model, "The single model compared (model.lbm)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--prior-noise", args->prior_noise, "Prior: true centre moved METRES, radius METRES")
       ->capture_default_str();
+  cmd->add_option("--track", args->track,
+                  "Also a tracking mode: the frames in capture order, the camera moving at most METRES a frame (0 = "
+                  "none)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--tracking-areas", o.tracking_areas, "--track: areas scored before the motion gate judges")
+      ->capture_default_str();
+  cmd->add_flag("--inverted-file", o.localizer.classifier.use_inverted_file,
+                "Score only the keypoint word's candidate classes (every mode)");
   cmd->add_option("--repeats", o.seeds, "Passes over the frames (RANSAC seeds --seed, --seed + 1, ...)")
       ->capture_default_str();
   cmd->add_option("--seed", o.localizer.pose.seed, "First RANSAC seed")->capture_default_str();

@@ -219,6 +219,12 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
                   "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
                   "radius METRES (repeatable)");
   cmd->add_flag("--no-prior", options->no_prior, "--bundle: localize in every area, without a prior");
+  cmd->add_option("--track", options->track,
+                  "--bundle: track the query frames in capture order, the camera moving at most METRES a frame "
+                  "(BundleLocalizer::track; repeatable)");
+  cmd->add_option("--tracking-areas", options->tracking_areas,
+                  "--bundle --track: areas scored before the motion gate judges the winning pose")
+      ->capture_default_str();
   cmd->add_flag_function(
       "--all-areas", [options](int64_t) { options->search = AreaSearch::kAll; },
       "--bundle: with a prior, score every selected area (default: nearest area first, the first calibrated "

@@ -155,8 +155,8 @@ void add_eval_command(CLI::App& app) {
       run_bundle_eval(args->options, args->bundle, args->report);
       return;
     }
-    LMB_CHECK(args->bundle.prior_noise.empty() && !args->bundle.no_prior,
-              "eval: --prior-noise and --no-prior need --bundle");
+    LMB_CHECK(args->bundle.prior_noise.empty() && !args->bundle.no_prior && args->bundle.track.empty(),
+              "eval: --prior-noise, --track and --no-prior need --bundle");
     LMB_CHECK(!args->options.model.empty(), "eval: --model is required (or --bundle)");
     run_eval(args->options, args->report, args->run, args->keypoint_ranks);
   });

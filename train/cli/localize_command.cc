@@ -272,7 +272,8 @@ void run_localize(const LocalizeArgs& a) {
     run_bundle_localize(a);
     return;
   }
-  LMB_CHECK(a.bundle.prior_noise.empty() && !a.bundle.no_prior, "localize: --prior-noise and --no-prior need --bundle");
+  LMB_CHECK(a.bundle.prior_noise.empty() && !a.bundle.no_prior && a.bundle.track.empty(),
+            "localize: --prior-noise, --track and --no-prior need --bundle");
   LMB_CHECK(!a.model.empty(), "localize: --model is required (or --bundle)");
   check_writable_file(a.out, "--out");
   const std::shared_ptr<const Model> model = Model::load(a.model);

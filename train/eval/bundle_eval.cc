@@ -11,6 +11,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <optional>
 
 #include <spdlog/spdlog.h>
 
@@ -65,9 +66,10 @@ struct Outcome {
   int32_t selected = 0, loaded = 0;
   // The areas scored, in order, their poses' inliers and support (BundleLocalizeResult).
   std::vector<int32_t> scored, scored_inliers, scored_support;
-  int32_t rival_support = 0;  // the winner's rival (BundleLocalizeResult)
-  bool localized = false;     // the answer to act on (BundleLocalizeResult::localized)
-  double confidence = -1.0;   // the calibrated confidence (-1: uncalibrated)
+  int32_t rival_support = 0;                 // the winner's rival (BundleLocalizeResult)
+  bool localized = false;                    // the answer to act on (BundleLocalizeResult::localized)
+  double confidence = -1.0;                  // the calibrated confidence (-1: uncalibrated)
+  bool tracked = false, prior_used = false;  // tracking modes (BundleLocalizeResult)
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -79,7 +81,13 @@ void BundleEvalOptions::check() const {
   for (double m : prior_noise) {
     LMB_CHECK(std::isfinite(m) && m >= 0.0, "--prior-noise " << m << ": must be finite and >= 0");
   }
-  LMB_CHECK(!prior_noise.empty() || no_prior, "--bundle needs --prior-noise METRES and/or --no-prior");
+  for (double m : track) {
+    LMB_CHECK(std::isfinite(m) && m > 0.0, "--track " << m << ": must be finite and > 0");
+  }
+  LMB_CHECK(tracking_areas >= 1 && tracking_areas <= 256,
+            "--tracking-areas " << tracking_areas << ": must be in 1..256");
+  LMB_CHECK(!prior_noise.empty() || no_prior || !track.empty(),
+            "--bundle needs --prior-noise METRES, --track METRES and/or --no-prior");
   LMB_CHECK(seeds >= 1 && seeds <= 100, "seeds " << seeds << ": must be in 1..100");
   LMB_CHECK(cache.max_areas >= 0, "--cache-areas " << cache.max_areas << ": must be >= 0");
   LMB_CHECK(area_threads >= 1 && area_threads <= 256, "--area-threads " << area_threads << ": must be in 1..256");
@@ -117,6 +125,7 @@ struct Mode {
   bool single = false;
   bool has_prior = false;
   double noise = 0.0;
+  double tracking_radius = 0.0;  // > 0: a tracking mode
 };
 
 std::vector<Mode> make_modes(const BundleEvalOptions& options, bool with_single) {
@@ -128,6 +137,7 @@ std::vector<Mode> make_modes(const BundleEvalOptions& options, bool with_single)
     modes.push_back({name, false, true, m});
   }
   if (options.no_prior) modes.push_back({"no prior", false, false, 0.0});
+  for (double m : options.track) modes.push_back({"tracking " + number_text(m) + " m", false, false, 0.0, m});
   if (with_single) modes.push_back({"single model", true, false, 0.0});
   return modes;
 }
@@ -137,11 +147,13 @@ struct ModeContext {
   const BundleEvalOptions& options;
   const LandmarkMap& map;
   AreaBundle& bundle;
+  const std::shared_ptr<AreaBundle>& shared_bundle;  // the same (a tracker holds it)
   const std::shared_ptr<const Model>& single;
 };
 
 // One query frame localized in one mode, timed on this thread.
-Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const LocalizerOptions& lo) {
+Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const LocalizerOptions& lo,
+                       BundleLocalizer* tracker) {
   const MapFrame& frame = c.map.frames[f];
   const std::vector<Keypoint> keypoints(c.map.keypoints.begin() + frame.first_keypoint,
                                         c.map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
@@ -164,9 +176,13 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
       prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(c.options.prior_seed, f);
       prior.radius = mode.noise;
     }
-    BundleLocalizeResult r = localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                                                mode.has_prior ? &prior : nullptr, lo, c.options.search,
-                                                c.options.winner, c.options.area_threads);
+    BundleLocalizeResult r = tracker != nullptr
+                                 ? tracker->track(camera, keypoints, descriptors, frame.gravity_in_cam)
+                                 : localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
+                                                      mode.has_prior ? &prior : nullptr, lo, c.options.search,
+                                                      c.options.winner, c.options.area_threads);
+    o.tracked = r.tracked;
+    o.prior_used = r.prior_used;
     o.success = r.area >= 0;
     o.pose = r.result.pose.cam_from_world;
     o.inliers = r.result.pose.num_inliers;
@@ -201,6 +217,10 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
     jf["support"] = winner == o.scored.end() ? 0 : o.scored_support[static_cast<size_t>(winner - o.scored.begin())];
     jf["rival_support"] = o.rival_support;
     jf["areas_loaded"] = o.loaded;
+    if (mode.tracking_radius > 0.0) {
+      jf["tracked"] = o.tracked;
+      jf["relocalized"] = !o.prior_used;
+    }
     if (!o.errors.empty()) jf["errors"] = o.errors;
   }
   if (o.success) {
@@ -232,17 +252,34 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     spdlog::info("eval --bundle: {}: seed {}/{}, {} of {} frame runs, {:.0f} s, ETA {:.0f} s", mode.name, seed + 1,
                  c.options.seeds, runs, total_runs, elapsed, eta);
   };
+  int64_t tracked = 0, relocalized = 0;
+  std::vector<int> tracked_per_seed, tracked_correct_per_seed;
   for (int s = 0; s < c.options.seeds; ++s) {
     LocalizerOptions lo = c.options.localizer;
     lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
-    int correct = 0, trusted = 0, trusted_correct = 0;
+    int correct = 0, trusted = 0, trusted_correct = 0, seed_tracked = 0, seed_tracked_correct = 0;
+    std::optional<BundleLocalizer> tracker;  // a tracking mode: one camera a seed, from no pose
+    if (mode.tracking_radius > 0.0) {
+      BundleLocalizerOptions bo;
+      bo.localizer = lo;
+      bo.search = c.options.search;
+      bo.winner = c.options.winner;
+      bo.area_threads = c.options.area_threads;
+      bo.tracking_radius = mode.tracking_radius;
+      bo.tracking_areas = c.options.tracking_areas;
+      tracker.emplace(c.shared_bundle, bo);
+    }
     for (frame_t f : frames) {
       const MapFrame& frame = c.map.frames[f];
-      const Outcome o = localize_frame(c, mode, f, lo);
+      const Outcome o = localize_frame(c, mode, f, lo, tracker ? &*tracker : nullptr);
+      tracked += o.tracked;
+      relocalized += mode.tracking_radius > 0.0 && !o.prior_used;
       const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, c.options.thresholds);
       correct += ok;
       trusted += o.localized;
       trusted_correct += o.localized && ok;
+      seed_tracked += o.tracked;
+      seed_tracked_correct += o.tracked && ok;
       cpu.push_back(o.cpu_ms);
       wall.push_back(o.wall_ms);
       selected += o.selected;
@@ -257,6 +294,8 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     correct_per_seed.push_back(correct);
     trusted_per_seed.push_back(trusted);
     trusted_correct_per_seed.push_back(trusted_correct);
+    tracked_per_seed.push_back(seed_tracked);
+    tracked_correct_per_seed.push_back(seed_tracked_correct);
     progress(s, true);
   }
   const double nf = static_cast<double>(frames.size());
@@ -279,6 +318,15 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     jm["areas_selected_per_frame"] = selected / n;
     jm["areas_scored_per_frame"] = scored / n;
     jm["areas_loaded_per_frame"] = loaded / n;
+    if (mode.tracking_radius > 0.0) {
+      jm["tracking_radius_m"] = mode.tracking_radius;
+      jm["tracking_areas"] = c.options.tracking_areas;
+      jm["tracked_per_frame"] = static_cast<double>(tracked) / n;
+      jm["relocalized_per_frame"] = static_cast<double>(relocalized) / n;
+      // The frames whose pose passed the motion gate, and of them correct, per seed.
+      jm["tracked_frames_per_seed"] = tracked_per_seed;
+      jm["tracked_correct_per_seed"] = tracked_correct_per_seed;
+    }
     jm["area_loads"] = c.bundle.loads() - loads_before;
     jm["areas_loaded_at_end"] = c.bundle.loaded_ids().size();
     jm["loaded_bytes_at_end"] = c.bundle.loaded_bytes();
@@ -311,6 +359,9 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   for (frame_t f = 0; f < map.num_frames(); ++f) {
     if (map.frames[f].is_query) frames.push_back(f);
   }
+  // Capture order (frame names: session/file), which tracking follows.
+  std::stable_sort(frames.begin(), frames.end(),
+                   [&](frame_t a, frame_t b) { return map.frames[a].name < map.frames[b].name; });
   LMB_CHECK(!frames.empty(), options.map << ": no query frames");
   std::shared_ptr<const Model> single;
   if (!options.model.empty()) single = Model::load(options.model);
@@ -326,6 +377,7 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["area_search"] = options.search == AreaSearch::kAll ? "all" : "nearest_first";
   report["area_winner"] = options.winner == AreaWinner::kSupport ? "support" : "inliers";
   report["area_threads"] = options.area_threads;
+  report["tracking_areas"] = options.tracking_areas;
   report["reach_m"] = bundle->reach();
   report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
                           {"rotation_deg", options.thresholds.max_rotation_error_deg}};
@@ -337,7 +389,7 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   result.table =
       "mode               recall  (per seed)              posed  localized (all seeds)  med_pos_m  cpu_ms/frame "
       "(mean, median)  areas selected/scored/loaded per frame\n";
-  const ModeContext context{options, map, *bundle, single};
+  const ModeContext context{options, map, *bundle, bundle, single};
   nlohmann::json jmodes = nlohmann::json::array();
   for (const Mode& mode : make_modes(options, single != nullptr)) {
     jmodes.push_back(evaluate_mode(context, mode, frames, &result.table));

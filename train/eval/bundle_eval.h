@@ -21,11 +21,16 @@
 namespace lmb {
 
 struct BundleEvalOptions {
-  std::string bundle;                             // bundle.txt
-  std::string map;                                // map.h5 with the query frames
-  std::string model;                              // optional: the single model, localized on the same frames
-  std::vector<double> prior_noise;                // one mode per value (metres, >= 0)
-  bool no_prior = false;                          // a mode scoring every area
+  std::string bundle;               // bundle.txt
+  std::string map;                  // map.h5 with the query frames
+  std::string model;                // optional: the single model, localized on the same frames
+  std::vector<double> prior_noise;  // one mode per value (metres, >= 0)
+  bool no_prior = false;            // a mode scoring every area
+  // Tracking modes, one per value (metres a frame, > 0): the query frames in name order (capture
+  // order) through BundleLocalizer::track() with this tracking_radius; the first frame, and frames
+  // the tracker loses, are localized in every area.
+  std::vector<double> track;
+  int tracking_areas = 2;                         // BundleLocalizerOptions::tracking_areas
   AreaSearch search = AreaSearch::kNearestFirst;  // how the areas a prior selects compete
   AreaWinner winner = AreaWinner::kSupport;       // which scored area's pose wins
   int area_threads = 1;                           // areas localized at once (BundleLocalizerOptions)

@@ -411,6 +411,51 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       EXPECT_EQ(f["areas_scored"].get<size_t>(), f["areas_selected"].get<size_t>()) << m;
     }
   }
+  // --track: the query frames in name order through BundleLocalizer::track. The first frame has no
+  // last pose (every area); with a radius that holds the whole map every later posed frame is
+  // tracked, i.e. stops inside the motion gate.
+  {
+    const fs::path tout = dir_ / "track.json";
+    const RunResult t = run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                                " --track 1000 --tracking-areas 1 --out " + tout.string(),
+                            dir_);
+    ASSERT_EQ(t.exit_code, 0) << t.err;
+    const nlohmann::json tj = nlohmann::json::parse(slurp(tout));
+    ASSERT_EQ(tj["modes"].size(), 1u);
+    const nlohmann::json& mode = tj["modes"][0];
+    EXPECT_EQ(mode["mode"], "tracking 1000 m");
+    EXPECT_EQ(mode["tracking_areas"], 1);
+    const nlohmann::json& frames = mode["frames"];
+    ASSERT_GE(frames.size(), 2u);
+    EXPECT_TRUE(frames[0]["relocalized"].get<bool>());
+    EXPECT_FALSE(frames[0]["tracked"].get<bool>());
+    EXPECT_EQ(frames[0]["areas_scored"].get<int>(), num_areas);
+    int tracked = 0, relocalized = 0, tracked_correct = 0;
+    bool posed = false;  // a pose so far: the tracker has a last pose
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const nlohmann::json& fr = frames[i];
+      if (i > 0) {
+        EXPECT_GT(fr["name"].get<std::string>(), frames[i - 1]["name"].get<std::string>());
+      }
+      if (posed) {
+        EXPECT_FALSE(fr["relocalized"].get<bool>()) << i;
+      }
+      if (fr["tracked"].get<bool>()) {
+        EXPECT_LE(fr["areas_scored"].get<int>(), fr["areas_selected"].get<int>());
+      }
+      EXPECT_EQ(fr["tracked"].get<bool>(), posed && fr["success"].get<bool>()) << i;
+      tracked += fr["tracked"].get<bool>();
+      tracked_correct += fr["tracked"].get<bool>() && fr["correct"].get<bool>();
+      relocalized += fr["relocalized"].get<bool>();
+      posed = posed || fr["success"].get<bool>();
+    }
+    EXPECT_GT(tracked, 0);
+    const double n = static_cast<double>(frames.size());
+    EXPECT_DOUBLE_EQ(mode["tracked_per_frame"].get<double>(), tracked / n);
+    EXPECT_EQ(mode["tracked_frames_per_seed"][0].get<int>(), tracked);
+    EXPECT_EQ(mode["tracked_correct_per_seed"][0].get<int>(), tracked_correct);
+    EXPECT_DOUBLE_EQ(mode["relocalized_per_frame"].get<double>(), relocalized / n);
+  }
   // The bundle's calibration (lboost bundle --map): fitted on the map frames and their "elsewhere"
   // variants, written as an index of version 2 that opens calibrated; a localization reports each
   // frame's confidence, localized exactly when it reaches the operating point. A map the areas file
@@ -477,13 +522,17 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
   expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() + " --out " +
                            out.string(),
                        dir_),
-                   "localize", "--bundle needs --prior-noise METRES and/or --no-prior");
+                   "localize", "--bundle needs --prior-noise METRES, --track METRES and/or --no-prior");
+  expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                           " --track 0 --out " + out.string(),
+                       dir_),
+                   "localize", "--track 0: must be finite and > 0");
   expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
                            " --prior-noise -2 --out " + out.string(),
                        dir_),
                    "localize", "--prior-noise -2: must be finite and >= 0");
   expect_one_error(run("localize --map " + map_.string() + " --no-prior --out " + out.string(), dir_), "localize",
-                   "--prior-noise and --no-prior need --bundle");
+                   "--prior-noise, --track and --no-prior need --bundle");
   expect_one_error(run("eval --map " + map_.string() + " --report " + out.string(), dir_), "eval",
                    "--model is required (or --bundle)");
 }
