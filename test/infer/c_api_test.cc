@@ -448,6 +448,15 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
     EXPECT_EQ(area, 1) << name;
     EXPECT_EQ(pose.success, std::string(name) == "accept.txt" ? 1 : 0) << name;
     EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers) << name;
+    // Tracking: a bundle that trusts no pose never gets a last pose to track from (every frame is
+    // relocalized, success 0); one that trusts every pose tracks the second frame (success 1).
+    for (int frame = 0; frame < 2; ++frame) {
+      ASSERT_EQ(lmb_bundle_track(calibrated, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                 test::kCodeDescriptorBytes, gravity, 1.0, nullptr, &pose, &area),
+                LMB_OK);
+      EXPECT_EQ(area, 1) << name << frame;
+      EXPECT_EQ(pose.success, std::string(name) == "accept.txt" ? 1 : 0) << name << frame;
+    }
     lmb_bundle_free(calibrated);
   }
 }
