@@ -349,6 +349,14 @@ void AreaBundle::release_except(const std::vector<int32_t>& keep) {
 
 namespace {
 
+// Sorts area ids by their cell's distance from `position` (ties keep their order).
+void order_by_distance(const AreaBundle& bundle, const Eigen::Vector3d& position, std::vector<int32_t>* ids) {
+  const std::vector<BundleArea>& areas = bundle.areas();
+  std::stable_sort(ids->begin(), ids->end(), [&](int32_t a, int32_t b) {
+    return areas[static_cast<size_t>(a)].distance(position) < areas[static_cast<size_t>(b)].distance(position);
+  });
+}
+
 // One area's localization of the frame, or why its model could not be loaded.
 struct AreaRun {
   std::shared_ptr<const Model> model;  // null when it could not be loaded
@@ -537,12 +545,7 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
   check_area_threads(area_threads, "localize_in_bundle");
   std::vector<int32_t> selected = bundle.select(prior);
   const bool nearest_first = prior != nullptr && search == AreaSearch::kNearestFirst;
-  if (nearest_first) {
-    const std::vector<BundleArea>& areas = bundle.areas();
-    std::stable_sort(selected.begin(), selected.end(), [&](int32_t a, int32_t b) {
-      return areas[a].distance(prior->position) < areas[b].distance(prior->position);
-    });
-  }
+  if (nearest_first) order_by_distance(bundle, prior->position, &selected);
   BundleLocalizeResult out = localize_selected(bundle, selected, nearest_first, nullptr, 1, camera, keypoints,
                                                descriptors, gravity_in_cam, options, winner, area_threads, start);
   out.prior_used = prior != nullptr;
@@ -592,7 +595,8 @@ BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::
 }
 
 BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vector<Keypoint>& keypoints,
-                                            const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam) {
+                                            const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                            const PositionPrior* relocalization_prior) {
   const auto start = std::chrono::steady_clock::now();
   // A pose to track from: one within the motion gate of the last tracked pose, or with a calibrated
   // bundle one it reports localized (a wrong pose must not become the next prior), else any winning pose.
@@ -636,13 +640,15 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
   if (!done) {
     const int32_t loaded = r.loaded;
     std::vector<std::string> errors = std::move(r.errors);
-    // Every area; with a last pose, a winner inside its gate is tracked too (judged once all are
-    // scored, so the search does not stop early), e.g. the right pose after a lost frame.
-    const std::vector<int32_t> every = bundle_->select(nullptr);
-    r = last_position_ ? localize_selected(*bundle_, every, false, &prior, static_cast<int>(every.size()), camera,
-                                           keypoints, descriptors, gravity_in_cam, options_.localizer, options_.winner,
-                                           options_.area_threads, start)
-                       : localize(camera, keypoints, descriptors, gravity_in_cam, nullptr);
+    // Relocalization: the areas `relocalization_prior` selects, nearest first, or every area. With a
+    // last pose, a winner inside its gate is tracked too (judged once all are scored, so the gate
+    // does not stop the search early), e.g. the right pose after a lost frame.
+    std::vector<int32_t> ids = bundle_->select(relocalization_prior);
+    const bool nearest = relocalization_prior != nullptr && options_.search == AreaSearch::kNearestFirst;
+    if (nearest) order_by_distance(*bundle_, relocalization_prior->position, &ids);
+    r = localize_selected(*bundle_, ids, nearest, last_position_ ? &prior : nullptr,
+                          std::max(1, static_cast<int>(ids.size())), camera, keypoints, descriptors, gravity_in_cam,
+                          options_.localizer, options_.winner, options_.area_threads, start);
     // The failed tracking attempt's time and loads count too.
     r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     r.loaded += loaded;

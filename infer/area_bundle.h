@@ -280,8 +280,11 @@ class LMB_INFER_EXPORT BundleLocalizer {
   // gate is tracked too). A tracked pose, or a trusted one (with a calibrated bundle `localized`,
   // without one any winning pose), becomes the last pose. A look-alike pose can pass the gate:
   // tracking_areas > 1 lets a second area's matches reject most of them (docs/areas.md).
+  // `relocalization_prior` (optional, e.g. a GPS fix): a relocalization scores the areas it selects,
+  // nearest first (AreaSearch), instead of every area.
   BundleLocalizeResult track(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
-                             const Eigen::Vector3d& gravity_in_cam);
+                             const Eigen::Vector3d& gravity_in_cam,
+                             const PositionPrior* relocalization_prior = nullptr);
   void reset_tracking() { set_last_pose(std::nullopt); }
   // Sets the last tracked pose (cam_from_world), e.g. predicted by odometry, or none.
   void set_last_pose(const std::optional<Rigid3d>& cam_from_world);

@@ -711,19 +711,22 @@ landmarkboost.Error for invalid input; areas that cannot be loaded are listed in
       .def(
           "track",
           [](BundleLocalizer& l, const Camera& camera, const py::array& keypoints, const py::array& descriptors,
-             const Eigen::Vector3d& gravity_in_cam) {
+             const Eigen::Vector3d& gravity_in_cam, const py::object& prior) {
+            const std::optional<PositionPrior> p = prior_from(prior);
             const BundleFrameArgs f = bundle_frame(l.bundle(), l.bundle().select(nullptr), keypoints, descriptors);
             BundleLocalizeResult r;
             {
               py::gil_scoped_release release;
-              r = l.track(camera, f.keypoints, f.data(), gravity_in_cam);
+              r = l.track(camera, f.keypoints, f.data(), gravity_in_cam, p ? &*p : nullptr);
             }
             return bundle_result(std::move(r));
           },
           py::arg("camera"), py::arg("keypoints"), py::arg("descriptors"), py::arg("gravity_in_cam"),
+          py::arg("prior") = py::none(),
           R"(Tracking: the areas near the last tracked pose, those that see most of its view first, until the
 pose that wins among tracking_areas or more of them lies within tracking_radius of it (result.tracked); the
-first frame, and a frame those areas do not localize, are localized in every area (result.prior_used False).)")
+first frame, and a frame those areas do not localize, are relocalized (result.prior_used False) in every area,
+or in those prior = (position, radius) selects, nearest first (e.g. a GPS fix).)")
       .def("reset_tracking", &BundleLocalizer::reset_tracking)
       .def_property(
           "last_position", [](const BundleLocalizer& l) { return l.last_position(); },

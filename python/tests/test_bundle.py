@@ -145,6 +145,11 @@ def test_winner_rules_and_tracking(tiny, tmp_path):
         seen = [wide.visible_landmarks(i, camera, first.cam_from_world) for i in range(2)]
         assert seen[0] == seen[1] > 0
         assert bundle.visible_landmarks(0, camera, first.cam_from_world) <= seen[0]
+    # A relocalization prior restricts the first frame to the areas it selects (reach 1 m).
+    relocalizing = lb.BundleLocalizer(bundle, tracking_radius=0.5)
+    centre = m.frames[frames[0]].cam_from_world.center()
+    by_fix = relocalizing.track(*frame_args(m, frames[0]), prior=(centre, 0.0))
+    assert not by_fix.prior_used and by_fix.selected == len(bundle.select((centre, 0.0)))
     with pytest.raises(lb.Error, match="tracking_areas"):
         lb.BundleLocalizer(bundle, tracking_areas=0)
     tracker.reset_tracking()

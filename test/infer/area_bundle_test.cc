@@ -883,6 +883,19 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   EXPECT_EQ(relocalized.area, 1);
   EXPECT_TRUE(relocalized.tracked);
   EXPECT_FALSE(relocalized.localized);
+  // A relocalization prior (e.g. a GPS fix) restricts a relocalization to the areas it selects:
+  // here the look-alike's cell only; without one, every area.
+  BundleLocalizer fresh(AreaBundle::open(beyond / "bundle.txt"), options);
+  PositionPrior fix;
+  fix.position = centre;
+  fix.radius = 0.1;
+  const BundleLocalizeResult restricted =
+      fresh.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &fix);
+  EXPECT_FALSE(restricted.prior_used);
+  EXPECT_EQ(restricted.scored, std::vector<int32_t>{0});
+  EXPECT_FALSE(fresh.last_pose().has_value());  // distrusted, and no last pose to gate it
+  EXPECT_EQ(fresh.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam).scored,
+            (std::vector<int32_t>{0, 1}));
 
   options.tracking_areas = 0;
   EXPECT_THROW(options.check(), Error);

@@ -222,6 +222,10 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
   cmd->add_option("--track", options->track,
                   "--bundle: track the query frames in capture order, the camera moving at most METRES a frame "
                   "(BundleLocalizer::track; repeatable)");
+  cmd->add_option("--track-prior-noise", options->track_prior_noise,
+                  "--bundle --track: relocalize with a position prior of this noise (as --prior-noise) instead of "
+                  "in every area (negative: every area)")
+      ->capture_default_str();
   cmd->add_option("--tracking-areas", options->tracking_areas,
                   "--bundle --track: areas scored before the motion gate judges the winning pose")
       ->capture_default_str();

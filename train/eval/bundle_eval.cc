@@ -84,6 +84,8 @@ void BundleEvalOptions::check() const {
   for (double m : track) {
     LMB_CHECK(std::isfinite(m) && m > 0.0, "--track " << m << ": must be finite and > 0");
   }
+  LMB_CHECK(track_prior_noise < 0.0 || (std::isfinite(track_prior_noise) && !track.empty()),
+            "--track-prior-noise " << track_prior_noise << ": must be finite and needs --track");
   LMB_CHECK(tracking_areas >= 1 && tracking_areas <= 256,
             "--tracking-areas " << tracking_areas << ": must be in 1..256");
   LMB_CHECK(!prior_noise.empty() || no_prior || !track.empty(),
@@ -137,7 +139,12 @@ std::vector<Mode> make_modes(const BundleEvalOptions& options, bool with_single)
     modes.push_back({name, false, true, m});
   }
   if (options.no_prior) modes.push_back({"no prior", false, false, 0.0});
-  for (double m : options.track) modes.push_back({"tracking " + number_text(m) + " m", false, false, 0.0, m});
+  for (double m : options.track) {
+    std::string name = "tracking " + number_text(m) + " m";
+    if (options.track_prior_noise >= 0.0)
+      name += ", relocalizing with a " + number_text(options.track_prior_noise) + " m prior";
+    modes.push_back({name, false, false, 0.0, m});
+  }
   if (with_single) modes.push_back({"single model", true, false, 0.0});
   return modes;
 }
@@ -171,16 +178,19 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.localized = r.localized;
     o.confidence = r.confidence;
   } else {
+    // The frame's position prior: the mode's, or a tracking mode's relocalization prior.
+    const double noise = tracker != nullptr ? c.options.track_prior_noise : mode.has_prior ? mode.noise : -1.0;
     PositionPrior prior;
-    if (mode.has_prior) {
-      prior.position = frame.cam_from_world.center() + mode.noise * prior_direction(c.options.prior_seed, f);
-      prior.radius = mode.noise;
+    if (noise >= 0.0) {
+      prior.position = frame.cam_from_world.center() + noise * prior_direction(c.options.prior_seed, f);
+      prior.radius = noise;
     }
-    BundleLocalizeResult r = tracker != nullptr
-                                 ? tracker->track(camera, keypoints, descriptors, frame.gravity_in_cam)
-                                 : localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                                                      mode.has_prior ? &prior : nullptr, lo, c.options.search,
-                                                      c.options.winner, c.options.area_threads);
+    BundleLocalizeResult r =
+        tracker != nullptr
+            ? tracker->track(camera, keypoints, descriptors, frame.gravity_in_cam, noise >= 0.0 ? &prior : nullptr)
+            : localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
+                                 mode.has_prior ? &prior : nullptr, lo, c.options.search, c.options.winner,
+                                 c.options.area_threads);
     o.tracked = r.tracked;
     o.prior_used = r.prior_used;
     o.success = r.area >= 0;
@@ -321,6 +331,7 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     if (mode.tracking_radius > 0.0) {
       jm["tracking_radius_m"] = mode.tracking_radius;
       jm["tracking_areas"] = c.options.tracking_areas;
+      if (c.options.track_prior_noise >= 0.0) jm["relocalization_prior_noise_m"] = c.options.track_prior_noise;
       jm["tracked_per_frame"] = static_cast<double>(tracked) / n;
       jm["relocalized_per_frame"] = static_cast<double>(relocalized) / n;
       // The frames whose pose passed the motion gate, and of them correct, per seed.

@@ -30,7 +30,10 @@ struct BundleEvalOptions {
   // order) through BundleLocalizer::track() with this tracking_radius; the first frame, and frames
   // the tracker loses, are localized in every area.
   std::vector<double> track;
-  int tracking_areas = 2;                         // BundleLocalizerOptions::tracking_areas
+  int tracking_areas = 2;  // BundleLocalizerOptions::tracking_areas
+  // >= 0: tracking modes relocalize with a position prior of this noise (as prior_noise) instead of
+  // in every area (BundleLocalizer::track's relocalization_prior).
+  double track_prior_noise = -1.0;
   AreaSearch search = AreaSearch::kNearestFirst;  // how the areas a prior selects compete
   AreaWinner winner = AreaWinner::kSupport;       // which scored area's pose wins
   int area_threads = 1;                           // areas localized at once (BundleLocalizerOptions)

@@ -455,6 +455,25 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     EXPECT_EQ(mode["tracked_frames_per_seed"][0].get<int>(), tracked);
     EXPECT_EQ(mode["tracked_correct_per_seed"][0].get<int>(), tracked_correct);
     EXPECT_DOUBLE_EQ(mode["relocalized_per_frame"].get<double>(), relocalized / n);
+    // Relocalizing with a position prior: named in the mode; the first frame scores only the areas
+    // a 0 m prior at its true centre selects.
+    const RunResult g = run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                                " --track 1000 --track-prior-noise 0 --out " + tout.string(),
+                            dir_);
+    ASSERT_EQ(g.exit_code, 0) << g.err;
+    const nlohmann::json gj = nlohmann::json::parse(slurp(tout));
+    EXPECT_EQ(gj["modes"][0]["mode"], "tracking 1000 m, relocalizing with a 0 m prior");
+    EXPECT_EQ(gj["modes"][0]["relocalization_prior_noise_m"], 0.0);
+    const nlohmann::json& g0 = gj["modes"][0]["frames"][0];
+    EXPECT_TRUE(g0["relocalized"].get<bool>());
+    const LandmarkMap lm = read_map_h5(map_);
+    const auto first = std::find_if(lm.frames.begin(), lm.frames.end(),
+                                    [&](const MapFrame& mf) { return mf.name == g0["name"].get<std::string>(); });
+    ASSERT_NE(first, lm.frames.end());
+    PositionPrior at_truth;
+    at_truth.position = first->cam_from_world.center();
+    EXPECT_EQ(g0["areas_selected"].get<size_t>(), AreaBundle::open(models / "bundle.txt")->select(&at_truth).size());
+    EXPECT_LE(g0["areas_scored"].get<int>(), g0["areas_selected"].get<int>());
   }
   // The bundle's calibration (lboost bundle --map): fitted on the map frames and their "elsewhere"
   // variants, written as an index of version 2 that opens calibrated; a localization reports each
@@ -527,6 +546,10 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
                            " --track 0 --out " + out.string(),
                        dir_),
                    "localize", "--track 0: must be finite and > 0");
+  expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                           " --no-prior --track-prior-noise 5 --out " + out.string(),
+                       dir_),
+                   "localize", "--track-prior-noise 5: must be finite and needs --track");
   expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
                            " --prior-noise -2 --out " + out.string(),
                        dir_),
