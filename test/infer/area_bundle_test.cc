@@ -99,6 +99,22 @@ class AreaBundleTest : public ::testing::Test {
     for (size_t i = first; i < first + count; ++i) d.class_position[seen[i]] = world.positions[seen[i]] + offset;
     return std::make_shared<const Model>(std::move(d));
   }
+  // dir_/track.txt, four areas around `world`'s frame (reach 50 m): 0: a look-alike of 45 of its
+  // landmarks, 3 m further along the optical axis (its pose lies 3 m behind the camera), in the
+  // cell holding the camera; 1: all 60 where they are, 1 m away; 2: 20 of them, 2 m away; 3: none,
+  // 1 m away on the other side.
+  void write_tracking_bundle(const test::TestWorld& world) {
+    const test::TestFrame& f = world.frame;
+    const std::vector<int32_t> seen = frame_classes(f);
+    Rng rng(29);
+    const Eigen::Vector3d axis = f.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitZ();
+    const double x = f.cam_from_world.center().x();
+    write_bundle_index(dir_ / "track.txt", 50.0,
+                       {add(*area_model(world, seen, rng, 0, 45, 3.0 * axis), 0, x - 1.0, x + 1.0),
+                        add(*area_model(world, seen, rng, 0, 60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0),
+                        add(*area_model(world, seen, rng, 0, 20, Eigen::Vector3d::Zero()), 2, x + 2.0, kInf),
+                        add(*area_model(world, seen, rng, 0, 0, Eigen::Vector3d::Zero()), 3, -kInf, x - 1.0)});
+  }
   fs::path dir_;
 };
 
@@ -742,14 +758,7 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   const Eigen::Vector3d centre = f.cam_from_world.center();
   const Eigen::Vector3d axis = f.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitZ();  // optical axis
   const double x = centre.x();
-  // 0: a look-alike of 45 of the landmarks, 3 m further along the optical axis (its pose lies 3 m
-  // behind the camera), in the cell holding the camera; 1: all 60 where they are, 1 m away; 2: 20
-  // of them, 2 m away; 3: none, 1 m away on the other side.
-  write_bundle_index(dir_ / "track.txt", 50.0,
-                     {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0),
-                      add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0),
-                      add(*area_model(20, Eigen::Vector3d::Zero()), 2, x + 2.0, kInf),
-                      add(*area_model(0, Eigen::Vector3d::Zero()), 3, -kInf, x - 1.0)});
+  write_tracking_bundle(world);
   const auto bundle = AreaBundle::open(dir_ / "track.txt");
   // What the camera sees of each area (every landmark is sampled: fewer than kViewSample).
   EXPECT_EQ(bundle->visible_landmarks(0, f.camera, f.cam_from_world), 45);
@@ -762,11 +771,11 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   EXPECT_FALSE(bundle->loaded(1));
   EXPECT_THROW(bundle->visible_landmarks(4, f.camera, f.cam_from_world), Error);
 
-  for (int threads : {1, 3}) {
+  {
+    // (On area threads: TrackingOnAreaThreadsGivesTheOneThreadResult.)
     BundleLocalizerOptions options;
     options.tracking_radius = 1.0;
     options.tracking_areas = 1;
-    options.area_threads = threads;
     BundleLocalizer localizer(bundle, options);
     const auto track = [&] { return localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam); };
     // The last pose known: the area that sees most of its view first; its pose lies within the gate.
@@ -774,7 +783,7 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
     const BundleLocalizeResult seen_first = track();
     EXPECT_TRUE(seen_first.prior_used);
     EXPECT_EQ(seen_first.selected, 4);
-    EXPECT_EQ(seen_first.scored, std::vector<int32_t>{1}) << threads;
+    EXPECT_EQ(seen_first.scored, std::vector<int32_t>{1});
     EXPECT_EQ(seen_first.area, 1);
     EXPECT_TRUE(seen_first.tracked);
     EXPECT_EQ(seen_first.localized, seen_first.result.localized);  // uncalibrated bundle: the area's own answer
@@ -783,7 +792,7 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
     options.tracking_areas = 2;
     localizer.set_options(options);
     const BundleLocalizeResult two = track();
-    EXPECT_EQ(two.scored, (std::vector<int32_t>{1, 0})) << threads;
+    EXPECT_EQ(two.scored, (std::vector<int32_t>{1, 0}));
     EXPECT_EQ(two.support, (std::vector<int32_t>{60, 45}));
     EXPECT_EQ(two.area, 1);
     EXPECT_TRUE(two.tracked);
@@ -794,7 +803,7 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
     localizer.set_last_position(centre);
     EXPECT_FALSE(localizer.last_pose().has_value());
     const BundleLocalizeResult by_distance = track();
-    EXPECT_EQ(by_distance.scored, (std::vector<int32_t>{0, 1})) << threads;
+    EXPECT_EQ(by_distance.scored, (std::vector<int32_t>{0, 1}));
     EXPECT_EQ(by_distance.inliers, (std::vector<int32_t>{45, 60}));
     EXPECT_EQ(by_distance.area, 1);
     EXPECT_TRUE(by_distance.tracked);
@@ -806,7 +815,7 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
         Rigid3d(f.cam_from_world.rotation, f.cam_from_world.translation + Eigen::Vector3d(5, 0, 0)));
     const BundleLocalizeResult far = track();
     EXPECT_TRUE(far.prior_used);
-    EXPECT_EQ(far.scored.size(), 4u) << threads;
+    EXPECT_EQ(far.scored.size(), 4u);
     EXPECT_FALSE(far.tracked);
     EXPECT_EQ(far.area, 1);
     EXPECT_EQ(far.localized, far.result.localized);
@@ -902,6 +911,45 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   EXPECT_THROW(localizer.set_options(options), Error);
   options.tracking_areas = 257;
   EXPECT_THROW(options.check(), Error);
+}
+
+// Tracking on area threads: the same areas scored, winners and gate verdicts as on one thread
+// (the areas of a wave after the one that stops the search are dropped).
+TEST_F(AreaBundleTest, TrackingOnAreaThreadsGivesTheOneThreadResult) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const test::TestFrame& f = world.frame;
+  write_tracking_bundle(world);
+  const auto bundle = AreaBundle::open(dir_ / "track.txt");
+  const auto run = [&](int threads, int areas) {
+    BundleLocalizerOptions options;
+    options.tracking_radius = 1.0;
+    options.tracking_areas = areas;
+    options.area_threads = threads;
+    BundleLocalizer localizer(bundle, options);
+    std::vector<BundleLocalizeResult> out;
+    localizer.set_last_pose(f.cam_from_world);
+    out.push_back(localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam));
+    localizer.set_last_position(f.cam_from_world.center());
+    out.push_back(localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam));
+    localizer.set_last_pose(
+        Rigid3d(f.cam_from_world.rotation, f.cam_from_world.translation + Eigen::Vector3d(5, 0, 0)));
+    out.push_back(localizer.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam));
+    return out;
+  };
+  for (int areas : {1, 2}) {
+    const std::vector<BundleLocalizeResult> one = run(1, areas);
+    for (int threads : {2, 3}) {
+      const std::vector<BundleLocalizeResult> many = run(threads, areas);
+      for (size_t i = 0; i < one.size(); ++i) {
+        EXPECT_EQ(many[i].scored, one[i].scored) << threads << " " << areas << " " << i;
+        EXPECT_EQ(many[i].support, one[i].support) << i;
+        EXPECT_EQ(many[i].area, one[i].area) << i;
+        EXPECT_EQ(many[i].tracked, one[i].tracked) << i;
+        EXPECT_EQ(many[i].result.pose.inlier_mask, one[i].result.pose.inlier_mask) << i;
+      }
+    }
+    EXPECT_TRUE(one[0].tracked && one[1].tracked && !one[2].tracked) << areas;
+  }
 }
 
 }  // namespace
