@@ -1,5 +1,6 @@
-"""The example scripts on the tiny world: python/examples/localize_queries.py (a map's query frames)
-and python/examples/localize_image.py (one image file), against `lboost localize`."""
+"""The example scripts on the tiny world: python/examples/localize_queries.py (a map's query frames),
+python/examples/localize_image.py (one image file) and python/examples/track_queries.py (a bundle
+tracking the query frames), against `lboost localize`."""
 import json
 import os
 import subprocess
@@ -10,6 +11,8 @@ import numpy as np
 from PIL import Image
 
 import landmarkboost as lb
+from conftest import run_lboost
+from test_bundle import write_bundle
 
 EXAMPLES = Path(os.environ.get("LMB_SOURCE_DIR", Path(__file__).parents[2])) / "python" / "examples"
 
@@ -81,3 +84,23 @@ def test_localize_image_refuses_and_fails_clearly(tiny, tmp_path):
                     "--gravity", 0, 1, 0)
     assert r.returncode == 1
     assert r.stderr.strip().startswith(f"{tmp_path / 'no.png'}: cannot read the image"), r.stderr
+
+
+def test_track_queries_tracks_as_lboost_localize_track(tiny, tmp_path):
+    """Two areas (copies of the tiny model, split along x) tracked with a radius that holds the
+    world: the example's frames, areas and tracked flags are `lboost localize --bundle --track`'s."""
+    index = write_bundle(tmp_path / "bundle", tiny.model, [("-inf", "0"), ("0", "inf")], reach=1000.0)
+    r = run_example("track_queries.py", "--bundle", index, "--map", tiny.map, "--radius", 100)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().split("\n")
+    run_lboost("localize", "--bundle", index, "--map", tiny.map, "--track", 100, "--out", tmp_path / "track.json")
+    frames = json.loads((tmp_path / "track.json").read_text())["modes"][0]["frames"]
+    assert len(lines) == len(frames) + 1
+    for line, frame in zip(lines, frames):
+        how = "tracked" if frame["tracked"] else ("relocalized" if frame["relocalized"] else "not tracked")
+        assert line.startswith(f"{frame['name']}: {how}"), line
+        if frame["success"]:
+            assert f"area {frame['area']} of {frame['areas_scored']} scored" in line, line
+            assert f"error {frame['position_error_m']:.3f} m" in line, line
+    tracked = sum(f["tracked"] for f in frames)
+    assert tracked > 0 and lines[-1].startswith(f"tracked {tracked}/{len(frames)} query frames"), lines[-1]
