@@ -249,7 +249,9 @@ struct LMB_INFER_EXPORT BundleLocalizerOptions {
   // among them (AreaWinner) must lie within tracking_radius. More areas cost more time and let the
   // support rule reject a look-alike pose that happens to lie within the gate.
   int tracking_areas = 2;
-  // track(): without a last pose, or when the prior's areas give none, localize in every area.
+  // track(): when the tracked areas give neither a gated nor a trusted pose, relocalize (in every
+  // area, or in those track()'s relocalization prior selects); false: report the failed frame. The
+  // first frame (no last pose) is always relocalized.
   bool relocalize_without_prior = true;
   // Throws lmb::Error naming the field.
   void check() const;
