@@ -342,6 +342,12 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     jm["areas_loaded_at_end"] = c.bundle.loaded_ids().size();
     jm["loaded_bytes_at_end"] = c.bundle.loaded_bytes();
     areas_text = number_text(selected / n) + " / " + number_text(scored / n) + " / " + number_text(loaded / n);
+    if (mode.tracking_radius > 0.0) {
+      const int t = std::accumulate(tracked_per_seed.begin(), tracked_per_seed.end(), 0);
+      const int t_right = std::accumulate(tracked_correct_per_seed.begin(), tracked_correct_per_seed.end(), 0);
+      areas_text += "  tracked " + std::to_string(t) + " (" + std::to_string(t_right) + " right), relocalized " +
+                    std::to_string(relocalized) + " (all seeds)";
+    }
   }
   jm["frames"] = std::move(jframes);
   std::string seeds_text;
