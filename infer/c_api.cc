@@ -23,7 +23,9 @@ struct lmb_model {
 
 struct lmb_bundle {
   std::shared_ptr<lmb::AreaBundle> bundle;
-  std::unique_ptr<lmb::BundleLocalizer> tracker;  // lmb_bundle_track's state
+  std::unique_ptr<lmb::BundleLocalizer> tracker;                      // lmb_bundle_track's state
+  int tracking_areas = lmb::BundleLocalizerOptions{}.tracking_areas;  // lmb_bundle_set_tracking_areas
+  int last_tracked = 0;  // the last lmb_bundle_track call's pose passed the motion gate
 };
 
 namespace {
@@ -354,6 +356,18 @@ lmb_status lmb_bundle_set_cache(lmb_bundle* bundle, int max_areas, uint64_t max_
   });
 }
 
+lmb_status lmb_bundle_set_tracking_areas(lmb_bundle* bundle, int areas) {
+  if (bundle == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_bundle_set_tracking_areas: bundle is NULL");
+  if (areas < 1 || areas > 256) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                "lmb_bundle_set_tracking_areas: areas " + std::to_string(areas) + " must be in 1..256");
+  }
+  bundle->tracking_areas = areas;
+  return LMB_OK;
+}
+
+int lmb_bundle_tracked(const lmb_bundle* bundle) { return bundle == nullptr ? -1 : bundle->last_tracked; }
+
 lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
                                const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
                                const lmb_prior* prior, const lmb_localize_options* options, lmb_pose* out_pose,
@@ -377,11 +391,13 @@ lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera, const 
                             const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
                             double tracking_radius, const lmb_localize_options* options, lmb_pose* out_pose,
                             int* out_area) {
+  if (bundle != nullptr) bundle->last_tracked = 0;
   return bundle_call("lmb_bundle_track", bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
                      out_pose, out_area, [&](const BundleFrame& f) {
                        lmb::BundleLocalizerOptions bo;
                        bo.localizer = to_localizer_options(options);
                        bo.tracking_radius = tracking_radius;
+                       bo.tracking_areas = bundle->tracking_areas;
                        bo.check();
                        // New options each call; the tracking state carries over.
                        if (bundle->tracker) {
@@ -389,7 +405,10 @@ lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera, const 
                        } else {
                          bundle->tracker = std::make_unique<lmb::BundleLocalizer>(bundle->bundle, bo);
                        }
-                       return bundle->tracker->track(f.camera, f.keypoints, descriptors, f.gravity);
+                       lmb::BundleLocalizeResult r =
+                           bundle->tracker->track(f.camera, f.keypoints, descriptors, f.gravity);
+                       bundle->last_tracked = r.tracked ? 1 : 0;
+                       return r;
                      });
 }
 

@@ -209,6 +209,12 @@ LMB_INFER_EXPORT lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camer
                                              int descriptor_bytes, const double gravity_in_cam[3],
                                              double tracking_radius, const lmb_localize_options* options,
                                              lmb_pose* out_pose, int* out_area);
+/* Areas lmb_bundle_track scores before its motion gate judges the winning pose (1..256; default
+ * 2: a second area's matches confirm the pose; 1 is about twice as fast). */
+LMB_INFER_EXPORT lmb_status lmb_bundle_set_tracking_areas(lmb_bundle* bundle, int areas);
+/* 1 when the last lmb_bundle_track call's pose passed the motion gate (tracked), 0 otherwise
+ * (also before any call, and after a call that failed); -1 for a NULL bundle. */
+LMB_INFER_EXPORT int lmb_bundle_tracked(const lmb_bundle* bundle);
 
 #ifdef __cplusplus
 }

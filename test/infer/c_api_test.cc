@@ -413,15 +413,40 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
             LMB_OK);
   EXPECT_EQ(area, 1);
   EXPECT_EQ(lmb_bundle_num_loaded(bundle), 1);
-  // Tracking: the first frame in every area, the next with the last pose as the prior.
-  for (int frame = 0; frame < 2; ++frame) {
-    ASSERT_EQ(lmb_bundle_track(bundle, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
-                               test::kCodeDescriptorBytes, gravity, 1.0, nullptr, &pose, &area),
-              LMB_OK)
-        << lmb_last_error();
-    EXPECT_EQ(area, 1);
-    EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers);
+  // Tracking: the first frame in every area, the next with the last pose as the prior; whether a
+  // pose passed the motion gate (lmb_bundle_tracked) as BundleLocalizer::track says, with the
+  // default two areas judged and with one.
+  EXPECT_EQ(lmb_bundle_tracked(bundle), 0);
+  EXPECT_EQ(lmb_bundle_tracked(nullptr), -1);
+  for (int areas : {2, 1}) {
+    lmb::BundleLocalizerOptions options;
+    options.tracking_radius = 1.0;
+    options.tracking_areas = areas;
+    lmb::BundleLocalizer reference(lmb::AreaBundle::open(fx.index), options);
+    lmb_bundle* tracking = nullptr;
+    ASSERT_EQ(lmb_bundle_open(fx.index.c_str(), &tracking), LMB_OK);
+    if (areas != 2) {
+      ASSERT_EQ(lmb_bundle_set_tracking_areas(tracking, areas), LMB_OK);
+    }
+    for (int frame = 0; frame < 2; ++frame) {
+      ASSERT_EQ(lmb_bundle_track(tracking, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                 test::kCodeDescriptorBytes, gravity, 1.0, nullptr, &pose, &area),
+                LMB_OK)
+          << lmb_last_error();
+      const lmb::BundleLocalizeResult r =
+          reference.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+      EXPECT_EQ(area, 1);
+      EXPECT_EQ(area, r.area);
+      EXPECT_EQ(pose.num_inliers, want.result.pose.num_inliers);
+      EXPECT_EQ(lmb_bundle_tracked(tracking), r.tracked ? 1 : 0) << areas << " " << frame;
+      EXPECT_EQ(r.tracked, frame == 1) << areas << " " << frame;  // the first frame has no last pose
+    }
+    lmb_bundle_free(tracking);
   }
+  EXPECT_EQ(lmb_bundle_set_tracking_areas(bundle, 0), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lmb_last_error()).find("1..256"), std::string::npos) << lmb_last_error();
+  EXPECT_EQ(lmb_bundle_set_tracking_areas(bundle, 257), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lmb_bundle_set_tracking_areas(nullptr, 1), LMB_ERROR_INVALID_ARGUMENT);
   // The options as lmb_localize reads them: a size below the first version's is an error.
   lmb_localize_options older;
   lmb_localize_options_init(&older);
