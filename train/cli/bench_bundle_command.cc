@@ -1,12 +1,10 @@
 // `lboost bench bundle`: per-frame time of localization through a bundle of area models with a
 // position prior, without a prior, tracking (--track), and of the single model, single thread, in the same run
 // (train/eval/bundle_eval.h; docs/areas.md). Prints one line with the ratios.
-#include <algorithm>
 #include <cstdio>
 #include <limits>
 #include <memory>
 #include <string>
-#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -26,19 +24,6 @@ struct BenchBundleArgs {
   double track = 0.0;  // > 0: a tracking mode with this radius
   std::string json;
 };
-
-// Median thread CPU ms of a mode's frames (the first seed's) that `pick` accepts; NaN without one.
-template <typename Pick>
-double median_frame_ms(const nlohmann::json& mode, Pick pick) {
-  std::vector<double> ms;
-  for (const nlohmann::json& f : mode.at("frames")) {
-    if (pick(f)) ms.push_back(f.at("cpu_ms").get<double>());
-  }
-  if (ms.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(ms.begin(), ms.end());
-  const size_t n = ms.size();
-  return n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
-}
 
 void run_bench_bundle(BenchBundleArgs a) {
   LMB_CHECK(!a.options.model.empty(), "bench bundle: --model (the single model to compare) is required");
@@ -63,10 +48,11 @@ void run_bench_bundle(BenchBundleArgs a) {
     // usual cost and a tracked frame's.
     const nlohmann::json& t = modes.at(2);
     const double median_all = t.at("cpu_ms_per_frame").at("median").get<double>();
+    const nlohmann::json& tracked_median = t.at("cpu_ms_per_tracked_frame").at("median");  // null: none tracked
     const double median_tracked =
-        median_frame_ms(t, [](const nlohmann::json& f) { return f.at("tracked").get<bool>(); });
+        tracked_median.is_number() ? tracked_median.get<double>() : std::numeric_limits<double>::quiet_NaN();
     std::printf(
-        "tracking %g m: %.2f ms mean (%.2fx the single model), median %.2f ms, tracked frames (seed 0) median %.2f ms "
+        "tracking %g m: %.2f ms mean (%.2fx the single model), median %.2f ms, tracked frames median %.2f ms "
         "(%.2fx the single model's mean); %.3f of the frames tracked, %.3f relocalized in every area, %.2f areas "
         "scored\n",
         a.track, ms(2), ms(2) / single, median_all, median_tracked, median_tracked / single,

@@ -153,8 +153,7 @@ std::vector<Mode> make_modes(const BundleEvalOptions& options, bool with_single)
 struct ModeContext {
   const BundleEvalOptions& options;
   const LandmarkMap& map;
-  AreaBundle& bundle;
-  const std::shared_ptr<AreaBundle>& shared_bundle;  // the same (a tracker holds it)
+  const std::shared_ptr<AreaBundle>& bundle;
   const std::shared_ptr<const Model>& single;
 };
 
@@ -185,12 +184,11 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
       prior.position = frame.cam_from_world.center() + noise * prior_direction(c.options.prior_seed, f);
       prior.radius = noise;
     }
+    const PositionPrior* p = noise >= 0.0 ? &prior : nullptr;
     BundleLocalizeResult r =
-        tracker != nullptr
-            ? tracker->track(camera, keypoints, descriptors, frame.gravity_in_cam, noise >= 0.0 ? &prior : nullptr)
-            : localize_in_bundle(c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam,
-                                 mode.has_prior ? &prior : nullptr, lo, c.options.search, c.options.winner,
-                                 c.options.area_threads);
+        tracker != nullptr ? tracker->track(camera, keypoints, descriptors, frame.gravity_in_cam, p)
+                           : localize_in_bundle(*c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam, p, lo,
+                                                c.options.search, c.options.winner, c.options.area_threads);
     o.tracked = r.tracked;
     o.prior_used = r.prior_used;
     o.success = r.area >= 0;
@@ -247,7 +245,7 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
   std::vector<double> cpu, wall, pos_err;
   double selected = 0, scored = 0, loaded = 0, localized = 0;
   int64_t runs = 0;
-  const int64_t loads_before = c.bundle.loads();
+  const int64_t loads_before = c.bundle->loads();
   nlohmann::json jframes = nlohmann::json::array();
   // Progress: a line every 30 s of wall time and after each seed, with the mode's ETA.
   const auto started = std::chrono::steady_clock::now();
@@ -262,8 +260,9 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     spdlog::info("eval --bundle: {}: seed {}/{}, {} of {} frame runs, {:.0f} s, ETA {:.0f} s", mode.name, seed + 1,
                  c.options.seeds, runs, total_runs, elapsed, eta);
   };
-  int64_t tracked = 0, relocalized = 0;
+  int64_t relocalized = 0;
   std::vector<int> tracked_per_seed, tracked_correct_per_seed;
+  std::vector<double> tracked_cpu;  // thread CPU ms of the tracked frames, every seed
   for (int s = 0; s < c.options.seeds; ++s) {
     LocalizerOptions lo = c.options.localizer;
     lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
@@ -277,12 +276,12 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
       bo.area_threads = c.options.area_threads;
       bo.tracking_radius = mode.tracking_radius;
       bo.tracking_areas = c.options.tracking_areas;
-      tracker.emplace(c.shared_bundle, bo);
+      tracker.emplace(c.bundle, bo);
     }
     for (frame_t f : frames) {
       const MapFrame& frame = c.map.frames[f];
       const Outcome o = localize_frame(c, mode, f, lo, tracker ? &*tracker : nullptr);
-      tracked += o.tracked;
+      if (o.tracked) tracked_cpu.push_back(o.cpu_ms);
       relocalized += mode.tracking_radius > 0.0 && !o.prior_used;
       const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, c.options.thresholds);
       correct += ok;
@@ -332,18 +331,19 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
       jm["tracking_radius_m"] = mode.tracking_radius;
       jm["tracking_areas"] = c.options.tracking_areas;
       if (c.options.track_prior_noise >= 0.0) jm["relocalization_prior_noise_m"] = c.options.track_prior_noise;
-      jm["tracked_per_frame"] = static_cast<double>(tracked) / n;
+      jm["tracked_per_frame"] = static_cast<double>(tracked_cpu.size()) / n;
+      jm["cpu_ms_per_tracked_frame"] = {{"mean", mean(tracked_cpu)}, {"median", median(tracked_cpu)}};
       jm["relocalized_per_frame"] = static_cast<double>(relocalized) / n;
       // The frames whose pose passed the motion gate, and of them correct, per seed.
       jm["tracked_frames_per_seed"] = tracked_per_seed;
       jm["tracked_correct_per_seed"] = tracked_correct_per_seed;
     }
-    jm["area_loads"] = c.bundle.loads() - loads_before;
-    jm["areas_loaded_at_end"] = c.bundle.loaded_ids().size();
-    jm["loaded_bytes_at_end"] = c.bundle.loaded_bytes();
+    jm["area_loads"] = c.bundle->loads() - loads_before;
+    jm["areas_loaded_at_end"] = c.bundle->loaded_ids().size();
+    jm["loaded_bytes_at_end"] = c.bundle->loaded_bytes();
     areas_text = number_text(selected / n) + " / " + number_text(scored / n) + " / " + number_text(loaded / n);
     if (mode.tracking_radius > 0.0) {
-      const int t = std::accumulate(tracked_per_seed.begin(), tracked_per_seed.end(), 0);
+      const size_t t = tracked_cpu.size();
       const int t_right = std::accumulate(tracked_correct_per_seed.begin(), tracked_correct_per_seed.end(), 0);
       areas_text += "  tracked " + std::to_string(t) + " (" + std::to_string(t_right) + " right), relocalized " +
                     std::to_string(relocalized) + " (all seeds)";
@@ -406,7 +406,7 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   result.table =
       "mode               recall  (per seed)              posed  localized (all seeds)  med_pos_m  cpu_ms/frame "
       "(mean, median)  areas selected/scored/loaded per frame\n";
-  const ModeContext context{options, map, *bundle, bundle, single};
+  const ModeContext context{options, map, bundle, single};
   nlohmann::json jmodes = nlohmann::json::array();
   for (const Mode& mode : make_modes(options, single != nullptr)) {
     jmodes.push_back(evaluate_mode(context, mode, frames, &result.table));

@@ -431,6 +431,7 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     EXPECT_FALSE(frames[0]["tracked"].get<bool>());
     EXPECT_EQ(frames[0]["areas_scored"].get<int>(), num_areas);
     int tracked = 0, relocalized = 0, tracked_correct = 0;
+    std::vector<double> tracked_ms;
     bool posed = false;  // a pose so far: the tracker has a last pose
     for (size_t i = 0; i < frames.size(); ++i) {
       const nlohmann::json& fr = frames[i];
@@ -446,6 +447,7 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       EXPECT_EQ(fr["tracked"].get<bool>(), posed && fr["success"].get<bool>()) << i;
       tracked += fr["tracked"].get<bool>();
       tracked_correct += fr["tracked"].get<bool>() && fr["correct"].get<bool>();
+      if (fr["tracked"].get<bool>()) tracked_ms.push_back(fr["cpu_ms"].get<double>());
       relocalized += fr["relocalized"].get<bool>();
       posed = posed || fr["success"].get<bool>();
     }
@@ -454,6 +456,11 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     EXPECT_DOUBLE_EQ(mode["tracked_per_frame"].get<double>(), tracked / n);
     EXPECT_EQ(mode["tracked_frames_per_seed"][0].get<int>(), tracked);
     EXPECT_EQ(mode["tracked_correct_per_seed"][0].get<int>(), tracked_correct);
+    // One seed: the tracked frames' time is over the frames listed.
+    std::sort(tracked_ms.begin(), tracked_ms.end());
+    const size_t m = tracked_ms.size();
+    EXPECT_DOUBLE_EQ(mode["cpu_ms_per_tracked_frame"]["median"].get<double>(),
+                     m % 2 ? tracked_ms[m / 2] : 0.5 * (tracked_ms[m / 2 - 1] + tracked_ms[m / 2]));
     EXPECT_DOUBLE_EQ(mode["relocalized_per_frame"].get<double>(), relocalized / n);
     // Relocalizing with a position prior: named in the mode; the first frame scores only the areas
     // a 0 m prior at its true centre selects.
