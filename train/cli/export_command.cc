@@ -1,7 +1,8 @@
 // `lboost export`: a training run's model + the map and vocabulary it was trained with -> model.lbm,
 // the one file the inference library needs (infer/model.h). With --fusion on (the default) it also
 // fits the descriptor-distance fusion (train/export/descriptor_fusion.h) on the run's held-out map
-// observations and stores it with the class exemplars.
+// observations and stores it with the class exemplars (every map observation of a class, or
+// --max-exemplars of them chosen by k-centre).
 //
 // With --calibration on (the default) it fits the pose confidence's calibration on the map's own
 // map-session frames (train/eval/pose_calibration_fit.h: every method's calibration of `lboost
@@ -238,6 +239,10 @@ void add_export_command(CLI::App& app) {
   cmd->add_option("--fusion", args->fusion,
                   "Descriptor-distance fusion fitted on the run's held-out map observations: on | off "
                   "(off: the stump sums alone, the model file as before)")
+      ->capture_default_str();
+  cmd->add_option("--max-exemplars", args->fusion_options.max_exemplars,
+                  "The fusion's exemplars kept a class, chosen by k-centre in Hamming space (0: every map "
+                  "observation); fewer make a smaller, faster model")
       ->capture_default_str();
   cmd->add_option("--calibration", args->calibration,
                   "Pose confidence calibrated on the map's own map-session frames: on | off (off: the model "

@@ -97,17 +97,20 @@ std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model
   out.fusion.exemplars.clear();
   out.fusion.exemplar_begin.assign(1, 0);
   for (int32_t c = 0; c < C; ++c) {
-    const int64_t begin = d.fusion.exemplar_begin[c];
-    LMB_CHECK(static_cast<int64_t>(of[c].size()) == d.fusion.exemplar_begin[c + 1] - begin,
-              "eval: the model's descriptor-fusion exemplars of class "
-                  << c << " are not the map's observations of landmark " << d.class_landmark[c]
-                  << " (a model exported from another map?)");
-    for (size_t i = 0; i < of[c].size(); ++i) {
-      const uint8_t* row = d.fusion.exemplars.data() + (begin + static_cast<int64_t>(i)) * bytes;
-      LMB_CHECK(std::memcmp(row, map.descriptor(of[c][i]), static_cast<size_t>(bytes)) == 0,
-                "eval: descriptor-fusion exemplar " << i << " of class " << c << " is not map keypoint " << of[c][i]
-                                                    << "'s descriptor (a model exported from another map?)");
-      if (std::binary_search(excluded.begin(), excluded.end(), of[c][i])) continue;
+    // The class's rows are its map observations, or a subset of them (export --max-exemplars), in
+    // keypoint order: each row is matched to the next observation with its descriptor.
+    size_t next = 0;
+    for (int64_t r = d.fusion.exemplar_begin[c]; r < d.fusion.exemplar_begin[c + 1]; ++r) {
+      const uint8_t* row = d.fusion.exemplars.data() + r * bytes;
+      while (next < of[c].size() && std::memcmp(row, map.descriptor(of[c][next]), static_cast<size_t>(bytes)) != 0) {
+        ++next;
+      }
+      LMB_CHECK(next < of[c].size(), "eval: descriptor-fusion exemplar "
+                                         << r - d.fusion.exemplar_begin[c] << " of class " << c
+                                         << " is not a map observation of landmark " << d.class_landmark[c]
+                                         << " (a model exported from another map?)");
+      const int64_t k = of[c][next++];
+      if (std::binary_search(excluded.begin(), excluded.end(), k)) continue;
       out.fusion.exemplars.insert(out.fusion.exemplars.end(), row, row + bytes);
     }
     const int64_t end = static_cast<int64_t>(out.fusion.exemplars.size()) / bytes;

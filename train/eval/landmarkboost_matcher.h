@@ -48,8 +48,9 @@ class LandmarkBoostMatcher : public Matcher {
 // the model LandmarkBoost ranks held-out map observations with, so that, like the descriptor
 // baselines' index, the fusion does not find a held-out keypoint's own descriptor (at distance 0).
 // The model itself when it has no fusion or nothing is excluded. The exemplars must be the ones
-// export stores for this map (exemplar_keypoints, train/export/descriptor_fusion.h). Throws lmb::Error when they are
-// not, or when a class would keep no exemplar.
+// export stores for this map (exemplar_keypoints, train/export/descriptor_fusion.h, or a subset of
+// them in the same order, export --max-exemplars). Throws lmb::Error when they are not, or when a
+// class would keep no exemplar.
 std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
                                                const std::vector<int64_t>& excluded);
 

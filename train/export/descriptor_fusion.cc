@@ -19,6 +19,7 @@ void DescriptorFusionOptions::check() const {
   LMB_CHECK(max_distance_samples >= 1,
             "descriptor fusion: max_distance_samples = " << max_distance_samples << " must be >= 1");
   LMB_CHECK(max_fit_samples >= 1, "descriptor fusion: max_fit_samples = " << max_fit_samples << " must be >= 1");
+  LMB_CHECK(max_exemplars >= 0, "descriptor fusion: max_exemplars = " << max_exemplars << " must be >= 0");
   LMB_CHECK(!weights.empty(), "descriptor fusion: no candidate weights");
   for (size_t i = 0; i < weights.size(); ++i) {
     LMB_CHECK(
@@ -32,7 +33,10 @@ namespace {
 constexpr uint64_t kDistanceTag = 0x44495354;  // "DIST"
 constexpr uint64_t kFitTag = 0x46495446;       // "FITF"
 
-// Every non-query map observation of each class, class after class, by ascending keypoint.
+// The exemplars of each class, class after class, by ascending keypoint: every non-query map
+// observation, or with cap > 0 k_centre_exemplars of those outside `held_out` (sorted keypoints:
+// the held-out observations stay unseen descriptors, for the weight's fit here and for `lboost
+// eval`'s held-out ranking; all of them for a class with no other).
 struct Exemplars {
   std::vector<int64_t> begin;     // C + 1
   std::vector<int64_t> keypoint;  // per row
@@ -40,8 +44,18 @@ struct Exemplars {
   std::vector<int32_t> cls;       // per row
 };
 
-Exemplars collect_exemplars(const LandmarkMap& map, const std::vector<landmark_t>& class_landmarks) {
-  const std::vector<std::vector<int64_t>> of = exemplar_keypoints(map, class_landmarks);
+Exemplars collect_exemplars(const LandmarkMap& map, const std::vector<landmark_t>& class_landmarks, int32_t cap,
+                            const std::vector<int64_t>& held_out) {
+  std::vector<std::vector<int64_t>> of = exemplar_keypoints(map, class_landmarks);
+  if (cap > 0) {
+    for (std::vector<int64_t>& keypoints : of) {
+      std::vector<int64_t> seen;
+      for (int64_t k : keypoints) {
+        if (!std::binary_search(held_out.begin(), held_out.end(), k)) seen.push_back(k);
+      }
+      keypoints = k_centre_exemplars(map, seen.empty() ? keypoints : seen, cap);
+    }
+  }
   const int32_t C = static_cast<int32_t>(class_landmarks.size());
   Exemplars e;
   e.begin.assign(static_cast<size_t>(C) + 1, 0);
@@ -152,11 +166,14 @@ std::vector<double> distance_log_ratio(const Exemplars& ex, const LandmarkMap& m
   std::vector<int64_t> train_samples, train_keypoints;
   for (int64_t s = 0; s < set.num_samples(); ++s) {
     const int32_t c = set.sample_class[s];
-    if (c >= C || set.sample_is_validation[s] || ex.begin[c + 1] - ex.begin[c] < 2) continue;
+    if (c >= C || set.sample_is_validation[s]) continue;
+    // A class whose only exemplar is this observation has no distance to leave it out of.
+    if (ex.begin[c + 1] - ex.begin[c] < 2 && ex.keypoint[ex.begin[c]] == set.sample_keypoint[s]) continue;
     train_samples.push_back(s);
     train_keypoints.push_back(set.sample_keypoint[s]);
   }
-  LMB_CHECK(!train_samples.empty(), "descriptor fusion: no training observation has a second one of its class");
+  LMB_CHECK(!train_samples.empty(),
+            "descriptor fusion: no training observation has an exemplar of its class other than itself");
   const std::vector<int64_t> distance_samples =
       hash_subset(train_samples, train_keypoints, options.max_distance_samples, options.seed, kDistanceTag);
   *used = static_cast<int64_t>(distance_samples.size());
@@ -192,6 +209,8 @@ std::vector<double> distance_log_ratio(const Exemplars& ex, const LandmarkMap& m
     const int32_t b1 = std::min(b0 + 1, num_bins - 1);
     const double t = std::clamp(x - b0, 0.0, 1.0);
     g[d] = x <= 0.0 ? (*g_bins)[0] : (1.0 - t) * (*g_bins)[b0] + t * (*g_bins)[b1];
+    // Between two equal bins the interpolation can round one ulp up: keep g non-increasing.
+    if (d > 0) g[d] = std::min(g[d], g[d - 1]);
   }
   return g;
 }
@@ -348,6 +367,43 @@ std::vector<std::vector<int64_t>> exemplar_keypoints(const LandmarkMap& map,
   return of;
 }
 
+std::vector<int64_t> k_centre_exemplars(const LandmarkMap& map, const std::vector<int64_t>& keypoints, int32_t cap) {
+  LMB_CHECK(cap >= 0, "descriptor fusion: max_exemplars = " << cap << " must be >= 0");
+  const int64_t n = static_cast<int64_t>(keypoints.size());
+  if (cap == 0 || n <= cap) return keypoints;
+  const int bytes = map.descriptor_bytes;
+  std::vector<uint8_t> rows(static_cast<size_t>(n * bytes));
+  for (int64_t i = 0; i < n; ++i) std::copy_n(map.descriptor(keypoints[i]), bytes, rows.data() + i * bytes);
+  // Pairwise distances, row by row (a class holds at most a few hundred observations).
+  std::vector<uint16_t> d(static_cast<size_t>(n * n));
+  for (int64_t i = 0; i < n; ++i) hamming_rows(rows.data() + i * bytes, rows.data(), n, bytes, d.data() + i * n);
+  int64_t medoid = 0, best_sum = std::numeric_limits<int64_t>::max();
+  for (int64_t i = 0; i < n; ++i) {
+    int64_t sum = 0;
+    for (int64_t j = 0; j < n; ++j) sum += d[i * n + j];
+    if (sum < best_sum) {
+      best_sum = sum;
+      medoid = i;
+    }
+  }
+  std::vector<int64_t> chosen = {medoid};
+  std::vector<uint16_t> nearest(d.begin() + medoid * n, d.begin() + (medoid + 1) * n);
+  while (static_cast<int64_t>(chosen.size()) < cap) {
+    int64_t far = -1;
+    for (int64_t j = 0; j < n; ++j) {
+      if (std::find(chosen.begin(), chosen.end(), j) != chosen.end()) continue;
+      if (far < 0 || nearest[j] > nearest[far]) far = j;
+    }
+    chosen.push_back(far);
+    for (int64_t j = 0; j < n; ++j) nearest[j] = std::min(nearest[j], d[far * n + j]);
+  }
+  std::sort(chosen.begin(), chosen.end());
+  std::vector<int64_t> out;
+  out.reserve(chosen.size());
+  for (int64_t i : chosen) out.push_back(keypoints[i]);
+  return out;
+}
+
 DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& map, const TrainingSet& set,
                                        const DescriptorFusionOptions& options, DescriptorFusionStats* stats) {
   options.check();
@@ -363,7 +419,12 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
             "descriptor fusion: the map has " << map.descriptor_bytes << "-byte descriptors, the model "
                                               << model.descriptor_bytes());
-  const Exemplars ex = collect_exemplars(map, set.class_landmark);
+  std::vector<int64_t> held_out;
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    if (set.sample_class[s] < C && set.sample_is_validation[s]) held_out.push_back(set.sample_keypoint[s]);
+  }
+  std::sort(held_out.begin(), held_out.end());
+  const Exemplars ex = collect_exemplars(map, set.class_landmark, options.max_exemplars, held_out);
 
   // 1. The likelihood ratio of the distance from training observations (leave-one-out).
   std::vector<double> g_bins;

@@ -17,8 +17,11 @@
 //      tie rule as the Classifier; P@1 is averaged over each weight and its grid neighbours first
 //      (a plateau's middle, not its edge), ties to the smaller weight.
 // The exemplars stored in the model: every non-query map observation of each class (the
-// observations the Hamming baseline of `lboost eval` searches). Deterministic: subsets come from a
-// seeded hash, every sum runs in a fixed order.
+// observations the Hamming baseline of `lboost eval` searches), or, with max_exemplars > 0, at most
+// that many a class chosen by greedy k-centre in Hamming space (k_centre_exemplars) among its
+// observations outside the held-out ones; the shape and the weight are then fitted with the
+// exemplars kept, the ones inference searches. Deterministic:
+// subsets come from a seeded hash or a fixed tie rule, every sum runs in a fixed order.
 #pragma once
 
 #include <cstdint>
@@ -34,6 +37,9 @@ struct DescriptorFusionOptions {
   int32_t bin_width = 8;                // Hamming bits per likelihood-ratio bin, 1..64
   int32_t max_distance_samples = 4096;  // training observations for g (seeded subset)
   int32_t max_fit_samples = 4096;       // held-out observations for alpha (seeded subset)
+  // Exemplars kept a class, >= 0; 0 = every map observation. Fewer exemplars make a smaller model
+  // and fewer descriptor comparisons a scored class (docs/matching.md: the cost and the P@1 lost).
+  int32_t max_exemplars = 0;
   // Candidate weights alpha, ascending, >= 0; 0 = no fusion term.
   std::vector<double> weights = {0.0,   0.0625, 0.125, 0.1875, 0.25, 0.3125, 0.375, 0.4375, 0.5,
                                  0.625, 0.75,   0.875, 1.0,    1.25, 1.5,    2.0,   3.0,    4.0};
@@ -60,6 +66,13 @@ struct DescriptorFusionStats {
 // for a class with none). Throws lmb::Error for a landmark not in the map.
 std::vector<std::vector<int64_t>> exemplar_keypoints(const LandmarkMap& map,
                                                      const std::vector<landmark_t>& class_landmarks);
+
+// The `cap` of `keypoints` (map keypoints of one class, ascending) kept as its exemplars: all of
+// them when cap is 0 or they are no more; else greedy k-centre in Hamming space: the medoid (the
+// smallest sum of distances to the others; ties: the first), then, one at a time, the keypoint
+// farthest from those chosen (its distance to the nearest of them; ties: the first) until `cap`
+// are chosen. Returned ascending. Deterministic.
+std::vector<int64_t> k_centre_exemplars(const LandmarkMap& map, const std::vector<int64_t>& keypoints, int32_t cap);
 
 // Fits the fusion of `model` (a model without one, exported from the run that trained on `set`;
 // set.class_landmark must equal the model's classes) and returns it. Throws lmb::Error when the

@@ -26,6 +26,7 @@
 #include "train/boost/train_config.h"
 #include "train/boost/training_set.h"
 #include "train/eval/landmarkboost_matcher.h"
+#include "train/export/descriptor_fusion.h"
 
 namespace lmb {
 namespace {
@@ -617,6 +618,100 @@ TEST_F(EvalCliTest, HeldOutObservationsAreNotTheirOwnFusionExemplars) {
   LandmarkMap other = map;
   other.descriptors[static_cast<size_t>(kept.front() * bytes)] ^= 1;
   EXPECT_THROW(without_exemplars(model, other, held), Error);
+
+  // A model whose exemplars are a subset of the map's observations (export --max-exemplars): each
+  // class's first observation outside the held-out ones and its first held-out one (if any), the
+  // held-out rows removed.
+  ModelData subset = model->data();
+  subset.fusion.exemplars.clear();
+  subset.fusion.exemplar_begin.assign(1, 0);
+  std::vector<uint8_t> expected;
+  std::vector<int64_t> expected_begin = {0};
+  const std::vector<std::vector<int64_t>> of = exemplar_keypoints(map, classes);
+  int64_t held_rows = 0;
+  for (int32_t c = 0; c < model->num_classes(); ++c) {
+    std::vector<int64_t> rows;
+    for (bool want_held : {false, true}) {
+      for (int64_t k : of[c]) {
+        if (std::binary_search(held.begin(), held.end(), k) == want_held) {
+          rows.push_back(k);
+          break;
+        }
+      }
+    }
+    ASSERT_FALSE(rows.empty());
+    std::sort(rows.begin(), rows.end());
+    for (int64_t k : rows) {
+      subset.fusion.exemplars.insert(subset.fusion.exemplars.end(), map.descriptor(k), map.descriptor(k) + bytes);
+      if (std::binary_search(held.begin(), held.end(), k)) {
+        ++held_rows;
+      } else {
+        expected.insert(expected.end(), map.descriptor(k), map.descriptor(k) + bytes);
+      }
+    }
+    subset.fusion.exemplar_begin.push_back(static_cast<int64_t>(subset.fusion.exemplars.size()) / bytes);
+    expected_begin.push_back(static_cast<int64_t>(expected.size()) / bytes);
+  }
+  ASSERT_GT(held_rows, 0);
+  const std::shared_ptr<const Model> subset_model = std::make_shared<const Model>(subset);
+  const std::shared_ptr<const Model> subset_stripped = without_exemplars(subset_model, map, held);
+  EXPECT_EQ(subset_stripped->data().fusion.exemplars, expected);
+  EXPECT_EQ(subset_stripped->data().fusion.exemplar_begin, expected_begin);
+  LandmarkMap moved = map;  // the descriptor of a stored row changed
+  moved.descriptors[static_cast<size_t>(kept.front() * bytes)] ^= 1;
+  EXPECT_THROW(without_exemplars(subset_model, moved, held), Error);
+}
+
+// export --max-exemplars N keeps at most N exemplars a class, each a map observation of its class
+// outside the held-out ones (k_centre_exemplars of them, tested against a brute force in
+// descriptor_fusion_test); the model is smaller, eval ranks its held-out observations with it, and
+// a negative N is a one-line error that writes nothing.
+TEST_F(EvalCliTest, ExportMaxExemplarsKeepsAtMostThatManyAClass) {
+  const std::string base = "export --run " + (dir_ / "run").string() + " --map " + map_.string() + " --vocab " +
+                           (dir_ / "vocab.lbv").string() + " --calibration off";
+  const RunResult capped = run(base + " --max-exemplars 2 --out " + (dir_ / "model_cap2.lbm").string(), dir_);
+  ASSERT_EQ(capped.exit_code, 0) << capped.err;
+  const LandmarkMap map = read_map_h5(map_);
+  const auto model = Model::load(dir_ / "model_cap2.lbm");
+  const DescriptorFusion& f = model->data().fusion;
+  ASSERT_TRUE(f.enabled());
+  std::vector<landmark_t> classes;
+  for (int32_t c = 0; c < model->num_classes(); ++c) classes.push_back(model->class_landmark(c));
+  const std::vector<int64_t> held =
+      held_out_observations(map, classes, read_train_config(dir_ / "run" / "config.toml").training_set);
+  const std::vector<std::vector<int64_t>> of = exemplar_keypoints(map, classes);
+  const int bytes = map.descriptor_bytes;
+  int64_t full = 0;
+  for (int32_t c = 0; c < model->num_classes(); ++c) {
+    const int64_t rows = f.exemplar_begin[c + 1] - f.exemplar_begin[c];
+    EXPECT_GE(rows, 1);
+    EXPECT_LE(rows, 2) << "class " << c;
+    full += static_cast<int64_t>(of[c].size());
+    for (int64_t r = f.exemplar_begin[c]; r < f.exemplar_begin[c + 1]; ++r) {
+      const uint8_t* row = f.exemplars.data() + r * bytes;
+      bool found = false;
+      for (int64_t k : of[c]) {
+        if (!std::binary_search(held.begin(), held.end(), k) && std::equal(row, row + bytes, map.descriptor(k))) {
+          found = true;
+        }
+      }
+      EXPECT_TRUE(found) << "class " << c << " row " << r
+                         << " is no observation of its class outside the held-out ones";
+    }
+  }
+  EXPECT_LT(f.exemplar_begin.back(), full);
+  const RunResult ev =
+      run("eval --model " + (dir_ / "model_cap2.lbm").string() + " --map " + map_.string() + " --run " +
+              (dir_ / "run").string() + " --methods landmarkboost --report " + (dir_ / "report_cap2.json").string(),
+          dir_);
+  ASSERT_EQ(ev.exit_code, 0) << ev.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report_cap2.json"));
+  EXPECT_GT(report.at("generalization_gap").at("precision_at_1").at("landmarkboost").at("held_out_map_observations"),
+            0.0);
+  const RunResult bad = run(base + " --max-exemplars -1 --out " + (dir_ / "model_bad.lbm").string(), dir_);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("max_exemplars = -1 must be >= 0"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir_ / "model_bad.lbm"));
 }
 
 // The tiny map's query frames split into two query sessions (alternate frames) and an empty

@@ -77,9 +77,79 @@ Fixture make_fixture(uint64_t seed, int rounds) {
   return t;
 }
 
-TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
-  const Fixture t = make_fixture(5, 12);
+// Greedy k-centre written out plainly: the medoid (smallest distance sum, first on ties), then the
+// farthest from the chosen (first on ties), returned ascending.
+std::vector<int64_t> reference_k_centre(const LandmarkMap& map, const std::vector<int64_t>& keys, int32_t cap) {
+  if (cap == 0 || static_cast<int64_t>(keys.size()) <= cap) return keys;
+  const int bytes = map.descriptor_bytes;
+  auto dist = [&](size_t i, size_t j) {
+    return hamming_distance(map.descriptor(keys[i]), map.descriptor(keys[j]), bytes);
+  };
+  size_t medoid = 0;
+  long best = -1;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    long sum = 0;
+    for (size_t j = 0; j < keys.size(); ++j) sum += dist(i, j);
+    if (best < 0 || sum < best) {
+      best = sum;
+      medoid = i;
+    }
+  }
+  std::vector<size_t> chosen = {medoid};
+  while (chosen.size() < static_cast<size_t>(cap)) {
+    size_t far = keys.size();
+    int far_d = -1;
+    for (size_t j = 0; j < keys.size(); ++j) {
+      if (std::find(chosen.begin(), chosen.end(), j) != chosen.end()) continue;
+      int nearest = 8 * bytes + 1;
+      for (size_t i : chosen) nearest = std::min(nearest, dist(i, j));
+      if (nearest > far_d) {
+        far_d = nearest;
+        far = j;
+      }
+    }
+    chosen.push_back(far);
+  }
+  std::vector<int64_t> out;
+  for (size_t i : chosen) out.push_back(keys[i]);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TEST(DescriptorFusion, KCentreExemplarsKnownAnswerAndBruteForce) {
+  const Fixture t = make_fixture(5, 1);
+  // Known answer: descriptors 0...0, 0...01 and 1...1: the medoid is the one-bit descriptor (sum
+  // 1 + 127 against 1 + 128 and 128 + 127), the farthest from it all ones.
+  LandmarkMap m = t.map;
+  const std::vector<int64_t> three = {3, 7, 11};
+  std::fill_n(m.descriptors.begin() + 3 * kBytes, kBytes, 0x00);
+  std::fill_n(m.descriptors.begin() + 7 * kBytes, kBytes, 0x00);
+  m.descriptors[7 * kBytes] = 0x01;
+  std::fill_n(m.descriptors.begin() + 11 * kBytes, kBytes, 0xff);
+  EXPECT_EQ(k_centre_exemplars(m, three, 1), std::vector<int64_t>({7}));
+  EXPECT_EQ(k_centre_exemplars(m, three, 2), std::vector<int64_t>({7, 11}));
+  EXPECT_EQ(k_centre_exemplars(m, three, 3), three);
+  EXPECT_EQ(k_centre_exemplars(m, three, 0), three);
+  EXPECT_THROW(k_centre_exemplars(m, three, -1), Error);
+  // Every class's observations of the synthetic map, every cap: the plain reference.
+  std::vector<landmark_t> classes(t.set.class_landmark.begin(), t.set.class_landmark.end());
+  const std::vector<std::vector<int64_t>> of = exemplar_keypoints(t.map, classes);
+  int64_t capped = 0;
+  for (const std::vector<int64_t>& keys : of) {
+    for (int32_t cap : {1, 2, 3, 5}) {
+      const std::vector<int64_t> got = k_centre_exemplars(t.map, keys, cap);
+      EXPECT_EQ(got, reference_k_centre(t.map, keys, cap)) << "cap " << cap;
+      EXPECT_EQ(static_cast<int64_t>(got.size()), std::min<int64_t>(cap, static_cast<int64_t>(keys.size())));
+      capped += static_cast<int64_t>(keys.size()) > cap;
+    }
+  }
+  EXPECT_GT(capped, 50);
+}
+
+// The fit of `cap` exemplars a class (0: every observation) against the brute force.
+void check_fit_against_brute_force(const Fixture& t, int32_t cap) {
   DescriptorFusionOptions o;
+  o.max_exemplars = cap;
   DescriptorFusionStats stats, again_stats;
   const DescriptorFusion fusion = fit_descriptor_fusion(*t.model, t.map, t.set, o, &stats);
   const DescriptorFusion again = fit_descriptor_fusion(*t.model, t.map, t.set, o, &again_stats);
@@ -88,19 +158,27 @@ TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
   EXPECT_EQ(fusion.distance_score, again.distance_score);
   EXPECT_EQ(stats.weight_p1, again_stats.weight_p1);
 
-  // Exemplars: every non-query observation of each class, by ascending keypoint.
+  // Exemplars: every non-query observation of each class, by ascending keypoint; with a cap, the
+  // k-centre choice among those not held out.
   const int32_t C = t.model->num_classes();
   ASSERT_EQ(fusion.exemplar_begin.size(), static_cast<size_t>(C) + 1);
   std::vector<std::vector<int64_t>> obs(static_cast<size_t>(C));
   std::vector<int32_t> class_of(t.map.landmarks.size(), -1);
   for (int32_t c = 0; c < C; ++c) class_of[t.model->class_landmark(c)] = c;
+  std::vector<int64_t> held_out;
+  for (int64_t s = 0; s < t.set.num_samples(); ++s) {
+    if (t.set.sample_is_validation[s] && t.set.sample_class[s] < C) held_out.push_back(t.set.sample_keypoint[s]);
+  }
   for (const MapFrame& f : t.map.frames) {
     if (f.is_query) continue;
     for (int64_t k = f.first_keypoint; k < f.first_keypoint + f.num_keypoints; ++k) {
       const landmark_t l = t.map.keypoint_landmark[k];
-      if (l != kInvalidLandmarkId && class_of[l] >= 0) obs[class_of[l]].push_back(k);
+      const bool held = std::find(held_out.begin(), held_out.end(), k) != held_out.end();
+      if (l != kInvalidLandmarkId && class_of[l] >= 0 && (cap == 0 || !held)) obs[class_of[l]].push_back(k);
     }
   }
+  for (std::vector<int64_t>& keys : obs) keys = reference_k_centre(t.map, keys, cap);
+  EXPECT_EQ(stats.exemplars, fusion.exemplar_begin.back());
   for (int32_t c = 0; c < C; ++c) {
     ASSERT_EQ(fusion.exemplar_begin[c + 1] - fusion.exemplar_begin[c], static_cast<int64_t>(obs[c].size()));
     for (size_t i = 0; i < obs[c].size(); ++i) {
@@ -171,6 +249,29 @@ TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
   }
   // The descriptors separate all but the twins: the fused ranking beats the stump sums alone.
   EXPECT_GT(stats.fit_p1_with, stats.fit_p1_without);
+}
+
+TEST(DescriptorFusion, FitIsDeterministicAndEqualsTheBruteForceReference) {
+  check_fit_against_brute_force(make_fixture(5, 12), 0);
+}
+
+// Two exemplars a class (most classes have more than 2 observations outside the held-out ones):
+// the stored rows are the k-centre choice, and the shape and weight are fitted with them.
+TEST(DescriptorFusion, CappedExemplarsFitEqualsTheBruteForceReference) {
+  const Fixture t = make_fixture(5, 12);
+  check_fit_against_brute_force(t, 2);
+  DescriptorFusionOptions o;
+  o.max_exemplars = 2;
+  const DescriptorFusion capped = fit_descriptor_fusion(*t.model, t.map, t.set, o);
+  const DescriptorFusion all = fit_descriptor_fusion(*t.model, t.map, t.set, {});
+  EXPECT_LT(capped.exemplars.size(), all.exemplars.size() / 2);
+  // A cap no class reaches keeps every observation but the held-out ones.
+  o.max_exemplars = 1000;
+  const DescriptorFusion loose = fit_descriptor_fusion(*t.model, t.map, t.set, o);
+  EXPECT_LT(loose.exemplars.size(), all.exemplars.size());
+  EXPECT_GT(loose.exemplars.size(), capped.exemplars.size());
+  o.max_exemplars = -1;
+  EXPECT_THROW(fit_descriptor_fusion(*t.model, t.map, t.set, o), Error);
 }
 
 TEST(DescriptorFusion, RejectsAnotherRunsModelAndBadOptions) {
