@@ -224,22 +224,14 @@ struct HeldOutScores {
 
 // Step 2's inputs: the held-out observations' exact stump sums H of every class, batch by batch of
 // Classifier::kBatch samples (the classifier's kernels, so the same doubles), reduced per sample to
-// the entries fused_first reads.
+// the entries fused_first reads. `held` / `held_keypoints`: the set's held-out landmark samples and
+// their keypoints, in sample order.
 HeldOutScores score_held_out(const Model& model, const LandmarkMap& map, const TrainingSet& set, const Exemplars& ex,
+                             const std::vector<int64_t>& held, const std::vector<int64_t>& held_keypoints,
                              const DescriptorFusionOptions& options) {
   const int32_t C = model.num_classes();
   const int32_t max_distance = 8 * map.descriptor_bytes;
-  std::vector<int64_t> fit_all, fit_keypoints;
-  for (int64_t s = 0; s < set.num_samples(); ++s) {
-    if (set.sample_class[s] >= C || !set.sample_is_validation[s]) continue;
-    fit_all.push_back(s);
-    fit_keypoints.push_back(set.sample_keypoint[s]);
-  }
-  LMB_CHECK(!fit_all.empty(),
-            "descriptor fusion: no held-out map observation to fit the weight on "
-            "(training_set.validation_fraction is 0?)");
-  std::vector<int64_t> fit_samples =
-      hash_subset(fit_all, fit_keypoints, options.max_fit_samples, options.seed, kFitTag);
+  std::vector<int64_t> fit_samples = hash_subset(held, held_keypoints, options.max_fit_samples, options.seed, kFitTag);
   const std::vector<frame_t> frame_of = keypoint_frames(map);
   std::stable_sort(fit_samples.begin(), fit_samples.end(), [&](int64_t a, int64_t b) {
     return frame_of[set.sample_keypoint[a]] < frame_of[set.sample_keypoint[b]];
@@ -387,14 +379,16 @@ std::vector<int64_t> k_centre_exemplars(const LandmarkMap& map, const std::vecto
     }
   }
   std::vector<int64_t> chosen = {medoid};
+  std::vector<char> taken(static_cast<size_t>(n), 0);
+  taken[medoid] = 1;
   std::vector<uint16_t> nearest(d.begin() + medoid * n, d.begin() + (medoid + 1) * n);
   while (static_cast<int64_t>(chosen.size()) < cap) {
     int64_t far = -1;
     for (int64_t j = 0; j < n; ++j) {
-      if (std::find(chosen.begin(), chosen.end(), j) != chosen.end()) continue;
-      if (far < 0 || nearest[j] > nearest[far]) far = j;
+      if (!taken[j] && (far < 0 || nearest[j] > nearest[far])) far = j;
     }
     chosen.push_back(far);
+    taken[far] = 1;
     for (int64_t j = 0; j < n; ++j) nearest[j] = std::min(nearest[j], d[far * n + j]);
   }
   std::sort(chosen.begin(), chosen.end());
@@ -419,12 +413,19 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   LMB_CHECK(map.descriptor_bytes == model.descriptor_bytes(),
             "descriptor fusion: the map has " << map.descriptor_bytes << "-byte descriptors, the model "
                                               << model.descriptor_bytes());
-  std::vector<int64_t> held_out;
+  // The held-out landmark samples: the weight is fitted on them, and capped exemplars leave them out.
+  std::vector<int64_t> held, held_keypoints;
   for (int64_t s = 0; s < set.num_samples(); ++s) {
-    if (set.sample_class[s] < C && set.sample_is_validation[s]) held_out.push_back(set.sample_keypoint[s]);
+    if (set.sample_class[s] >= C || !set.sample_is_validation[s]) continue;
+    held.push_back(s);
+    held_keypoints.push_back(set.sample_keypoint[s]);
   }
-  std::sort(held_out.begin(), held_out.end());
-  const Exemplars ex = collect_exemplars(map, set.class_landmark, options.max_exemplars, held_out);
+  LMB_CHECK(!held.empty(),
+            "descriptor fusion: no held-out map observation to fit the weight on "
+            "(training_set.validation_fraction is 0?)");
+  std::vector<int64_t> held_sorted = held_keypoints;
+  std::sort(held_sorted.begin(), held_sorted.end());
+  const Exemplars ex = collect_exemplars(map, set.class_landmark, options.max_exemplars, held_sorted);
 
   // 1. The likelihood ratio of the distance from training observations (leave-one-out).
   std::vector<double> g_bins;
@@ -432,9 +433,9 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   const std::vector<double> g = distance_log_ratio(ex, map, set, options, &g_bins, &distance_samples);
 
   // 2. The weight from the held-out observations.
-  const HeldOutScores held = score_held_out(model, map, set, ex, options);
+  const HeldOutScores scores = score_held_out(model, map, set, ex, held, held_keypoints, options);
   std::vector<double> p1;
-  for (double weight : options.weights) p1.push_back(fused_p1(held, g, weight));
+  for (double weight : options.weights) p1.push_back(fused_p1(scores, g, weight));
   const size_t chosen = plateau_middle(p1);
   const double alpha = options.weights[chosen];
 
@@ -444,16 +445,16 @@ DescriptorFusion fit_descriptor_fusion(const Model& model, const LandmarkMap& ma
   fusion.distance_score.resize(g.size());
   for (size_t d = 0; d < g.size(); ++d) fusion.distance_score[d] = alpha * g[d];
   if (stats) {
-    const double n = static_cast<double>(held.samples.size());
+    const double n = static_cast<double>(scores.samples.size());
     stats->weight = alpha;
     stats->exemplars = static_cast<int64_t>(ex.keypoint.size());
     stats->distance_samples = distance_samples;
-    stats->fit_samples = static_cast<int64_t>(held.samples.size());
+    stats->fit_samples = static_cast<int64_t>(scores.samples.size());
     const auto zero = std::find(options.weights.begin(), options.weights.end(), 0.0);
     stats->fit_p1_without = zero != options.weights.end() ? p1[static_cast<size_t>(zero - options.weights.begin())]
-                                                          : fused_p1(held, g, 0.0);
+                                                          : fused_p1(scores, g, 0.0);
     stats->fit_p1_with = p1[chosen];
-    stats->fit_p1_hamming = static_cast<double>(held.hamming_hits) / n;
+    stats->fit_p1_hamming = static_cast<double>(scores.hamming_hits) / n;
     stats->weight_p1 = p1;
     stats->log_ratio = g_bins;
     stats->distance_ratio = g;
