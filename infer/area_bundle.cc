@@ -173,13 +173,14 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
   return bundle;
 }
 
+void PositionPrior::check() const {
+  LMB_CHECK(position.allFinite(), "position prior: the position is not finite");
+  LMB_CHECK(std::isfinite(radius) && radius >= 0.0, "position prior: radius " << radius << " must be finite and >= 0");
+}
+
 std::vector<int32_t> AreaBundle::select(const PositionPrior* prior) const {
   std::vector<int32_t> ids;
-  if (prior != nullptr) {
-    LMB_CHECK(prior->position.allFinite(), "position prior: the position is not finite");
-    LMB_CHECK(std::isfinite(prior->radius) && prior->radius >= 0.0,
-              "position prior: radius " << prior->radius << " must be finite and >= 0");
-  }
+  if (prior != nullptr) prior->check();
   for (const BundleArea& a : areas_) {
     if (prior == nullptr || a.distance(prior->position) <= prior->radius + reach_) ids.push_back(a.id);
   }
@@ -598,6 +599,8 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
                                             const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
                                             const PositionPrior* relocalization_prior) {
   const auto start = std::chrono::steady_clock::now();
+  // A bad relocalization prior is an error on every frame, not only on the frames that relocalize.
+  if (relocalization_prior != nullptr) relocalization_prior->check();
   // A pose to track from: one within the motion gate of the last tracked pose, or with a calibrated
   // bundle one it reports localized (a wrong pose must not become the next prior), else any winning pose.
   const auto trusted = [](const BundleLocalizeResult& x) { return x.calibrated ? x.localized : x.area >= 0; };

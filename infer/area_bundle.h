@@ -74,6 +74,8 @@ LMB_INFER_EXPORT void write_bundle_index(const std::filesystem::path& path, doub
 struct LMB_INFER_EXPORT PositionPrior {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   double radius = 0.0;
+  // Throws lmb::Error unless the position is finite and the radius finite and >= 0.
+  void check() const;
 };
 
 // Limits on the areas a bundle keeps loaded; 0 = no limit.

@@ -318,6 +318,43 @@ lmb_status bundle_call(const char* fn, lmb_bundle* bundle, const lmb_camera* cam
   });
 }
 
+// The C prior as the library's (default: none given).
+lmb::PositionPrior to_prior(const lmb_prior* prior) {
+  lmb::PositionPrior p;
+  if (prior != nullptr) {
+    p.position = Eigen::Vector3d(prior->position[0], prior->position[1], prior->position[2]);
+    p.radius = prior->radius;
+  }
+  return p;
+}
+
+// lmb_bundle_track and lmb_bundle_track_with_prior.
+lmb_status track_call(const char* fn, lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                      int n, const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                      double tracking_radius, const lmb_prior* prior, const lmb_localize_options* options,
+                      lmb_pose* out_pose, int* out_area) {
+  if (bundle != nullptr) bundle->last_tracked = 0;
+  return bundle_call(fn, bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam, out_pose,
+                     out_area, [&](const BundleFrame& f) {
+                       lmb::BundleLocalizerOptions bo;
+                       bo.localizer = to_localizer_options(options);
+                       bo.tracking_radius = tracking_radius;
+                       bo.tracking_areas = bundle->tracking_areas;
+                       bo.check();
+                       // New options each call; the tracking state carries over.
+                       if (bundle->tracker) {
+                         bundle->tracker->set_options(bo);
+                       } else {
+                         bundle->tracker = std::make_unique<lmb::BundleLocalizer>(bundle->bundle, bo);
+                       }
+                       const lmb::PositionPrior p = to_prior(prior);
+                       lmb::BundleLocalizeResult r =
+                           bundle->tracker->track(f.camera, f.keypoints, descriptors, f.gravity, prior ? &p : nullptr);
+                       bundle->last_tracked = r.tracked ? 1 : 0;
+                       return r;
+                     });
+}
+
 }  // namespace
 
 extern "C" {
@@ -374,11 +411,7 @@ lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_camera* camera, con
                                int* out_area) {
   return bundle_call("lmb_bundle_localize", bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
                      out_pose, out_area, [&](const BundleFrame& f) {
-                       lmb::PositionPrior p;
-                       if (prior != nullptr) {
-                         p.position = Eigen::Vector3d(prior->position[0], prior->position[1], prior->position[2]);
-                         p.radius = prior->radius;
-                       }
+                       const lmb::PositionPrior p = to_prior(prior);
                        lmb::BundleLocalizerOptions bo;
                        bo.localizer = to_localizer_options(options);
                        const lmb::BundleLocalizer localizer(bundle->bundle, bo);
@@ -391,25 +424,17 @@ lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera, const 
                             const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
                             double tracking_radius, const lmb_localize_options* options, lmb_pose* out_pose,
                             int* out_area) {
-  if (bundle != nullptr) bundle->last_tracked = 0;
-  return bundle_call("lmb_bundle_track", bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
-                     out_pose, out_area, [&](const BundleFrame& f) {
-                       lmb::BundleLocalizerOptions bo;
-                       bo.localizer = to_localizer_options(options);
-                       bo.tracking_radius = tracking_radius;
-                       bo.tracking_areas = bundle->tracking_areas;
-                       bo.check();
-                       // New options each call; the tracking state carries over.
-                       if (bundle->tracker) {
-                         bundle->tracker->set_options(bo);
-                       } else {
-                         bundle->tracker = std::make_unique<lmb::BundleLocalizer>(bundle->bundle, bo);
-                       }
-                       lmb::BundleLocalizeResult r =
-                           bundle->tracker->track(f.camera, f.keypoints, descriptors, f.gravity);
-                       bundle->last_tracked = r.tracked ? 1 : 0;
-                       return r;
-                     });
+  return track_call("lmb_bundle_track", bundle, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam,
+                    tracking_radius, nullptr, options, out_pose, out_area);
+}
+
+lmb_status lmb_bundle_track_with_prior(lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                                       int n, const uint8_t* descriptors, int descriptor_bytes,
+                                       const double gravity_in_cam[3], double tracking_radius,
+                                       const lmb_prior* relocalization_prior, const lmb_localize_options* options,
+                                       lmb_pose* out_pose, int* out_area) {
+  return track_call("lmb_bundle_track_with_prior", bundle, camera, keypoints, n, descriptors, descriptor_bytes,
+                    gravity_in_cam, tracking_radius, relocalization_prior, options, out_pose, out_area);
 }
 
 }  // extern "C"

@@ -209,6 +209,13 @@ LMB_INFER_EXPORT lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camer
                                              int descriptor_bytes, const double gravity_in_cam[3],
                                              double tracking_radius, const lmb_localize_options* options,
                                              lmb_pose* out_pose, int* out_area);
+/* lmb_bundle_track with a relocalization prior (e.g. a GPS fix; NULL: as lmb_bundle_track): the
+ * first frame, and a frame the tracked areas do not localize, are localized in the areas the prior
+ * selects, nearest first (as lmb_bundle_localize with that prior), instead of in every area. */
+LMB_INFER_EXPORT lmb_status lmb_bundle_track_with_prior(
+    lmb_bundle* bundle, const lmb_camera* camera, const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
+    int descriptor_bytes, const double gravity_in_cam[3], double tracking_radius, const lmb_prior* relocalization_prior,
+    const lmb_localize_options* options, lmb_pose* out_pose, int* out_area);
 /* Areas lmb_bundle_track scores before its motion gate judges the winning pose (1..256; default
  * 2: a second area's matches confirm the pose; 1 is about twice as fast). */
 LMB_INFER_EXPORT lmb_status lmb_bundle_set_tracking_areas(lmb_bundle* bundle, int areas);

@@ -12,6 +12,8 @@ int lmb_c89_check(void) {
   lmb_localize_options_init(&options);
   if (lmb_bundle_open("bundle.txt", &bundle) != LMB_OK || lmb_bundle_set_cache(bundle, 4, 0) != LMB_OK) return 2;
   if (lmb_bundle_localize(bundle, 0, 0, 0, 0, 0, 0, &prior, &options, 0, 0) != LMB_ERROR_INVALID_ARGUMENT) return 3;
+  if (lmb_bundle_track_with_prior(bundle, 0, 0, 0, 0, 0, 0, 1.0, &prior, &options, 0, 0) != LMB_ERROR_INVALID_ARGUMENT)
+    return 4;
   lmb_bundle_free(bundle);
   return lmb_model_load("model.lbm", &model) == LMB_OK ? 0 : 1;
 }

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
@@ -441,6 +442,60 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
       EXPECT_EQ(lmb_bundle_tracked(tracking), r.tracked ? 1 : 0) << areas << " " << frame;
       EXPECT_EQ(r.tracked, frame == 1) << areas << " " << frame;  // the first frame has no last pose
     }
+    lmb_bundle_free(tracking);
+  }
+  // A relocalization prior (lmb_bundle_track_with_prior, e.g. GPS): a frame without a last pose is
+  // localized in the areas the prior selects, as BundleLocalizer::track with that prior says. At
+  // the far area the frame's own area is never scored (no pose of it, nothing to track from); at
+  // the camera it is; the next frame, without a prior, is tracked from that pose.
+  {
+    lmb::BundleLocalizerOptions options;
+    options.tracking_radius = 1.0;
+    lmb::BundleLocalizer reference(lmb::AreaBundle::open(fx.index), options);
+    lmb_bundle* tracking = nullptr;
+    ASSERT_EQ(lmb_bundle_open(fx.index.c_str(), &tracking), LMB_OK);
+    const lmb_prior far = {{50.0, 0.0, 0.0}, 5.0}, at_camera = {{c.x(), c.y(), c.z()}, 2.0};
+    const lmb_prior* priors[3] = {&far, &at_camera, nullptr};
+    for (int frame = 0; frame < 3; ++frame) {
+      const lmb_prior* p = priors[frame];
+      ASSERT_EQ(lmb_bundle_track_with_prior(tracking, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                            test::kCodeDescriptorBytes, gravity, 1.0, p, nullptr, &pose, &area),
+                LMB_OK)
+          << lmb_last_error();
+      lmb::PositionPrior cpp;
+      if (p != nullptr) cpp = {Eigen::Vector3d(p->position[0], p->position[1], p->position[2]), p->radius};
+      const lmb::BundleLocalizeResult r =
+          reference.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, p ? &cpp : nullptr);
+      EXPECT_EQ(area, r.area) << frame;
+      EXPECT_EQ(pose.num_inliers, r.result.pose.num_inliers) << frame;
+      EXPECT_EQ(lmb_bundle_tracked(tracking), r.tracked ? 1 : 0) << frame;
+      EXPECT_EQ(area == 1, frame > 0) << frame;
+      EXPECT_EQ(r.tracked, frame == 2) << frame;
+      EXPECT_EQ(std::find(r.scored.begin(), r.scored.end(), 1) != r.scored.end(), frame > 0) << frame;
+    }
+    // A bad prior is an error on a frame that would be tracked too (no relocalization needed).
+    lmb_prior bad = at_camera;
+    bad.radius = -1.0;
+    EXPECT_EQ(lmb_bundle_track_with_prior(tracking, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                          test::kCodeDescriptorBytes, gravity, 1.0, &bad, nullptr, &pose, &area),
+              LMB_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(lmb_last_error()).find("lmb_bundle_track_with_prior: position prior: radius -1"),
+              std::string::npos)
+        << lmb_last_error();
+    EXPECT_EQ(area, -1);
+    EXPECT_EQ(lmb_bundle_tracked(tracking), 0);
+    bad = at_camera;
+    bad.position[1] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_EQ(lmb_bundle_track_with_prior(tracking, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                          test::kCodeDescriptorBytes, gravity, 1.0, &bad, nullptr, &pose, &area),
+              LMB_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(lmb_last_error()).find("not finite"), std::string::npos) << lmb_last_error();
+    // The errors left the tracking state alone: the frame is tracked again.
+    ASSERT_EQ(lmb_bundle_track_with_prior(tracking, &fx.camera, fx.keypoints.data(), n, f.descriptors.data(),
+                                          test::kCodeDescriptorBytes, gravity, 1.0, &at_camera, nullptr, &pose, &area),
+              LMB_OK);
+    EXPECT_EQ(lmb_bundle_tracked(tracking), 1);
+    EXPECT_EQ(area, 1);
     lmb_bundle_free(tracking);
   }
   EXPECT_EQ(lmb_bundle_set_tracking_areas(bundle, 0), LMB_ERROR_INVALID_ARGUMENT);

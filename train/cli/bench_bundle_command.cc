@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
@@ -51,12 +52,15 @@ void run_bench_bundle(BenchBundleArgs a) {
     const nlohmann::json& tracked_median = t.at("cpu_ms_per_tracked_frame").at("median");  // null: none tracked
     const double median_tracked =
         tracked_median.is_number() ? tracked_median.get<double>() : std::numeric_limits<double>::quiet_NaN();
+    const std::string relocalized_in = a.options.track_prior_noise < 0.0
+                                           ? std::string("in every area")
+                                           : fmt::format("with a {:g} m prior", a.options.track_prior_noise);
     std::printf(
         "tracking %g m: %.2f ms mean (%.2fx the single model), median %.2f ms, tracked frames median %.2f ms "
-        "(%.2fx the single model's mean); %.3f of the frames tracked, %.3f relocalized in every area, %.2f areas "
+        "(%.2fx the single model's mean); %.3f of the frames tracked, %.3f relocalized %s, %.2f areas "
         "scored\n",
         a.track, ms(2), ms(2) / single, median_all, median_tracked, median_tracked / single,
-        t.at("tracked_per_frame").get<double>(), t.at("relocalized_per_frame").get<double>(),
+        t.at("tracked_per_frame").get<double>(), t.at("relocalized_per_frame").get<double>(), relocalized_in.c_str(),
         t.at("areas_scored_per_frame").get<double>());
   }
   if (!a.json.empty()) write_file_atomically(a.json, r.report.dump(1) + "\n");
@@ -84,6 +88,10 @@ void add_bench_bundle_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--tracking-areas", o.tracking_areas, "--track: areas scored before the motion gate judges")
+      ->capture_default_str();
+  cmd->add_option("--track-prior-noise", o.track_prior_noise,
+                  "--track: relocalize with a position prior of this noise (as --prior-noise, e.g. a GPS fix) "
+                  "instead of in every area (negative: every area)")
       ->capture_default_str();
   cmd->add_flag("--inverted-file", o.localizer.classifier.use_inverted_file,
                 "Score only the keypoint word's candidate classes (every mode)");

@@ -481,6 +481,22 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     at_truth.position = first->cam_from_world.center();
     EXPECT_EQ(g0["areas_selected"].get<size_t>(), AreaBundle::open(models / "bundle.txt")->select(&at_truth).size());
     EXPECT_LE(g0["areas_scored"].get<int>(), g0["areas_selected"].get<int>());
+    // `bench bundle` times the same tracking mode (GPS-like relocalization, an app's steady state)
+    // against the single model and names how it relocalizes; its JSON is the localize report's.
+    const fs::path bj = dir_ / "bench_bundle.json";
+    const RunResult bench_run = run("bench bundle --bundle " + (models / "bundle.txt").string() + " --map " +
+                                        map_.string() + " --model " + (models / "area-0.lbm").string() +
+                                        " --repeats 1 --track 1000 --track-prior-noise 0 --json " + bj.string(),
+                                    dir_);
+    ASSERT_EQ(bench_run.exit_code, 0) << bench_run.err;
+    EXPECT_NE(bench_run.out.find("relocalized with a 0 m prior"), std::string::npos) << bench_run.out;
+    const nlohmann::json bench = nlohmann::json::parse(slurp(bj));
+    EXPECT_EQ(bench["modes"][2]["mode"], "tracking 1000 m, relocalizing with a 0 m prior");
+    EXPECT_EQ(bench["modes"][2]["relocalization_prior_noise_m"], 0.0);
+    const RunResult bad = run("bench bundle --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
+                                  " --model " + (models / "area-0.lbm").string() + " --repeats 1 --track-prior-noise 5",
+                              dir_);
+    expect_one_error(bad, "bench bundle", "--track-prior-noise 5: must be finite and needs --track");
   }
   // The bundle's calibration (lboost bundle --map): fitted on the map frames and their "elsewhere"
   // variants, written as an index of version 2 that opens calibrated; a localization reports each
