@@ -85,6 +85,7 @@ lmb::LocalizerOptions to_localizer_options(const lmb_localize_options* options) 
   lo.pose.max_reprojection_error_px = o.max_reprojection_error_px;
   lo.pose.min_inliers = o.min_inliers;
   lo.pose.seed = o.seed;
+  lo.classifier.inverted_file_words = o.inverted_file_words;
   lo.check();
   return lo;
 }
@@ -161,6 +162,7 @@ void lmb_localize_options_init(lmb_localize_options* options) {
   options->max_reprojection_error_px = d.pose.max_reprojection_error_px;
   options->min_inliers = d.pose.min_inliers;
   options->seed = d.pose.seed;
+  options->inverted_file_words = d.classifier.inverted_file_words;
 }
 
 lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,

@@ -8,6 +8,8 @@
 #include <limits>
 
 #include "common/error.h"
+#include "common/hamming.h"
+#include "common/vocabulary.h"
 #include "infer/detail/scoring_index.h"
 
 namespace lmb {
@@ -18,6 +20,9 @@ void ClassifierOptions::check() const {
             "classifier options: min_margin = " << min_margin << " must be a number below +inf");
   LMB_CHECK(!std::isnan(min_score) && min_score != std::numeric_limits<double>::infinity(),
             "classifier options: min_score = " << min_score << " must be a number below +inf");
+  LMB_CHECK(
+      inverted_file_words >= 1 && inverted_file_words <= kMaxVocabularyWords,
+      "classifier options: inverted_file_words = " << inverted_file_words << " must be in 1.." << kMaxVocabularyWords);
 }
 
 namespace {
@@ -434,6 +439,51 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   }
 }
 
+void Classifier::assign_words(const FrameKeypoints& frame, const uint8_t* descriptors, int32_t per_keypoint) {
+  const int32_t n = frame.size();
+  assigned_word_.resize(static_cast<size_t>(n) * per_keypoint);
+  if (per_keypoint == 1) {
+    std::copy(frame.word.begin(), frame.word.begin() + n, assigned_word_.begin());
+    return;
+  }
+  const Vocabulary& vocabulary = model_->vocabulary();
+  const int32_t W = vocabulary.num_words();
+  const int bytes = vocabulary.descriptor_bytes();
+  std::vector<uint16_t> distance(static_cast<size_t>(W));
+  std::vector<std::pair<uint16_t, int32_t>> ranked;
+  for (int32_t k = 0; k < n; ++k) {
+    hamming_rows(descriptors + static_cast<int64_t>(k) * bytes, vocabulary.words().data(), W, bytes, distance.data());
+    ranked.clear();
+    for (int32_t w = 0; w < W; ++w) {
+      if (w != frame.word[k]) ranked.emplace_back(distance[w], w);
+    }
+    std::partial_sort(ranked.begin(), ranked.begin() + (per_keypoint - 1), ranked.end());
+    int32_t* out = assigned_word_.data() + static_cast<size_t>(k) * per_keypoint;
+    out[0] = frame.word[k];
+    for (int32_t i = 1; i < per_keypoint; ++i) out[i] = ranked[static_cast<size_t>(i - 1)].second;
+  }
+}
+
+void Classifier::merge_pending() {
+  std::stable_sort(pending_.begin(), pending_.end(), [](const auto& a, const auto& b) {
+    if (a.first != b.first) return a.first < b.first;
+    if (a.second.score != b.second.score) return a.second.score > b.second.score;
+    return a.second.cls < b.second.cls;
+  });
+  size_t kept = 0;
+  int32_t count = 0;
+  for (size_t i = 0; i < pending_.size(); ++i) {
+    const bool first_of_keypoint = kept == 0 || pending_[kept - 1].first != pending_[i].first;
+    if (first_of_keypoint) count = 0;
+    // The same class from two words' groups: the same score, adjacent after the sort.
+    if (!first_of_keypoint && pending_[kept - 1].second.cls == pending_[i].second.cls) continue;
+    if (count == options_.top_k) continue;
+    pending_[kept++] = pending_[i];
+    ++count;
+  }
+  pending_.resize(kept);
+}
+
 KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t* descriptors, const std::string& where,
                                      double* embedding_ms) {
   using Clock = std::chrono::steady_clock;
@@ -446,16 +496,25 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   index_frame(frame, where);
   if (embedding_ms) embedding += Clock::now() - t0;
 
-  // Keypoints grouped by word (inverted file) or all in one group (dense), in keypoint order.
+  // Keypoints grouped by word (inverted file) or all in one group (dense), in keypoint order. With
+  // several words a keypoint (inverted_file_words), it sits in each of its words' groups.
   const bool inverted = options_.use_inverted_file;
   const int32_t groups = inverted ? m.num_words() : 1;
+  const int32_t per_keypoint = inverted ? std::min(options_.inverted_file_words, m.num_words()) : 1;
+  assign_words(frame, descriptors, per_keypoint);
   word_begin_.assign(static_cast<size_t>(groups) + 1, 0);
-  for (int32_t k = 0; k < n; ++k) ++word_begin_[(inverted ? frame.word[k] : 0) + 1];
+  for (int32_t k = 0; k < n; ++k) {
+    for (int32_t i = 0; i < per_keypoint; ++i) ++word_begin_[(inverted ? assigned_word_[k * per_keypoint + i] : 0) + 1];
+  }
   for (int32_t g = 0; g < groups; ++g) word_begin_[g + 1] += word_begin_[g];
-  order_.resize(static_cast<size_t>(n));
+  const int32_t slots = n * per_keypoint;  // keypoint-in-group entries
+  order_.resize(static_cast<size_t>(slots));
   {
     std::vector<int32_t> fill(word_begin_.begin(), word_begin_.end() - 1);
-    for (int32_t k = 0; k < n; ++k) order_[fill[inverted ? frame.word[k] : 0]++] = k;
+    for (int32_t k = 0; k < n; ++k) {
+      for (int32_t i = 0; i < per_keypoint; ++i)
+        order_[fill[inverted ? assigned_word_[k * per_keypoint + i] : 0]++] = k;
+    }
   }
 
   const size_t U = idx.used_dims().size();
@@ -471,12 +530,27 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
     const int64_t dims = inverted ? idx.word_plan(g).size() : static_cast<int64_t>(U);
     planned += dims * (word_begin_[g + 1] - word_begin_[g]);
   }
-  const bool columns = 4 * planned >= 3 * static_cast<int64_t>(U) * n;
-  const size_t frame_stride = static_cast<size_t>(n) + kBatch;
+  const bool columns = 4 * planned >= 3 * static_cast<int64_t>(U) * slots;
+  const size_t frame_stride = static_cast<size_t>(slots) + kBatch;
   if (columns) {
     if (embedding_ms) t0 = Clock::now();
     if (frame_values_.size() < U * frame_stride) frame_values_.resize(U * frame_stride);
-    context_.compute_dims_columns(idx.used_plan(), order_.data(), n, descriptors, frame_values_.data(), frame_stride);
+    if (per_keypoint == 1) {
+      context_.compute_dims_columns(idx.used_plan(), order_.data(), n, descriptors, frame_values_.data(), frame_stride);
+    } else {
+      // Each keypoint's values once (in keypoint order), then copied to each of its slots.
+      const size_t once_stride = static_cast<size_t>(n) + kBatch;
+      if (once_values_.size() < U * once_stride) once_values_.resize(U * once_stride);
+      keypoint_ids_.resize(static_cast<size_t>(n));
+      for (int32_t k = 0; k < n; ++k) keypoint_ids_[k] = k;
+      context_.compute_dims_columns(idx.used_plan(), keypoint_ids_.data(), n, descriptors, once_values_.data(),
+                                    once_stride);
+      for (size_t u = 0; u < U; ++u) {
+        const uint8_t* from = once_values_.data() + u * once_stride;
+        uint8_t* to = frame_values_.data() + u * frame_stride;
+        for (int32_t i = 0; i < slots; ++i) to[i] = from[order_[i]];
+      }
+    }
     if (embedding_ms) embedding += Clock::now() - t0;
   }
   for (int32_t g = 0; g < groups; ++g) {
@@ -520,6 +594,9 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
     }
   }
 
+  // Several words a keypoint: its groups' rankings merged (a class in two lists has the same score
+  // in both), best first, ties: smaller class, at most top_k.
+  if (per_keypoint > 1) merge_pending();
   // Back to keypoint order (pending_ holds each keypoint's matches best first, contiguously).
   KeypointMatches out;
   out.begin.assign(static_cast<size_t>(n) + 1, 0);

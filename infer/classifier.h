@@ -117,6 +117,12 @@ class Classifier {
   void finish_batch(const int32_t* ids, int32_t count, int32_t b);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
   void offer(int32_t j, int32_t cls, double score, double bg);
+  // assigned_word_[k * per_keypoint + i]: keypoint k's i-th word (its own first, then the nearest
+  // others; options_.inverted_file_words).
+  void assign_words(const FrameKeypoints& frame, const uint8_t* descriptors, int32_t per_keypoint);
+  // pending_ in keypoint order, each keypoint's matches from its several words' groups merged: best
+  // first (ties: smaller class), each class once, at most top_k.
+  void merge_pending();
 
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;
@@ -143,6 +149,9 @@ class Classifier {
   std::vector<Candidate> cutoff_;              // per lane: worst kept once pruned
   std::vector<double> cutoff_score_;           // per lane: cutoff_[j].score
   std::vector<int32_t> order_, word_begin_;    // keypoints grouped by word
+  std::vector<int32_t> assigned_word_;         // each keypoint's words (assign_words)
+  std::vector<uint8_t> once_values_;           // several words a keypoint: its values once
+  std::vector<int32_t> keypoint_ids_;          // 0..n-1
   std::vector<std::pair<int32_t, ClassMatch>> pending_;
   const uint8_t* descriptors_ = nullptr;  // the frame's, during classify()
   int64_t classes_screened_ = 0, classes_scored_ = 0;

@@ -25,6 +25,11 @@ struct LMB_INFER_EXPORT ClassifierOptions {
   // (the bound is never below the exact score); false = score every class exactly (tests,
   // benchmarks).
   bool screening = true;
+  // With the inverted file: the candidates of the keypoint's word and of its next-nearest words
+  // (Hamming distance to the model's vocabulary, ties: smaller word), this many words in all
+  // (multiple assignment: a descriptor near a word boundary keeps the classes across it). 1 = the
+  // keypoint's word only; capped at the vocabulary's word count.
+  int inverted_file_words = 1;
 
   // Throws lmb::Error naming the field.
   void check() const;

@@ -71,6 +71,8 @@ const std::vector<OptionField>& option_fields() {
       LMB_OPTION("top_k", classifier.top_k, int, "Matches kept per keypoint (>= 1)."),
       LMB_OPTION("use_inverted_file", classifier.use_inverted_file, bool,
                  "Score only the candidate classes of the keypoint's visual word."),
+      LMB_OPTION("inverted_file_words", classifier.inverted_file_words, int,
+                 "With the inverted file: the candidates of the keypoint's N nearest words (1 = its own)."),
       LMB_OPTION("min_margin", classifier.min_margin, double,
                  "A match's score must exceed the background's by more than this (-inf: no rejection)."),
       LMB_OPTION("min_score", classifier.min_score, double, "... and be at least this (-inf: no bound)."),

@@ -23,9 +23,10 @@ def run_lboost(*args, cwd=None):
 
 
 # The non-default options of the second comparison run, as lboost flags and as LocalizerOptions.
-OTHER_FLAGS = ["--top-k", "3", "--pose-top-k", "2", "--inverted-file", "--min-margin", "-0.5",
-               "--ransac-iterations", "300", "--max-error", "6", "--min-inliers", "8", "--seed", "5"]
-OTHER_OPTIONS = dict(top_k=3, pose_top_k=2, use_inverted_file=True, min_margin=-0.5,
+OTHER_FLAGS = ["--top-k", "3", "--pose-top-k", "2", "--inverted-file", "--inverted-file-words", "2",
+               "--min-margin", "-0.5", "--ransac-iterations", "300", "--max-error", "6", "--min-inliers", "8",
+               "--seed", "5"]
+OTHER_OPTIONS = dict(top_k=3, pose_top_k=2, use_inverted_file=True, inverted_file_words=2, min_margin=-0.5,
                      ransac_iterations=300, max_reprojection_error_px=6.0, min_inliers=8, seed=5)
 
 

@@ -227,6 +227,22 @@ TEST(CApiTest, OptionsStructSizeKeepsOlderCallersWorking) {
   strict.min_inliers = 1000000;
   ASSERT_EQ(run(&strict, &got), LMB_OK) << lmb_last_error();
   EXPECT_EQ(got.success, 0);
+  // A field appended later (inverted_file_words): a caller whose struct ends before it gets its
+  // default whatever lies there; one that sets it out of range gets an error naming it; 2 words
+  // a keypoint localizes.
+  lmb_localize_options first_version = defaults;
+  first_version.inverted_file_words = 0;
+  first_version.struct_size = offsetof(lmb_localize_options, seed) + sizeof(uint64_t);
+  ASSERT_EQ(run(&first_version, &got), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(got.num_inliers, want.num_inliers);
+  lmb_localize_options words = defaults;
+  words.inverted_file_words = 0;
+  EXPECT_EQ(run(&words, &got), LMB_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lmb_last_error()).find("inverted_file_words = 0"), std::string::npos) << lmb_last_error();
+  words.inverted_file_words = 2;
+  words.use_inverted_file = 1;
+  ASSERT_EQ(run(&words, &got), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(got.success, 1);
   // Shorter than the first version: an error naming the field.
   for (size_t size : {size_t{0}, offsetof(lmb_localize_options, seed)}) {
     lmb_localize_options bad = defaults;

@@ -177,11 +177,33 @@ int expect_classify_matches_reference(const std::shared_ptr<const Model>& model,
     const uint8_t* desc = tf.descriptors.data() + k * d.descriptor_bytes;
     const std::vector<uint8_t> v = reference_vector(*model, frame, k, desc);
     const double bg = reference_score(d, v, d.num_classes);
+    // Candidate words: the keypoint's own, then the nearest others by a bit-by-bit Hamming
+    // distance (ties: smaller word), inverted_file_words in all.
+    std::vector<int32_t> candidate_words = {frame.word[k]};
+    if (o.use_inverted_file && o.inverted_file_words > 1) {
+      std::vector<std::pair<int, int32_t>> others;
+      for (int32_t w = 0; w < d.vocabulary.num_words(); ++w) {
+        if (w == frame.word[k]) continue;
+        int bits = 0;
+        for (int b = 0; b < 8 * d.descriptor_bytes; ++b) {
+          bits += ((desc[b / 8] >> (b % 8)) & 1) != ((d.vocabulary.word(w)[b / 8] >> (b % 8)) & 1);
+        }
+        others.emplace_back(bits, w);
+      }
+      std::sort(others.begin(), others.end());
+      for (int32_t i = 0; i + 1 < o.inverted_file_words && i < static_cast<int32_t>(others.size()); ++i) {
+        candidate_words.push_back(others[static_cast<size_t>(i)].second);
+      }
+    }
     std::vector<std::pair<double, int32_t>> expected;  // (-score, class)
     for (int32_t c = 0; c < d.num_classes; ++c) {
       if (o.use_inverted_file) {
-        const auto& list = d.inverted_file[frame.word[k]];
-        if (!std::binary_search(list.begin(), list.end(), c)) continue;
+        bool listed = false;
+        for (int32_t w : candidate_words) {
+          const auto& list = d.inverted_file[w];
+          listed = listed || std::binary_search(list.begin(), list.end(), c);
+        }
+        if (!listed) continue;
       }
       const double s = reference_score(d, v, c) + reference_fusion(d, desc, c);
       if (s - bg > o.min_margin) expected.emplace_back(-s, c);
@@ -241,6 +263,26 @@ TEST(ClassifierTest, ManyClassesAndKeypointsEqualTheReference) {
   }
 }
 
+// Multiple assignment (inverted_file_words > 1): a keypoint's candidates are the union of its
+// nearest words' lists, its rankings from their groups merged (a class in two lists once), as the
+// reference says; more words than the vocabulary holds (256) means every word.
+TEST(ClassifierTest, SeveralWordsAKeypointEqualTheReference) {
+  const auto model = std::make_shared<const Model>(random_model_data(260, 120, 15));
+  const test::TestWorld world = test::make_test_world(260, 150, 150, 6);
+  for (int words : {2, 3, 256}) {
+    for (int top_k : {1, 7, 300}) {
+      for (double margin : {-std::numeric_limits<double>::infinity(), 0.0}) {
+        ClassifierOptions o;
+        o.top_k = top_k;
+        o.min_margin = margin;
+        o.use_inverted_file = true;
+        o.inverted_file_words = words;
+        EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0) << words << " " << top_k;
+      }
+    }
+  }
+}
+
 // A model whose words need few of the used dims (each class owns its stumps and sits in one
 // word's list; the background has a few stumps): classify() computes each keypoint's word's dims
 // only, keypoint by keypoint (not the frame's columns of every used dim), and still gives the
@@ -267,11 +309,14 @@ TEST(ClassifierTest, SmallWordPlansTakeThePerKeypointPathAndEqualTheReference) {
   ASSERT_LT(4 * planned, 3 * all) << "the words' plans should be small";
   for (int top_k : {1, 4}) {
     for (double margin : {-std::numeric_limits<double>::infinity(), 0.0}) {
-      ClassifierOptions o;
-      o.top_k = top_k;
-      o.min_margin = margin;
-      o.use_inverted_file = true;
-      EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0);
+      for (int per_keypoint : {1, 2}) {  // two words a keypoint: still the per-keypoint path here
+        ClassifierOptions o;
+        o.top_k = top_k;
+        o.min_margin = margin;
+        o.use_inverted_file = true;
+        o.inverted_file_words = per_keypoint;
+        EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0);
+      }
     }
   }
 }
@@ -654,6 +699,18 @@ TEST(ClassifierTest, RejectsBadOptionsAndInput) {
   o = {};
   o.min_margin = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(Classifier(model, o), Error);
+  for (int words : {0, 257}) {
+    o = {};
+    o.inverted_file_words = words;
+    try {
+      Classifier c(model, o);
+      ADD_FAILURE() << words;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("inverted_file_words = " + std::to_string(words) + " must be in 1..256"),
+                std::string::npos)
+          << e.what();
+    }
+  }
   EXPECT_THROW(Classifier(nullptr), Error);
   Classifier classifier(model);
   FrameKeypoints frame;

@@ -55,6 +55,7 @@ struct BenchInferArgs {
   int frames = 5;                  // synthetic frames (without --map)
   int train_descriptors = 400000;  // synthetic training descriptors (without --map)
   int ransac_iterations = 500;
+  int inverted_file_words = 1;  // the inverted-file rows: words a keypoint
   bool popcount = true;
   std::string json;
 };
@@ -368,8 +369,9 @@ void print_bench(const BenchInferArgs& a, const Model& m, const BenchFigures& b)
   std::printf("  dense:         embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame\n",
               sd.embedding / nr, sd.classification / nr, sd.pose / nr, sd.total / nr);
   std::printf(
-      "  inverted file: embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame "
+      "  inverted file%s: embedding %.2f ms, classification %.2f ms, pose %.2f ms, total %.2f ms a frame "
       "(%.0f correspondences, %.1f inliers)\n",
+      a.inverted_file_words > 1 ? (" (" + std::to_string(a.inverted_file_words) + " words a keypoint)").c_str() : "",
       si.embedding / nr, si.classification / nr, si.pose / nr, si.total / nr, b.e.correspondences / nr,
       b.e.inliers / nr);
   std::printf(
@@ -413,6 +415,7 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
           {"keypoints_per_frame", static_cast<double>(b.e.keypoints_total) / nr},
           {"training_descriptors", b.num_train},
           {"ransac_iterations", a.ransac_iterations},
+          {"inverted_file_words", a.inverted_file_words},
           {"dense_ms",
            {{"embedding", sd.embedding / nr},
             {"classification", sd.classification / nr},
@@ -457,6 +460,7 @@ void run_bench_infer(const BenchInferArgs& a) {
   dense_options.pose.max_iterations = a.ransac_iterations;
   LocalizerOptions inverted_options = dense_options;
   inverted_options.classifier.use_inverted_file = true;
+  inverted_options.classifier.inverted_file_words = a.inverted_file_words;
   const Localizer dense(model, dense_options), inverted(model, inverted_options);
   b.e = time_end_to_end(a, d, dense, inverted, bf, bytes, b.checksum);
   b.stages = time_stages(a, model, d, inverted, b.checksum);
@@ -489,6 +493,9 @@ void add_bench_infer_command(CLI::App& app) {
                   "Synthetic training descriptors for the baselines (without --map)")
       ->capture_default_str();
   cmd->add_option("--ransac-iterations", args->ransac_iterations, "RANSAC iterations")->capture_default_str();
+  cmd->add_option("--inverted-file-words", args->inverted_file_words,
+                  "The inverted-file rows: the candidates of a keypoint's N nearest words (1 = its own word)")
+      ->capture_default_str();
   cmd->add_flag("!--no-popcount", args->popcount, "Skip the popcount baseline");
   cmd->add_option("--json", args->json, "Also write the figures as JSON");
   cmd->callback([args] { run_bench_infer(*args); });

@@ -103,6 +103,10 @@ void add_eval_command(CLI::App& app) {
                   "Side file: every query keypoint's rank of its true landmark, per method");
   cmd->add_option("--methods", o.methods, method_help)->delimiter(',')->capture_default_str();
   cmd->add_option("--top-k", o.top_k, "Ranked landmarks per keypoint (MRR and miss-rate depth)")->capture_default_str();
+  cmd->add_option("--inverted-file-words", o.inverted_file_words,
+                  "landmarkboost_invfile: a keypoint's candidates are those of its N nearest words (1 = its own "
+                  "word; 2 = multiple assignment, ~1.8x the candidates)")
+      ->capture_default_str();
   cmd->add_option("--min-margin", o.min_margin,
                   "LandmarkBoost's background rejection: a keypoint's best match is accepted (fed to RANSAC) "
                   "only when its score beats the background's by more than this; the default 0 rejects, "

@@ -291,6 +291,7 @@ void run_localize(const LocalizeArgs& a) {
   out["map"] = a.map;
   out["options"] = {{"top_k", a.options.classifier.top_k},
                     {"use_inverted_file", a.options.classifier.use_inverted_file},
+                    {"inverted_file_words", a.options.classifier.inverted_file_words},
                     {"min_margin", json_number_or_string(a.options.classifier.min_margin)},
                     {"pose_top_k", a.options.pose_top_k},
                     {"max_correspondences", a.options.max_correspondences},
@@ -331,6 +332,10 @@ void add_localize_command(CLI::App& app) {
   cmd->add_option("--top-k", args->options.classifier.top_k, "Matches kept per keypoint")->capture_default_str();
   cmd->add_flag("--inverted-file", args->options.classifier.use_inverted_file,
                 "Score only the keypoint word's candidate classes");
+  cmd->add_option("--inverted-file-words", args->options.classifier.inverted_file_words,
+                  "--inverted-file: the candidates of the keypoint's N nearest words (1 = its own word; 2 = "
+                  "multiple assignment)")
+      ->capture_default_str();
   cmd->add_option("--min-margin", args->options.classifier.min_margin,
                   "Background rejection: a match must beat the background's score by more than this "
                   "(-inf = no rejection)")

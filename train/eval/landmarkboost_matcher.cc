@@ -80,6 +80,7 @@ std::vector<Correspondence> LandmarkBoostMatcher::accepted_without(
 nlohmann::json LandmarkBoostMatcher::parameters() const {
   return {{"top_k", options_.top_k},
           {"inverted_file", options_.use_inverted_file},
+          {"inverted_file_words", options_.use_inverted_file ? options_.inverted_file_words : 0},
           {"min_margin", json_number_or_string(options_.min_margin)}};
 }
 

@@ -15,6 +15,7 @@ std::unique_ptr<Matcher> make_landmarkboost(const MethodContext& c, bool inverte
   ClassifierOptions options;
   options.top_k = c.options->top_k;
   options.use_inverted_file = inverted_file;
+  if (inverted_file) options.inverted_file_words = c.options->inverted_file_words;
   options.min_margin = c.options->min_margin;
   // Ranking held-out map observations: the fusion's exemplars without them (as the descriptor
   // baselines' index).
@@ -70,6 +71,8 @@ std::unique_ptr<Matcher> make_projected_kdtree(const MethodContext& c) {
 
 void EvalOptions::check() const {
   LMB_CHECK(top_k >= 1 && top_k <= 10000, "eval: --top-k " << top_k << " must be in 1..10000");
+  LMB_CHECK(inverted_file_words >= 1 && inverted_file_words <= 256,
+            "eval: --inverted-file-words " << inverted_file_words << " must be in 1..256");
   LMB_CHECK(max_correspondences >= 0, "eval: --max-correspondences " << max_correspondences << " must be >= 0");
   LMB_CHECK(hamming_backend == "opencv" || hamming_backend == "popcount",
             "eval: --hamming-backend '" << hamming_backend << "' must be opencv or popcount");

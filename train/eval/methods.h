@@ -28,6 +28,7 @@ struct EvalOptions {
   std::vector<std::string> methods;  // names from eval_methods(); empty = all
   int top_k = 20;                    // ranked landmarks per keypoint, 1..10000
   double min_margin = 0.0;           // LandmarkBoost's background rejection for the pose (-inf = none)
+  int inverted_file_words = 1;       // landmarkboost_invfile: words a keypoint (ClassifierOptions), 1..256
   int max_correspondences = 0;       // most confident accepted matches fed to RANSAC (0 = all)
   PoseEstimatorOptions pose;         // RANSAC: iterations, inlier threshold, min inliers, seed
   // A frame is correct within the first pair (frames_correct, the PR curve, the sweep); recall is

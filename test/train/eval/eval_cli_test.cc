@@ -342,6 +342,39 @@ TEST_F(EvalCliTest, MinMarginInfAndPoseThresholds) {
                     "--pose-thresholds '0.2': '0.2' is not METRES,DEGREES");
 }
 
+// --inverted-file-words: the inverted file's candidates from a keypoint's N nearest words. An
+// exported model lists every class under the words of its training observations, so with every
+// word the inverted file ranks exactly as the dense classifier (the same P@1, MRR, keypoint ranks
+// and accepted matches); the setting is recorded with the method; out of range is a one-line error.
+TEST_F(EvalCliTest, InvertedFileWithEveryWordRanksAsDense) {
+  const Vocabulary vocabulary = Vocabulary::load(dir_ / "vocab.lbv");
+  const std::string words = std::to_string(vocabulary.num_words());
+  const RunResult r = run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --report " +
+                              (dir_ / "report_words.json").string() +
+                              " --methods landmarkboost,landmarkboost_invfile --inverted-file-words " + words,
+                          dir_);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report_words.json"));
+  const nlohmann::json& parameters = report.at("settings").at("method_parameters");
+  EXPECT_EQ(parameters.at("landmarkboost_invfile").at("inverted_file_words"), vocabulary.num_words());
+  EXPECT_EQ(parameters.at("landmarkboost").at("inverted_file_words"), 0);  // dense: no words
+  const nlohmann::json& dense = report.at("methods").at("landmarkboost");
+  const nlohmann::json& inverted = report.at("methods").at("landmarkboost_invfile");
+  for (const char* key : {"precision_at_1", "mrr", "match_precision", "match_recall", "accepted_matches_per_frame"}) {
+    EXPECT_EQ(inverted.at(key), dense.at(key)) << key;
+  }
+  EXPECT_GT(dense.at("precision_at_1").get<double>(), 0.0);
+  // One word (the default) is another ranking: fewer candidates.
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const nlohmann::json one_word = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  const nlohmann::json& one = one_word.at("methods").at("landmarkboost_invfile");
+  EXPECT_NE(one.at("mrr"), dense.at("mrr"));
+  expect_eval_error(run("eval --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() + " --report " +
+                            (dir_ / "bad_report.json").string() + " --inverted-file-words 0",
+                        dir_),
+                    "eval: --inverted-file-words 0 must be in 1..256");
+}
+
 // `lboost localize` and `lboost eval` name the accepted matches' metrics alike and agree on them
 // for the same model and options; localize no longer prints a "precision@1" of another definition.
 TEST_F(EvalCliTest, LocalizeAndEvalShareMetricNames) {
