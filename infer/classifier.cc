@@ -441,11 +441,8 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
 
 void Classifier::assign_words(const FrameKeypoints& frame, const uint8_t* descriptors, int32_t per_keypoint) {
   const int32_t n = frame.size();
+  if (per_keypoint == 1) return;  // frame.word is the only word of each keypoint
   assigned_word_.resize(static_cast<size_t>(n) * per_keypoint);
-  if (per_keypoint == 1) {
-    std::copy(frame.word.begin(), frame.word.begin() + n, assigned_word_.begin());
-    return;
-  }
   const Vocabulary& vocabulary = model_->vocabulary();
   const int32_t W = vocabulary.num_words();
   const int bytes = vocabulary.descriptor_bytes();
@@ -502,9 +499,13 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   const int32_t groups = inverted ? m.num_words() : 1;
   const int32_t per_keypoint = inverted ? std::min(options_.inverted_file_words, m.num_words()) : 1;
   assign_words(frame, descriptors, per_keypoint);
+  const auto group_of = [&](int32_t k, int32_t i) -> int32_t {
+    if (!inverted) return 0;
+    return per_keypoint == 1 ? frame.word[k] : assigned_word_[static_cast<size_t>(k) * per_keypoint + i];
+  };
   word_begin_.assign(static_cast<size_t>(groups) + 1, 0);
   for (int32_t k = 0; k < n; ++k) {
-    for (int32_t i = 0; i < per_keypoint; ++i) ++word_begin_[(inverted ? assigned_word_[k * per_keypoint + i] : 0) + 1];
+    for (int32_t i = 0; i < per_keypoint; ++i) ++word_begin_[group_of(k, i) + 1];
   }
   for (int32_t g = 0; g < groups; ++g) word_begin_[g + 1] += word_begin_[g];
   const int32_t slots = n * per_keypoint;  // keypoint-in-group entries
@@ -512,8 +513,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
   {
     std::vector<int32_t> fill(word_begin_.begin(), word_begin_.end() - 1);
     for (int32_t k = 0; k < n; ++k) {
-      for (int32_t i = 0; i < per_keypoint; ++i)
-        order_[fill[inverted ? assigned_word_[k * per_keypoint + i] : 0]++] = k;
+      for (int32_t i = 0; i < per_keypoint; ++i) order_[fill[group_of(k, i)]++] = k;
     }
   }
 

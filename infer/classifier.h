@@ -117,8 +117,8 @@ class Classifier {
   void finish_batch(const int32_t* ids, int32_t count, int32_t b);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
   void offer(int32_t j, int32_t cls, double score, double bg);
-  // assigned_word_[k * per_keypoint + i]: keypoint k's i-th word (its own first, then the nearest
-  // others; options_.inverted_file_words).
+  // With per_keypoint > 1, assigned_word_[k * per_keypoint + i]: keypoint k's i-th word (its own
+  // first, then the nearest others; options_.inverted_file_words); with 1, nothing (frame.word).
   void assign_words(const FrameKeypoints& frame, const uint8_t* descriptors, int32_t per_keypoint);
   // pending_ in keypoint order, each keypoint's matches from its several words' groups merged: best
   // first (ties: smaller class), each class once, at most top_k.
