@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <exception>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <thread>
 #include <tuple>
@@ -23,7 +24,7 @@ namespace lmb {
 namespace {
 
 void check_area_search(AreaSearch search, AreaWinner winner, const char* where) {
-  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll,
+  LMB_CHECK(search == AreaSearch::kNearestFirst || search == AreaSearch::kAll || search == AreaSearch::kWinnersView,
             where << ": unknown area search " << static_cast<int32_t>(search));
   LMB_CHECK(winner == AreaWinner::kSupport || winner == AreaWinner::kInliers,
             where << ": unknown area winner " << static_cast<int32_t>(winner));
@@ -372,12 +373,18 @@ struct AreaRun {
 // one-thread result whatever the thread count. `gate` (track()): once `gate_areas` areas are scored,
 // the search also stops where the verdict's winner lies within the gate, and an area's own
 // calibration no longer stops it; result.tracked: the winner lies within the gate, however the
-// search ended. `start`: when the call began (total_ms).
+// search ended. `view_prior` (AreaSearch::kWinnersView): after each scored area whose verdict has a
+// new winner, the areas not yet scored are re-ranked by how many of their landmarks the winning
+// pose sees, then by their distance from view_prior's position, then by id; a wave runs the next
+// `threads` areas of the current order not yet run, and an area run ahead is used when the order
+// reaches it (or never), so the result is again the one-thread result. `start`: when the call
+// began (total_ms).
 BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int32_t>& selected, bool nearest_first,
-                                       const PositionPrior* gate, int gate_areas, const Camera& camera,
-                                       const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
-                                       const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions& options,
-                                       AreaWinner winner, int threads, std::chrono::steady_clock::time_point start) {
+                                       const PositionPrior* gate, int gate_areas, const PositionPrior* view_prior,
+                                       const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                       const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                       const LocalizerOptions& options, AreaWinner winner, int threads,
+                                       std::chrono::steady_clock::time_point start) {
   using Clock = std::chrono::steady_clock;
   BundleLocalizeResult out;
   out.selected = static_cast<int32_t>(selected.size());
@@ -458,60 +465,89 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
   bool verdict_current = false;  // `verdict` is over every area scored
   size_t forced = SIZE_MAX;      // an area's own calibrated pose stopped the search: it wins
   bool stopped = false;
-  for (size_t next = 0; next < selected.size() && !stopped;) {
-    const size_t wave = std::min(static_cast<size_t>(threads), selected.size() - next);
-    std::vector<AreaRun> runs(wave);
-    if (wave == 1) {
-      run_area(selected[next], &runs[0]);
-    } else {
-      std::vector<std::exception_ptr> failures(wave);
-      std::vector<std::thread> workers;
-      for (size_t i = 0; i < wave; ++i) {
-        workers.emplace_back([&, i] {
-          try {
-            run_area(selected[next + i], &runs[i]);
-          } catch (...) {
-            failures[i] = std::current_exception();
-          }
-        });
+  std::vector<int32_t> order = selected;  // the search's order (re-ranked with view_prior)
+  std::map<int32_t, AreaRun> ahead;       // areas a wave ran that the order has not reached yet
+  size_t ranked_by = SIZE_MAX;            // the scored index whose pose's view ranked `order`
+  for (size_t next = 0; next < order.size() && !stopped; ++next) {
+    auto found = ahead.find(order[next]);
+    if (found == ahead.end()) {
+      // A wave: this area and the next ones of the current order not yet run, `threads` in all.
+      std::vector<int32_t> wave{order[next]};
+      for (size_t j = next + 1; j < order.size() && wave.size() < static_cast<size_t>(threads); ++j) {
+        if (ahead.count(order[j]) == 0) wave.push_back(order[j]);
       }
-      for (std::thread& w : workers) w.join();
-      for (const std::exception_ptr& f : failures) {
-        if (f) std::rethrow_exception(f);
+      std::vector<AreaRun> runs(wave.size());
+      if (wave.size() == 1) {
+        run_area(wave[0], &runs[0]);
+      } else {
+        std::vector<std::exception_ptr> failures(wave.size());
+        std::vector<std::thread> workers;
+        for (size_t i = 0; i < wave.size(); ++i) {
+          workers.emplace_back([&, i] {
+            try {
+              run_area(wave[i], &runs[i]);
+            } catch (...) {
+              failures[i] = std::current_exception();
+            }
+          });
+        }
+        for (std::thread& w : workers) w.join();
+        for (const std::exception_ptr& f : failures) {
+          if (f) std::rethrow_exception(f);
+        }
       }
+      for (size_t i = 0; i < wave.size(); ++i) ahead.emplace(wave[i], std::move(runs[i]));
+      found = ahead.find(order[next]);
     }
-    for (size_t i = 0; i < wave && !stopped; ++i) {
-      AreaRun& run = runs[i];
-      out.loaded += run.loaded_now ? 1 : 0;
-      if (!run.model) {
-        out.errors.push_back(std::move(run.error));
-        continue;
-      }
-      LocalizeResult& r = run.result;
-      out.scored.push_back(selected[next + i]);
-      out.inliers.push_back(r.pose.success ? r.pose.num_inliers : 0);
-      add_candidates(*run.model, r, &candidates);
-      const bool area_stops = !calibrated && nearest_first && r.calibrated && r.localized;
-      posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
-      if (r.pose.success) posed.push_back(std::move(r));
-      verdict_current = false;
-      // With a gate, the gate and the bundle's calibration decide, not an area's own calibration.
-      // (Fewer areas than gate_areas selected: the gate opens once all are scored.)
-      const bool gate_open =
-          gate != nullptr && out.scored.size() >= std::min(static_cast<size_t>(gate_areas), selected.size());
-      if (area_stops && gate == nullptr) {
-        stopped = true;
-        forced = out.scored.size() - 1;
-      } else if ((calibrated && nearest_first) || gate_open) {
-        // A calibrated bundle stops at the first point where its verdict is localized; the motion
-        // gate where the verdict's winner lies within it.
-        verdict = judge(SIZE_MAX);
-        verdict_current = true;
-        stopped = (gate_open && passes_gate(verdict)) ||
-                  (calibrated && nearest_first && verdict.best != SIZE_MAX && verdict.confidence >= threshold);
-      }
+    AreaRun run = std::move(found->second);
+    ahead.erase(found);
+    out.loaded += run.loaded_now ? 1 : 0;
+    if (!run.model) {
+      out.errors.push_back(std::move(run.error));
+      continue;
     }
-    next += wave;
+    LocalizeResult& r = run.result;
+    out.scored.push_back(order[next]);
+    out.inliers.push_back(r.pose.success ? r.pose.num_inliers : 0);
+    add_candidates(*run.model, r, &candidates);
+    const bool area_stops = !calibrated && nearest_first && r.calibrated && r.localized;
+    posed_index.push_back(r.pose.success ? posed.size() : SIZE_MAX);
+    if (r.pose.success) posed.push_back(std::move(r));
+    verdict_current = false;
+    // With a gate, the gate and the bundle's calibration decide, not an area's own calibration.
+    // (Fewer areas than gate_areas selected: the gate opens once all are scored.)
+    const bool gate_open =
+        gate != nullptr && out.scored.size() >= std::min(static_cast<size_t>(gate_areas), selected.size());
+    if (area_stops && gate == nullptr) {
+      stopped = true;
+      forced = out.scored.size() - 1;
+    } else if ((calibrated && nearest_first) || gate_open || view_prior != nullptr) {
+      // A calibrated bundle stops at the first point where its verdict is localized; the motion
+      // gate where the verdict's winner lies within it.
+      verdict = judge(SIZE_MAX);
+      verdict_current = true;
+      stopped = (gate_open && passes_gate(verdict)) ||
+                (calibrated && nearest_first && verdict.best != SIZE_MAX && verdict.confidence >= threshold);
+    }
+    if (!stopped && view_prior != nullptr && verdict_current && verdict.best != SIZE_MAX && verdict.best != ranked_by &&
+        next + 2 < order.size()) {
+      // The areas that see most of the winning pose's view next (an area that cannot load counts 0).
+      ranked_by = verdict.best;
+      const Rigid3d& pose = posed[posed_index[verdict.best]].pose.cam_from_world;
+      std::vector<std::tuple<int32_t, double, int32_t>> rank;
+      for (size_t j = next + 1; j < order.size(); ++j) {
+        int32_t visible = 0;
+        try {
+          visible = bundle.visible_landmarks(order[j], camera, pose);
+        } catch (const Error&) {
+          visible = 0;
+        }
+        rank.emplace_back(-visible, bundle.areas()[static_cast<size_t>(order[j])].distance(view_prior->position),
+                          order[j]);
+      }
+      std::sort(rank.begin(), rank.end());
+      for (size_t j = 0; j < rank.size(); ++j) order[next + 1 + j] = std::get<2>(rank[j]);
+    }
   }
   if (!verdict_current) verdict = judge(forced);
   out.tracked = passes_gate(verdict);  // however the search ended
@@ -545,10 +581,12 @@ BundleLocalizeResult localize_in_bundle(AreaBundle& bundle, const Camera& camera
   check_area_search(search, winner, "localize_in_bundle");
   check_area_threads(area_threads, "localize_in_bundle");
   std::vector<int32_t> selected = bundle.select(prior);
-  const bool nearest_first = prior != nullptr && search == AreaSearch::kNearestFirst;
+  const bool nearest_first = prior != nullptr && search != AreaSearch::kAll;
   if (nearest_first) order_by_distance(bundle, prior->position, &selected);
-  BundleLocalizeResult out = localize_selected(bundle, selected, nearest_first, nullptr, 1, camera, keypoints,
-                                               descriptors, gravity_in_cam, options, winner, area_threads, start);
+  const PositionPrior* view_prior = nearest_first && search == AreaSearch::kWinnersView ? prior : nullptr;
+  BundleLocalizeResult out =
+      localize_selected(bundle, selected, nearest_first, nullptr, 1, view_prior, camera, keypoints, descriptors,
+                        gravity_in_cam, options, winner, area_threads, start);
   out.prior_used = prior != nullptr;
   return out;
 }
@@ -568,8 +606,8 @@ BundleLocalizeResult localize_in_areas(AreaBundle& bundle, const std::vector<int
                   ids.begin() + static_cast<std::ptrdiff_t>(i),
               "localize_in_areas: area " << ids[i] << " is listed twice");
   }
-  return localize_selected(bundle, ids, false, nullptr, 1, camera, keypoints, descriptors, gravity_in_cam, options,
-                           winner, area_threads, start);
+  return localize_selected(bundle, ids, false, nullptr, 1, nullptr, camera, keypoints, descriptors, gravity_in_cam,
+                           options, winner, area_threads, start);
 }
 
 void BundleLocalizerOptions::check() const {
@@ -611,7 +649,7 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
     prior.position = *last_position_;
     // The camera moves at most tracking_radius a frame: after frames without a tracked pose, further.
     prior.radius = options_.tracking_radius * static_cast<double>(1 + frames_since_pose_);
-    const bool nearest_first = options_.search == AreaSearch::kNearestFirst;
+    const bool nearest_first = options_.search != AreaSearch::kAll;
     std::vector<int32_t> selected = bundle_->select(&prior);
     const int64_t loads_before = bundle_->loads();
     if (nearest_first) {
@@ -634,7 +672,7 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
     }
     const int32_t ranked_loads = static_cast<int32_t>(bundle_->loads() - loads_before);
     r = localize_selected(*bundle_, selected, nearest_first, nearest_first ? &prior : nullptr, options_.tracking_areas,
-                          camera, keypoints, descriptors, gravity_in_cam, options_.localizer, options_.winner,
+                          nullptr, camera, keypoints, descriptors, gravity_in_cam, options_.localizer, options_.winner,
                           options_.area_threads, start);
     r.loaded += ranked_loads;
     r.prior_used = true;
@@ -647,11 +685,12 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
     // last pose, a winner inside its gate is tracked too (judged once all are scored, so the gate
     // does not stop the search early), e.g. the right pose after a lost frame.
     std::vector<int32_t> ids = bundle_->select(relocalization_prior);
-    const bool nearest = relocalization_prior != nullptr && options_.search == AreaSearch::kNearestFirst;
+    const bool nearest = relocalization_prior != nullptr && options_.search != AreaSearch::kAll;
     if (nearest) order_by_distance(*bundle_, relocalization_prior->position, &ids);
-    r = localize_selected(*bundle_, ids, nearest, last_position_ ? &prior : nullptr,
-                          std::max(1, static_cast<int>(ids.size())), camera, keypoints, descriptors, gravity_in_cam,
-                          options_.localizer, options_.winner, options_.area_threads, start);
+    r = localize_selected(
+        *bundle_, ids, nearest, last_position_ ? &prior : nullptr, std::max(1, static_cast<int>(ids.size())),
+        nearest && options_.search == AreaSearch::kWinnersView ? relocalization_prior : nullptr, camera, keypoints,
+        descriptors, gravity_in_cam, options_.localizer, options_.winner, options_.area_threads, start);
     // The failed tracking attempt's time and loads count too.
     r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     r.loaded += loaded;

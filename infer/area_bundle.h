@@ -202,6 +202,16 @@ enum class AreaSearch : int32_t {
   kNearestFirst = 0,
   // Every selected area is scored; AreaWinner decides.
   kAll = 1,
+  // kNearestFirst with the remaining areas re-ranked after each scored area: once the areas scored
+  // so far have a winning pose (AreaWinner), the rest go in the order of how many of their
+  // landmarks that pose sees (AreaBundle::visible_landmarks: the first ranking loads an area once
+  // for its landmark sample), then by distance, then the smaller id; the same stops. The areas
+  // that hold the candidate pose's view come sooner, so a calibrated stop comes after fewer areas
+  // (`paper`, 5 m prior: 9.2-9.4 areas instead of 10.7, docs/areas.md). The result is the
+  // one-thread result for any area_threads: a wave runs the next areas of the current order
+  // ahead, and an area run ahead is used only when the one-thread order reaches it. In track(),
+  // the relocalization with a prior; the tracked areas keep the last pose's view order.
+  kWinnersView = 2,
 };
 
 // Which of the scored areas' poses wins when the search did not stop at a calibrated pose.

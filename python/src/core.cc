@@ -171,7 +171,8 @@ std::shared_ptr<BundleResult> bundle_result(BundleLocalizeResult&& r) {
 AreaSearch area_search_from(const std::string& name) {
   if (name == "nearest_first") return AreaSearch::kNearestFirst;
   if (name == "all") return AreaSearch::kAll;
-  throw py::value_error("BundleLocalizer: search '" + name + "': expected 'nearest_first' or 'all'");
+  if (name == "winners_view") return AreaSearch::kWinnersView;
+  throw py::value_error("BundleLocalizer: search '" + name + "': expected 'nearest_first', 'winners_view' or 'all'");
 }
 
 AreaWinner area_winner_from(const std::string& name) {
@@ -668,7 +669,8 @@ prior_used, total_ms.)")
   py::class_<BundleLocalizer>(m, "BundleLocalizer", R"(Localizes frames in an AreaBundle:
 BundleLocalizer(bundle, options=None, search="nearest_first", winner="support", tracking_radius=1.0,
 relocalize_without_prior=True, area_threads=1, tracking_areas=2). search: "nearest_first" (with a prior, the nearest area whose
-calibrated pose is localized wins and the rest are not scored) or "all"; winner: "support" (the pose
+calibrated pose is localized wins and the rest are not scored), "winners_view" (the same stops, the areas after
+the first pose in the order of how much of the current winning pose's view they see) or "all"; winner: "support" (the pose
 that explains most keypoints with every scored area's matches) or "inliers"; area_threads: areas
 localized at once, each on its own thread (the same result); tracking_radius: how far the camera
 moves between two tracked frames (the motion gate); tracking_areas: areas scored before the gate judges

@@ -119,6 +119,14 @@ def test_winner_rules_and_tracking(tiny, tmp_path):
         assert (a.scored, a.inliers, a.support, a.area) == (b.scored, b.inliers, b.support, b.area)
         if a.pose_found:
             assert a.cam_from_world.translation.tolist() == b.cam_from_world.translation.tolist()
+    # The winner's-view search with a prior (two areas: nothing to re-rank, so nearest first's result).
+    nearest = lb.BundleLocalizer(bundle)
+    for threads in (1, 2):
+        view = lb.BundleLocalizer(bundle, search="winners_view", area_threads=threads)
+        for f in frames[:2]:
+            prior = (m.frames[f].cam_from_world.center(), 1.0)
+            a, b = nearest.localize(*frame_args(m, f), prior=prior), view.localize(*frame_args(m, f), prior=prior)
+            assert (a.scored, a.inliers, a.support, a.area) == (b.scored, b.inliers, b.support, b.area)
     tracker = lb.BundleLocalizer(bundle, tracking_radius=0.5)
     assert tracker.last_position is None
     first = tracker.track(*frame_args(m, frames[0]))

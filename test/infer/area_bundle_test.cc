@@ -746,6 +746,79 @@ TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne
   EXPECT_THROW(BundleLocalizer(nullptr), Error);
 }
 
+// AreaSearch::kWinnersView: nearest area first, then the areas that see most of the current
+// winning pose's view (an area that cannot load counts 0), the same result on any area threads.
+TEST_F(AreaBundleTest, WinnersViewScoresTheAreasTheWinningPoseSeesNextOnAnyThreads) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const test::TestFrame& f = world.frame;
+  write_tracking_bundle(world);
+  // The tracking bundle plus area 4, damaged, in area 3's cell (1 m away, like areas 1 and 3).
+  std::vector<BundleArea> areas = AreaBundle::open(dir_ / "track.txt")->areas();
+  BundleArea damaged = areas[1];
+  damaged.id = 4;
+  damaged.file = "area-4.lbm";
+  damaged.cell_lo = areas[3].cell_lo;
+  damaged.cell_hi = areas[3].cell_hi;
+  std::string image = read_file(dir_ / "area-1.lbm");
+  image[image.size() / 2] ^= 0x10;
+  write_file_atomically(dir_ / "area-4.lbm", image);
+  areas.push_back(damaged);
+  write_bundle_index(dir_ / "view.txt", 50.0, areas);
+  PositionPrior prior;
+  prior.position = f.cam_from_world.center();
+  prior.radius = 0.5;  // every area (reach 50 m)
+  const auto run = [&](AreaSearch search, int threads) {
+    const auto bundle = AreaBundle::open(dir_ / "view.txt");
+    return localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior, {},
+                              search, AreaWinner::kSupport, threads);
+  };
+  // Uncalibrated: nothing stops the search, so the order shows. Nearest first: area 0 (its cell
+  // holds the prior), then 1, 3 and 4 (1 m; by id), then 2 (2 m).
+  const BundleLocalizeResult nearest = run(AreaSearch::kNearestFirst, 1);
+  EXPECT_EQ(nearest.scored, (std::vector<int32_t>{0, 1, 3, 2}));
+  ASSERT_EQ(nearest.errors.size(), 1u);
+  EXPECT_NE(nearest.errors[0].find("area 4"), std::string::npos) << nearest.errors[0];
+  // By the winner's view: area 0's look-alike pose (3 m behind the camera) sees all 60 landmarks
+  // of area 1, 20 of area 2 and none of 3 (4 cannot load: 0); then area 1's pose wins, which sees
+  // 20 of area 2 and none of 3 and 4, which go by distance and id.
+  const BundleLocalizeResult view = run(AreaSearch::kWinnersView, 1);
+  EXPECT_EQ(view.scored, (std::vector<int32_t>{0, 1, 2, 3}));
+  EXPECT_EQ(view.errors, nearest.errors);
+  EXPECT_EQ(view.area, 1);
+  EXPECT_EQ(view.area, nearest.area);
+  EXPECT_EQ(view.result.pose.cam_from_world.translation, nearest.result.pose.cam_from_world.translation);
+  EXPECT_LT(position_error(view.result.pose.cam_from_world, f.cam_from_world), 1e-6);
+  // Areas run ahead in a wave are used only where the one-thread order reaches them.
+  for (int threads : {2, 3, 5}) {
+    const BundleLocalizeResult many = run(AreaSearch::kWinnersView, threads);
+    const std::string what = "threads " + std::to_string(threads);
+    EXPECT_EQ(many.scored, view.scored) << what;
+    EXPECT_EQ(many.inliers, view.inliers) << what;
+    EXPECT_EQ(many.support, view.support) << what;
+    EXPECT_EQ(many.rival_support, view.rival_support) << what;
+    EXPECT_EQ(many.errors, view.errors) << what;
+    EXPECT_EQ(many.area, view.area) << what;
+    EXPECT_EQ(many.result.pose.inlier_mask, view.result.pose.inlier_mask) << what;
+  }
+  // A calibrated bundle that accepts every pose stops after the nearest area, as nearest first does.
+  PoseCalibration accept;
+  accept.bias = 50.0;
+  accept.threshold = 0.5;
+  write_bundle_index(dir_ / "view.txt", 50.0, areas, &accept);
+  for (int threads : {1, 2}) EXPECT_EQ(run(AreaSearch::kWinnersView, threads).scored, std::vector<int32_t>{0});
+  // Without a prior every area is scored in id order (kAll), whatever the search.
+  const auto bundle = AreaBundle::open(dir_ / "view.txt");
+  EXPECT_EQ(localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
+                               AreaSearch::kWinnersView)
+                .scored,
+            (std::vector<int32_t>{0, 1, 2, 3}));
+  BundleLocalizerOptions options;
+  options.search = AreaSearch::kWinnersView;
+  EXPECT_NO_THROW(options.check());
+  options.search = static_cast<AreaSearch>(3);
+  EXPECT_THROW(options.check(), Error);
+}
+
 TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMotionGate) {
   const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
   const test::TestFrame& f = world.frame;

@@ -283,7 +283,8 @@ TEST(ModelTest, CheckRejectsInconsistentFusion) {
 }
 
 TEST(ModelTest, SaveAndLoadFile) {
-  const auto dir = std::filesystem::temp_directory_path() / "lmb_model_test";
+  // Per process: the generic-SIMD variant of this test runs beside it.
+  const auto dir = std::filesystem::temp_directory_path() / ("lmb_model_test_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   const Model m(make_code_model_data(some_positions(4)));
   m.save(dir / "m.lbm");

@@ -95,6 +95,9 @@ void add_bench_bundle_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--inverted-file", o.localizer.classifier.use_inverted_file,
                 "Score only the keypoint word's candidate classes (every mode)");
+  cmd->add_flag_function(
+      "--winners-view", [args](int64_t) { args->options.search = AreaSearch::kWinnersView; },
+      "With a prior: nearest area first, then the areas that see most of the current winning pose's view");
   cmd->add_option("--repeats", o.seeds, "Passes over the frames (RANSAC seeds --seed, --seed + 1, ...)")
       ->capture_default_str();
   cmd->add_option("--seed", o.localizer.pose.seed, "First RANSAC seed")->capture_default_str();

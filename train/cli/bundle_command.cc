@@ -233,6 +233,10 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
       "--all-areas", [options](int64_t) { options->search = AreaSearch::kAll; },
       "--bundle: with a prior, score every selected area (default: nearest area first, the first calibrated "
       "localized pose wins)");
+  cmd->add_flag_function(
+      "--winners-view", [options](int64_t) { options->search = AreaSearch::kWinnersView; },
+      "--bundle: with a prior, nearest area first, then the areas that see most of the current winning pose's "
+      "view (AreaSearch::kWinnersView: fewer areas before the calibrated stop)");
   cmd->add_option("--area-winner", options->winner,
                   "--bundle: which scored area's pose wins: support (explains most keypoints with every scored "
                   "area's matches) or inliers (most inliers of its own area)")

@@ -391,7 +391,9 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["seeds"] = options.seeds;
   report["first_seed"] = options.localizer.pose.seed;
   report["prior_seed"] = options.prior_seed;
-  report["area_search"] = options.search == AreaSearch::kAll ? "all" : "nearest_first";
+  report["area_search"] = options.search == AreaSearch::kAll           ? "all"
+                          : options.search == AreaSearch::kWinnersView ? "winners_view"
+                                                                       : "nearest_first";
   report["area_winner"] = options.winner == AreaWinner::kSupport ? "support" : "inliers";
   report["area_threads"] = options.area_threads;
   report["tracking_areas"] = options.tracking_areas;

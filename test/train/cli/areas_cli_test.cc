@@ -411,6 +411,26 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       EXPECT_EQ(f["areas_scored"].get<size_t>(), f["areas_selected"].get<size_t>()) << m;
     }
   }
+  EXPECT_EQ(aj["area_search"], "all");
+  // --winners-view: the nearest area first, as nearest first; without a prior every area, as before.
+  const RunResult view = run(localize + " --winners-view", dir_);
+  ASSERT_EQ(view.exit_code, 0) << view.err;
+  const nlohmann::json vj = nlohmann::json::parse(slurp(out));
+  EXPECT_EQ(vj["area_search"], "winners_view");
+  EXPECT_EQ(j["area_search"], "nearest_first");
+  for (int m = 0; m < 3; ++m) {
+    const nlohmann::json& vf = vj["modes"][m]["frames"];
+    const nlohmann::json& nf = j["modes"][m]["frames"];
+    ASSERT_EQ(vf.size(), nf.size()) << m;
+    for (size_t i = 0; i < vf.size(); ++i) {
+      if (m == 2) {
+        EXPECT_EQ(vf[i]["scored"], nf[i]["scored"]) << i;
+        EXPECT_EQ(vf[i]["area"], nf[i]["area"]) << i;
+      } else if (!nf[i]["scored"].empty()) {
+        EXPECT_EQ(vf[i]["scored"][0], nf[i]["scored"][0]) << m << " " << i;
+      }
+    }
+  }
   // --track: the query frames in name order through BundleLocalizer::track. The first frame has no
   // last pose (every area); with a radius that holds the whole map every later posed frame is
   // tracked, i.e. stops inside the motion gate.
