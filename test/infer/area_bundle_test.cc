@@ -480,6 +480,19 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
       BundleLocalizer(bundle).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr).area, 1);
 }
 
+// The same areas scored, supports, winner and pose in both results.
+void expect_same_result(const BundleLocalizeResult& a, const BundleLocalizeResult& b, const std::string& what) {
+  EXPECT_EQ(a.scored, b.scored) << what;
+  EXPECT_EQ(a.inliers, b.inliers) << what;
+  EXPECT_EQ(a.support, b.support) << what;
+  EXPECT_EQ(a.rival_support, b.rival_support) << what;
+  EXPECT_EQ(a.errors, b.errors) << what;
+  EXPECT_EQ(a.area, b.area) << what;
+  EXPECT_EQ(a.localized, b.localized) << what;
+  EXPECT_EQ(a.result.pose.cam_from_world.translation, b.result.pose.cam_from_world.translation) << what;
+  EXPECT_EQ(a.result.pose.inlier_mask, b.result.pose.inlier_mask) << what;
+}
+
 // A calibration whose probability is sigmoid(bias) for every pose with an inlier: bias +8 accepts
 // every pose at the threshold 0.5, bias -8 none.
 PoseCalibration constant_calibration(double bias) {
@@ -609,16 +622,7 @@ TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
       }
       for (int threads : {2, 3, 5, 8}) {
         const BundleLocalizeResult many = run(threads);
-        const std::string what = "threads " + std::to_string(threads) + (p ? " prior" : " no prior");
-        EXPECT_EQ(many.scored, one.scored) << what;
-        EXPECT_EQ(many.inliers, one.inliers) << what;
-        EXPECT_EQ(many.support, one.support) << what;
-        EXPECT_EQ(many.rival_support, one.rival_support) << what;
-        EXPECT_EQ(many.errors, one.errors) << what;
-        EXPECT_EQ(many.area, one.area) << what;
-        EXPECT_EQ(many.localized, one.localized) << what;
-        EXPECT_EQ(many.result.pose.cam_from_world.translation, one.result.pose.cam_from_world.translation) << what;
-        EXPECT_EQ(many.result.pose.inlier_mask, one.result.pose.inlier_mask) << what;
+        expect_same_result(many, one, "threads " + std::to_string(threads) + (p ? " prior" : " no prior"));
       }
     }
   }
@@ -791,14 +795,7 @@ TEST_F(AreaBundleTest, WinnersViewScoresTheAreasTheWinningPoseSeesNextOnAnyThrea
   // Areas run ahead in a wave are used only where the one-thread order reaches them.
   for (int threads : {2, 3, 5}) {
     const BundleLocalizeResult many = run(AreaSearch::kWinnersView, threads);
-    const std::string what = "threads " + std::to_string(threads);
-    EXPECT_EQ(many.scored, view.scored) << what;
-    EXPECT_EQ(many.inliers, view.inliers) << what;
-    EXPECT_EQ(many.support, view.support) << what;
-    EXPECT_EQ(many.rival_support, view.rival_support) << what;
-    EXPECT_EQ(many.errors, view.errors) << what;
-    EXPECT_EQ(many.area, view.area) << what;
-    EXPECT_EQ(many.result.pose.inlier_mask, view.result.pose.inlier_mask) << what;
+    expect_same_result(many, view, "threads " + std::to_string(threads));
   }
   // A calibrated bundle that accepts every pose stops after the nearest area, as nearest first does.
   PoseCalibration accept;
