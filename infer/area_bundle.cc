@@ -9,6 +9,8 @@
 #include <exception>
 #include <limits>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <sstream>
 #include <thread>
 #include <tuple>
@@ -388,6 +390,8 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
   using Clock = std::chrono::steady_clock;
   BundleLocalizeResult out;
   out.selected = static_cast<int32_t>(selected.size());
+  std::mutex prepared_mutex;
+  std::shared_ptr<const PreparedFrame> prepared;  // guarded by prepared_mutex
   const auto run_area = [&](int32_t id, AreaRun* run) {
     // (`loaded_now` is exact for one caller at a time: another may load the same area meanwhile.)
     run->loaded_now = !bundle.loaded(id);
@@ -398,7 +402,19 @@ BundleLocalizeResult localize_selected(AreaBundle& bundle, const std::vector<int
       run->loaded_now = false;
       return;
     }
-    run->result = Localizer(run->model, options).localize(camera, keypoints, descriptors, gravity_in_cam, options);
+    // The frame's words, placed keypoints and context index: once for every area of one vocabulary
+    // (all of a bundle's, as `lboost train --area` makes them), by the first area to need them.
+    std::shared_ptr<const PreparedFrame> frame;
+    {
+      const std::lock_guard<std::mutex> lock(prepared_mutex);
+      if (prepared == nullptr) {
+        prepared = std::make_shared<const PreparedFrame>(run->model, camera, keypoints, descriptors, gravity_in_cam);
+      }
+      if (prepared->serves(*run->model)) frame = prepared;
+    }
+    const Localizer localizer(run->model, options);
+    run->result = frame != nullptr ? localizer.localize(camera, keypoints, descriptors, *frame, options)
+                                   : localizer.localize(camera, keypoints, descriptors, gravity_in_cam, options);
   };
   // Every scored area's matches (per keypoint, distinct 3D points) and its result while it may win.
   std::vector<std::vector<Eigen::Vector3d>> candidates(keypoints.size());

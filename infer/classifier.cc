@@ -56,10 +56,13 @@ void Classifier::use_simd_level(SimdLevel level) {
   kernels_ = kernels;
 }
 
-void Classifier::index_frame(const FrameKeypoints& frame, const std::string& where) { context_.reset(frame, where); }
+void Classifier::index_frame(const FrameKeypoints& frame, const std::string& where) {
+  external_ = nullptr;
+  context_.reset(frame, where);
+}
 
 void Classifier::compute_used_values(int32_t k, const uint8_t* descriptor, uint8_t* values) const {
-  context_.compute_dims(k, model_->scoring().used_plan(), descriptor, values);
+  indexed().compute_dims(k, model_->scoring().used_plan(), descriptor, values);
 }
 
 void Classifier::dense_scores(const uint8_t* values, double* scores) const {
@@ -484,14 +487,38 @@ void Classifier::merge_pending() {
 KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t* descriptors, const std::string& where,
                                      double* embedding_ms) {
   using Clock = std::chrono::steady_clock;
+  const int32_t n = frame.size();
+  LMB_CHECK(n == 0 || descriptors != nullptr, where << ": null descriptors for " << n << " keypoints");
+  const Clock::time_point t0 = Clock::now();
+  index_frame(frame, where);
+  return classify_indexed(frame, descriptors, embedding_ms, Clock::now() - t0);
+}
+
+KeypointMatches Classifier::classify(const FrameKeypoints& frame, const FrameContext& indexed,
+                                     const uint8_t* descriptors, const std::string& where, double* embedding_ms) {
+  const Model& m = *model_;
+  const int32_t n = frame.size();
+  LMB_CHECK(n == 0 || descriptors != nullptr, where << ": null descriptors for " << n << " keypoints");
+  LMB_CHECK(indexed.num_keypoints() == n && indexed.num_words() == m.num_words() &&
+                indexed.regions().size() == m.regions().size(),
+            where << ": the frame's context index holds " << indexed.num_keypoints() << " keypoints, "
+                  << indexed.num_words() << " words and " << indexed.regions().size() << " regions; the frame has " << n
+                  << " keypoints and the model " << m.num_words() << " words and " << m.regions().size() << " regions");
+  struct Restore {
+    const FrameContext*& external;
+    ~Restore() { external = nullptr; }
+  } restore{external_};
+  external_ = &indexed;
+  return classify_indexed(frame, descriptors, embedding_ms, std::chrono::steady_clock::duration{0});
+}
+
+KeypointMatches Classifier::classify_indexed(const FrameKeypoints& frame, const uint8_t* descriptors,
+                                             double* embedding_ms, std::chrono::steady_clock::duration embedding) {
+  using Clock = std::chrono::steady_clock;
   const Model& m = *model_;
   const detail::ScoringIndex& idx = m.scoring();
   const int32_t n = frame.size();
-  LMB_CHECK(n == 0 || descriptors != nullptr, where << ": null descriptors for " << n << " keypoints");
-  Clock::duration embedding{0};
-  Clock::time_point t0 = Clock::now();
-  index_frame(frame, where);
-  if (embedding_ms) embedding += Clock::now() - t0;
+  Clock::time_point t0;
 
   // Keypoints grouped by word (inverted file) or all in one group (dense), in keypoint order. With
   // several words a keypoint (inverted_file_words), it sits in each of its words' groups.
@@ -536,15 +563,16 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
     if (embedding_ms) t0 = Clock::now();
     if (frame_values_.size() < U * frame_stride) frame_values_.resize(U * frame_stride);
     if (per_keypoint == 1) {
-      context_.compute_dims_columns(idx.used_plan(), order_.data(), n, descriptors, frame_values_.data(), frame_stride);
+      indexed().compute_dims_columns(idx.used_plan(), order_.data(), n, descriptors, frame_values_.data(),
+                                     frame_stride);
     } else {
       // Each keypoint's values once (in keypoint order), then copied to each of its slots.
       const size_t once_stride = static_cast<size_t>(n) + kBatch;
       if (once_values_.size() < U * once_stride) once_values_.resize(U * once_stride);
       keypoint_ids_.resize(static_cast<size_t>(n));
       for (int32_t k = 0; k < n; ++k) keypoint_ids_[k] = k;
-      context_.compute_dims_columns(idx.used_plan(), keypoint_ids_.data(), n, descriptors, once_values_.data(),
-                                    once_stride);
+      indexed().compute_dims_columns(idx.used_plan(), keypoint_ids_.data(), n, descriptors, once_values_.data(),
+                                     once_stride);
       for (size_t u = 0; u < U; ++u) {
         const uint8_t* from = once_values_.data() + u * once_stride;
         uint8_t* to = frame_values_.data() + u * frame_stride;
@@ -579,7 +607,7 @@ KeypointMatches Classifier::classify(const FrameKeypoints& frame, const uint8_t*
         const int32_t k = order_[b + j];
         const uint8_t* desc = descriptors + static_cast<int64_t>(k) * bytes;
         uint8_t* lane = values_.data() + j;  // dim-major: value of used dim u at lane[u * kBatch]
-        context_.compute_dims(k, idx.word_plan(g), desc, word_values_.data());
+        indexed().compute_dims(k, idx.word_plan(g), desc, word_values_.data());
         const int32_t u0 = idx.word_used_begin()[g], u1 = idx.word_used_begin()[g + 1];
         const int32_t* used = idx.word_used().data() + u0;
         for (int32_t i = 0; i < u1 - u0; ++i) lane[used[i] * kBatch] = word_values_[i];

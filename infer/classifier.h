@@ -47,6 +47,7 @@
 // Threading: a Classifier holds per-frame buffers; use one per thread (the Model is shared).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -77,6 +78,11 @@ class Classifier {
   // frame index and computing feature values (the rest is scoring and ranking).
   KeypointMatches classify(const FrameKeypoints& frame, const uint8_t* descriptors, const std::string& where = "frame",
                            double* embedding_ms = nullptr);
+  // The same matches for a frame whose context index the caller built (indexed.reset(frame), as
+  // PreparedFrame does once for every model of one vocabulary): the index is read, not rebuilt.
+  // Throws lmb::Error when `indexed` holds another keypoint count, word count or region count.
+  KeypointMatches classify(const FrameKeypoints& frame, const FrameContext& indexed, const uint8_t* descriptors,
+                           const std::string& where = "frame", double* embedding_ms = nullptr);
 
   // Lower-level steps (tests, benchmarks), valid after index_frame(frame):
   void index_frame(const FrameKeypoints& frame, const std::string& where = "frame");
@@ -127,6 +133,12 @@ class Classifier {
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;
   FrameContext context_;
+  // The caller's index during classify(frame, indexed, ...), else null (context_ is read).
+  const FrameContext* external_ = nullptr;
+  const FrameContext& indexed() const { return external_ != nullptr ? *external_ : context_; }
+  // classify() once the index is built; `embedding`: the time already spent building it.
+  KeypointMatches classify_indexed(const FrameKeypoints& frame, const uint8_t* descriptors, double* embedding_ms,
+                                   std::chrono::steady_clock::duration embedding);
   std::vector<uint8_t> values_;        // used_dims().size() rows of kBatch lanes (dim-major)
   std::vector<uint8_t> word_values_;   // one keypoint's values of its word's (or all used) dims
   std::vector<uint8_t> frame_values_;  // or all used dims of the frame's keypoints (dim-major)

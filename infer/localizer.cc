@@ -34,36 +34,83 @@ LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypo
   return localize(camera, keypoints, descriptors, gravity_in_cam, options_);
 }
 
-LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
-                                   const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
-                                   const LocalizerOptions& options) const {
-  using Clock = std::chrono::steady_clock;
-  const auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
-  options.check();
+namespace {
+using Clock = std::chrono::steady_clock;
+double elapsed_ms(Clock::time_point from, Clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
+}  // namespace
+
+struct PreparedFrame::Frame {
+  explicit Frame(const Model& model) : context(model.regions(), model.num_words()) {}
+  FrameKeypoints keypoints;
+  FrameContext context;
+};
+
+PreparedFrame::PreparedFrame(std::shared_ptr<const Model> model, const Camera& camera,
+                             const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                             const Eigen::Vector3d& gravity_in_cam)
+    : model_(std::move(model)) {
+  LMB_CHECK(model_ != nullptr, "prepared frame: null model");
+  frame_ = std::make_unique<Frame>(*model_);
   camera.check("localize: camera");
   const int64_t n64 = static_cast<int64_t>(keypoints.size());
   LMB_CHECK(n64 <= INT32_MAX, "localize: " << n64 << " keypoints are too many");
   const int32_t n = static_cast<int32_t>(n64);
   LMB_CHECK(n == 0 || descriptors != nullptr, "localize: null descriptors for " << n << " keypoints");
+  const Clock::time_point t_start = Clock::now();
+  std::vector<uint8_t> words(static_cast<size_t>(n));
+  if (n > 0) model_->vocabulary().quantize(descriptors, n, words.data());
+  const Clock::time_point t_words = Clock::now();
+  frame_->keypoints =
+      frame_keypoints_from_detections(camera, keypoints.data(), words.data(), n, gravity_in_cam, "localize");
+  frame_->context.reset(frame_->keypoints, "localize");
+  words_ms_ = elapsed_ms(t_start, t_words);
+  embedding_ms_ = elapsed_ms(t_words, Clock::now());
+}
+
+PreparedFrame::~PreparedFrame() = default;
+
+int32_t PreparedFrame::size() const { return frame_->keypoints.size(); }
+
+bool PreparedFrame::serves(const Model& model) const {
+  return &model == model_.get() ||
+         (model.vocabulary() == model_->vocabulary() && model.regions().size() == model_->regions().size());
+}
+
+LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                   const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam,
+                                   const LocalizerOptions& options) const {
+  options.check();
+  const Clock::time_point t_start = Clock::now();
+  const PreparedFrame prepared(model_, camera, keypoints, descriptors, gravity_in_cam);
+  LocalizeResult result = localize(camera, keypoints, descriptors, prepared, options);
+  result.timings.words_ms = prepared.words_ms();
+  result.timings.embedding_ms += prepared.embedding_ms();
+  result.timings.total_ms = elapsed_ms(t_start, Clock::now());
+  return result;
+}
+
+LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
+                                   const uint8_t* descriptors, const PreparedFrame& prepared,
+                                   const LocalizerOptions& options) const {
+  options.check();
   const Model& m = *model_;
+  LMB_CHECK(prepared.serves(m), "localize: the prepared frame was made with another vocabulary or region count");
+  const int32_t n = prepared.size();
+  LMB_CHECK(static_cast<size_t>(n) == keypoints.size(),
+            "localize: the prepared frame has " << n << " keypoints, the call " << keypoints.size());
   LocalizeResult result;
   const Clock::time_point t_start = Clock::now();
-
-  std::vector<uint8_t> words(static_cast<size_t>(n));
-  if (n > 0) m.vocabulary().quantize(descriptors, n, words.data());
-  const Clock::time_point t_words = Clock::now();
-  result.timings.words_ms = ms(t_words - t_start);
-
-  const FrameKeypoints frame =
-      frame_keypoints_from_detections(camera, keypoints.data(), words.data(), n, gravity_in_cam, "localize");
   Classifier classifier(model_, options.classifier);
   const Clock::time_point t_frame = Clock::now();
   double embedding_ms = 0.0;
-  result.matches = classifier.classify(frame, descriptors, "localize", &embedding_ms);
+  result.matches =
+      classifier.classify(prepared.frame_->keypoints, prepared.frame_->context, descriptors, "localize", &embedding_ms);
   const Clock::time_point t_classified = Clock::now();
-  // Embedding: keypoint normalization and the classifier's frame index and feature values.
-  result.timings.embedding_ms = ms(t_frame - t_words) + embedding_ms;
-  result.timings.classification_ms = ms(t_classified - t_frame) - embedding_ms;
+  // Embedding: the context dims' values (the prepared frame holds the rest).
+  result.timings.embedding_ms = embedding_ms;
+  result.timings.classification_ms = elapsed_ms(t_frame, t_classified) - embedding_ms;
 
   for (int32_t k = 0; k < n; ++k) {
     const int32_t count = std::min(result.matches.count(k), options.pose_top_k);
@@ -112,8 +159,8 @@ LocalizeResult Localizer::localize(const Camera& camera, const std::vector<Keypo
     result.localized = result.pose.success && result.confidence >= result.confidence_threshold;
   }
   const Clock::time_point t_end = Clock::now();
-  result.timings.pose_ms = ms(t_end - t_classified);
-  result.timings.total_ms = ms(t_end - t_start);
+  result.timings.pose_ms = elapsed_ms(t_classified, t_end);
+  result.timings.total_ms = elapsed_ms(t_start, t_end);
   return result;
 }
 

@@ -85,6 +85,37 @@ struct LocalizeResult {
   LocalizeTimings timings;
 };
 
+// The work of a frame that does not depend on the model, done once for every model of one
+// vocabulary (an AreaBundle's areas): the descriptors' visual words, the keypoints placed in the
+// gravity-aligned normalized plane, and the frame's context index (common/context_embedding.h).
+// Localizer::localize(camera, keypoints, descriptors, prepared, options) with it gives the matches
+// and pose that localize() computes from scratch. Read-only once built: any number of threads may
+// use one at once.
+class LMB_INFER_EXPORT PreparedFrame {
+ public:
+  // `model`: its vocabulary quantizes the descriptors (keypoints.size() rows of its
+  // descriptor_bytes()). Throws lmb::Error as localize() does for invalid input.
+  PreparedFrame(std::shared_ptr<const Model> model, const Camera& camera, const std::vector<Keypoint>& keypoints,
+                const uint8_t* descriptors, const Eigen::Vector3d& gravity_in_cam);
+  ~PreparedFrame();
+  PreparedFrame(const PreparedFrame&) = delete;
+  PreparedFrame& operator=(const PreparedFrame&) = delete;
+
+  // `model` reads this frame as its own: the same vocabulary and context region count.
+  bool serves(const Model& model) const;
+  int32_t size() const;
+  double words_ms() const { return words_ms_; }          // quantization
+  double embedding_ms() const { return embedding_ms_; }  // keypoint placement + context index
+
+ private:
+  friend class Localizer;
+  struct Frame;                         // the placed keypoints and their context index (infer/localizer.cc)
+  std::shared_ptr<const Model> model_;  // the vocabulary, and the regions the index refers to
+  std::unique_ptr<Frame> frame_;
+  double words_ms_ = 0.0;
+  double embedding_ms_ = 0.0;
+};
+
 class LMB_INFER_EXPORT Localizer {
  public:
   // Throws lmb::Error for a null model or invalid options.
@@ -95,6 +126,12 @@ class LMB_INFER_EXPORT Localizer {
   // The same with explicit options (per-call settings; options.check() first).
   LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                           const Eigen::Vector3d& gravity_in_cam, const LocalizerOptions& options) const;
+  // The same with the frame's model-independent work done (`prepared` of the same keypoints,
+  // descriptors, camera and gravity; it must serve this model): the same result. Its timings count
+  // only this call's work (words_ms 0; embedding_ms the context dims only). Throws lmb::Error when
+  // `prepared` does not serve the model or holds another keypoint count.
+  LocalizeResult localize(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
+                          const PreparedFrame& prepared, const LocalizerOptions& options) const;
 
   const Model& model() const { return *model_; }
   const std::shared_ptr<const Model>& shared_model() const { return model_; }

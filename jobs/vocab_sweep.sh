@@ -7,7 +7,8 @@
 # OUT_DIR: a main-job output (default out/default: map.h5 and vocab_world/ of jobs/pipeline.sh);
 # SWEEP_DIR (default OUT_DIR/vocab_sweep): per word count w<N>/{vocab.lbv,config.toml,run/,
 # model.lbm,report.json}, then table.md (jobs/vocab_table.py). Settings from the environment:
-# WORDS (default "4 8 16 32 64 128"), ROUNDS (200), REGIONS (1000), DIMS_PER_ROUND (500),
+# WORDS (default "4 8 16 32 64 128"), TOP_K (1000: the classes of the main job's model, the map's
+# best landmarks), ROUNDS (1000, as the main job), REGIONS (1000), DIMS_PER_ROUND (500),
 # LMB_THREADS (nproc), AUGMENT (0: augmented copies of every training sample, [augment] copies; the
 # noise is measured on the map). Word counts whose report exists are kept; delete SWEEP_DIR to start over.
 set -euo pipefail
@@ -17,7 +18,8 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 lboost=${LBOOST:-$here/build/train/lboost}
 threads=${LMB_THREADS:-$(nproc)}
 words_list=${WORDS:-4 8 16 32 64 128}
-rounds=${ROUNDS:-200}
+top_k=${TOP_K:-1000}
+rounds=${ROUNDS:-1000}
 regions=${REGIONS:-1000}
 dims_per_round=${DIMS_PER_ROUND:-500}
 augment=${AUGMENT:-0}
@@ -39,6 +41,8 @@ dims_per_round = $dims_per_round
 candidate_dims = $((regions * w))
 [regions]
 num_regions = $regions
+[training_set]
+top_k_landmarks = $top_k
 TOML
   if [ "$augment" -gt 0 ]; then
     printf '[augment]\ncopies = %d\n' "$augment" >> "$d/config.toml"

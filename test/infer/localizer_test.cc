@@ -8,7 +8,9 @@
 
 #include <gtest/gtest.h>
 
+#include "common/context_embedding.h"
 #include "common/error.h"
+#include "infer/classifier.h"
 #include "test/infer/test_models.h"
 
 namespace lmb {
@@ -102,6 +104,101 @@ TEST(LocalizerTest, FourThreadsGiveTheSameResultsAsOne) {
       EXPECT_TRUE(a.pose.success);
     }
   }
+}
+
+void expect_same_localization(const LocalizeResult& a, const LocalizeResult& b) {
+  EXPECT_EQ(a.matches.begin, b.matches.begin);
+  ASSERT_EQ(a.matches.matches.size(), b.matches.matches.size());
+  for (size_t m = 0; m < a.matches.matches.size(); ++m) {
+    EXPECT_EQ(a.matches.matches[m].cls, b.matches.matches[m].cls);
+    EXPECT_EQ(a.matches.matches[m].score, b.matches.matches[m].score);
+    EXPECT_EQ(a.matches.matches[m].background_score, b.matches.matches[m].background_score);
+  }
+  EXPECT_EQ(a.correspondence_keypoint, b.correspondence_keypoint);
+  EXPECT_EQ(a.pose.success, b.pose.success);
+  EXPECT_EQ(a.pose.inlier_mask, b.pose.inlier_mask);
+  EXPECT_EQ(a.pose.cam_from_world.rotation.coeffs(), b.pose.cam_from_world.rotation.coeffs());
+  EXPECT_EQ(a.pose.cam_from_world.translation, b.pose.cam_from_world.translation);
+}
+
+TEST(LocalizerTest, APreparedFrameServesEveryModelOfItsVocabularyWithTheSameResult) {
+  const Fixture fx;
+  const test::TestFrame& f = fx.world.frame;
+  // A second model of the same vocabulary and regions whose context stumps count (a != 0), so a
+  // context index read wrongly would change its scores; the first model prepares the frame.
+  ModelData other = test::make_code_model_data(fx.world.positions, 2);
+  int context_stumps = 0;
+  for (SharedStump& s : other.stumps) {
+    if (s.dim < other.regions.size() * other.vocabulary.num_words()) {
+      s.a = 0.5 + 0.125 * (context_stumps++ % 5);
+      s.theta = static_cast<uint8_t>(s.theta % 3);
+    }
+  }
+  ASSERT_GT(context_stumps, 0);
+  const auto second = std::make_shared<const Model>(std::move(other));
+  const PreparedFrame prepared(fx.model, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_EQ(prepared.size(), static_cast<int32_t>(f.keypoints.size()));
+  for (const auto& model : {fx.model, second}) {
+    ASSERT_TRUE(prepared.serves(*model));
+    for (bool inverted : {false, true}) {
+      LocalizerOptions o;
+      o.classifier.use_inverted_file = inverted;
+      o.classifier.top_k = 3;
+      o.pose_top_k = 2;
+      const Localizer localizer(model, o);
+      const LocalizeResult scratch = run(localizer, f);
+      const LocalizeResult shared = localizer.localize(f.camera, f.keypoints, f.descriptors.data(), prepared, o);
+      expect_same_localization(scratch, shared);
+      // The reference: the classifier indexing the frame itself.
+      const int32_t n = static_cast<int32_t>(f.keypoints.size());
+      std::vector<uint8_t> words(static_cast<size_t>(n));
+      model->vocabulary().quantize(f.descriptors.data(), n, words.data());
+      const FrameKeypoints frame =
+          frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n, f.gravity_in_cam, "test");
+      Classifier classifier(model, o.classifier);
+      const KeypointMatches own = classifier.classify(frame, f.descriptors.data());
+      EXPECT_EQ(own.begin, shared.matches.begin);
+      ASSERT_EQ(own.matches.size(), shared.matches.matches.size());
+      for (size_t m = 0; m < own.matches.size(); ++m) {
+        EXPECT_EQ(own.matches[m].cls, shared.matches.matches[m].cls);
+        EXPECT_EQ(own.matches[m].score, shared.matches.matches[m].score);
+      }
+      EXPECT_EQ(shared.timings.words_ms, 0.0);  // the prepared frame's work is not this call's
+      EXPECT_TRUE(shared.pose.success);
+    }
+  }
+  // The context stumps of the second model changed its scores: the test can tell a wrong index.
+  const LocalizeResult a = run(Localizer(fx.model), f), b = run(Localizer(second), f);
+  ASSERT_EQ(a.matches.begin, b.matches.begin);
+  int differ = 0;
+  for (size_t m = 0; m < a.matches.matches.size(); ++m)
+    differ += a.matches.matches[m].score != b.matches.matches[m].score;
+  EXPECT_GT(differ, 10);
+
+  // Another vocabulary or region count: not served, and refused rather than read wrongly.
+  ModelData words = test::make_code_model_data(fx.world.positions);
+  words.vocabulary = test::test_vocabulary(6);
+  ModelData regions = test::make_code_model_data(fx.world.positions);
+  regions.regions = ContextRegions({{-4.f, -4.f, 4.f, 4.f}, {-1.f, 0.f, 3.f, 8.f}});
+  for (ModelData* d : {&words, &regions}) {
+    const int32_t dims = d->regions.size() * d->vocabulary.num_words();
+    for (SharedStump& s : d->stumps) {
+      if (s.dim >= 3 * 4)
+        s.dim = s.dim - 3 * 4 + dims;  // the descriptor bits after the context
+      else
+        s.dim %= dims;
+    }
+    const auto model = std::make_shared<const Model>(std::move(*d));
+    EXPECT_FALSE(prepared.serves(*model));
+    EXPECT_THROW(Localizer(model).localize(f.camera, f.keypoints, f.descriptors.data(), prepared, LocalizerOptions{}),
+                 Error);
+  }
+  // A prepared frame of other keypoints is refused.
+  std::vector<Keypoint> fewer(f.keypoints.begin(), f.keypoints.end() - 1);
+  EXPECT_THROW(Localizer(fx.model).localize(f.camera, fewer, f.descriptors.data(), prepared, LocalizerOptions{}),
+               Error);
+  EXPECT_THROW(PreparedFrame(nullptr, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam), Error);
+  EXPECT_THROW(PreparedFrame(fx.model, f.camera, f.keypoints, nullptr, f.gravity_in_cam), Error);
 }
 
 TEST(LocalizerTest, TooFewMatchesIsNoPoseNotAnError) {
