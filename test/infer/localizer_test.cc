@@ -25,6 +25,25 @@ LocalizeResult run(const Localizer& localizer, const test::TestFrame& f) {
   return localizer.localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
 }
 
+void expect_same_matches(const KeypointMatches& a, const KeypointMatches& b) {
+  EXPECT_EQ(a.begin, b.begin);
+  ASSERT_EQ(a.matches.size(), b.matches.size());
+  for (size_t m = 0; m < a.matches.size(); ++m) {
+    EXPECT_EQ(a.matches[m].cls, b.matches[m].cls);
+    EXPECT_EQ(a.matches[m].score, b.matches[m].score);
+    EXPECT_EQ(a.matches[m].background_score, b.matches[m].background_score);
+  }
+}
+
+void expect_same_localization(const LocalizeResult& a, const LocalizeResult& b) {
+  expect_same_matches(a.matches, b.matches);
+  EXPECT_EQ(a.correspondence_keypoint, b.correspondence_keypoint);
+  EXPECT_EQ(a.pose.success, b.pose.success);
+  EXPECT_EQ(a.pose.inlier_mask, b.pose.inlier_mask);
+  EXPECT_EQ(a.pose.cam_from_world.rotation.coeffs(), b.pose.cam_from_world.rotation.coeffs());
+  EXPECT_EQ(a.pose.cam_from_world.translation, b.pose.cam_from_world.translation);
+}
+
 TEST(LocalizerTest, FindsTheMatchesAndThePose) {
   const Fixture fx;
   const test::TestFrame& f = fx.world.frame;
@@ -89,36 +108,10 @@ TEST(LocalizerTest, FourThreadsGiveTheSameResultsAsOne) {
   for (auto& th : threads) th.join();
   for (int t = 0; t < 4; ++t) {
     for (size_t i = 0; i < frames.size(); ++i) {
-      const LocalizeResult& a = serial[i];
-      const LocalizeResult& b = parallel[t][i];
-      EXPECT_EQ(a.matches.begin, b.matches.begin);
-      ASSERT_EQ(a.matches.matches.size(), b.matches.matches.size());
-      for (size_t m = 0; m < a.matches.matches.size(); ++m) {
-        EXPECT_EQ(a.matches.matches[m].cls, b.matches.matches[m].cls);
-        EXPECT_EQ(a.matches.matches[m].score, b.matches.matches[m].score);
-      }
-      EXPECT_EQ(a.pose.success, b.pose.success);
-      EXPECT_EQ(a.pose.inlier_mask, b.pose.inlier_mask);
-      EXPECT_EQ(a.pose.cam_from_world.rotation.coeffs(), b.pose.cam_from_world.rotation.coeffs());
-      EXPECT_EQ(a.pose.cam_from_world.translation, b.pose.cam_from_world.translation);
-      EXPECT_TRUE(a.pose.success);
+      expect_same_localization(serial[i], parallel[t][i]);
+      EXPECT_TRUE(serial[i].pose.success);
     }
   }
-}
-
-void expect_same_localization(const LocalizeResult& a, const LocalizeResult& b) {
-  EXPECT_EQ(a.matches.begin, b.matches.begin);
-  ASSERT_EQ(a.matches.matches.size(), b.matches.matches.size());
-  for (size_t m = 0; m < a.matches.matches.size(); ++m) {
-    EXPECT_EQ(a.matches.matches[m].cls, b.matches.matches[m].cls);
-    EXPECT_EQ(a.matches.matches[m].score, b.matches.matches[m].score);
-    EXPECT_EQ(a.matches.matches[m].background_score, b.matches.matches[m].background_score);
-  }
-  EXPECT_EQ(a.correspondence_keypoint, b.correspondence_keypoint);
-  EXPECT_EQ(a.pose.success, b.pose.success);
-  EXPECT_EQ(a.pose.inlier_mask, b.pose.inlier_mask);
-  EXPECT_EQ(a.pose.cam_from_world.rotation.coeffs(), b.pose.cam_from_world.rotation.coeffs());
-  EXPECT_EQ(a.pose.cam_from_world.translation, b.pose.cam_from_world.translation);
 }
 
 TEST(LocalizerTest, APreparedFrameServesEveryModelOfItsVocabularyWithTheSameResult) {
@@ -156,13 +149,7 @@ TEST(LocalizerTest, APreparedFrameServesEveryModelOfItsVocabularyWithTheSameResu
       const FrameKeypoints frame =
           frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n, f.gravity_in_cam, "test");
       Classifier classifier(model, o.classifier);
-      const KeypointMatches own = classifier.classify(frame, f.descriptors.data());
-      EXPECT_EQ(own.begin, shared.matches.begin);
-      ASSERT_EQ(own.matches.size(), shared.matches.matches.size());
-      for (size_t m = 0; m < own.matches.size(); ++m) {
-        EXPECT_EQ(own.matches[m].cls, shared.matches.matches[m].cls);
-        EXPECT_EQ(own.matches[m].score, shared.matches.matches[m].score);
-      }
+      expect_same_matches(classifier.classify(frame, f.descriptors.data()), shared.matches);
       EXPECT_EQ(shared.timings.words_ms, 0.0);  // the prepared frame's work is not this call's
       EXPECT_TRUE(shared.pose.success);
     }
