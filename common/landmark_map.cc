@@ -20,6 +20,17 @@ SessionKind parse_session_kind(const std::string& text, const std::string& where
   LMB_FAIL(where << ": session kind '" << text << "' (expected map, query or outside)");
 }
 
+std::vector<frame_t> LandmarkMap::map_session_frames() const {
+  std::vector<frame_t> out;
+  for (frame_t f = 0; f < num_frames(); ++f) {
+    const int32_t s = frames[f].session;
+    const bool map_session =
+        s >= 0 && static_cast<size_t>(s) < sessions.size() && sessions[s].kind == SessionKind::kMap;
+    if (map_session && !frames[f].is_query) out.push_back(f);
+  }
+  return out;
+}
+
 int32_t LandmarkMap::find_session(const std::string& name) const {
   for (size_t s = 0; s < sessions.size(); ++s) {
     if (sessions[s].name == name) return static_cast<int32_t>(s);

@@ -69,6 +69,8 @@ struct LandmarkMap {
   const MapSession& session_of(frame_t f) const { return sessions[static_cast<size_t>(frames[f].session)]; }
   // Index of the session called `name`, or -1.
   int32_t find_session(const std::string& name) const;
+  // The frames of the map sessions (kind map, not flagged query), ascending.
+  std::vector<frame_t> map_session_frames() const;
 };
 
 // The sessions of a map that has none yet (a format-1 map.h5, a map assembled by hand): "map"

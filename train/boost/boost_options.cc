@@ -19,6 +19,12 @@ const std::vector<Setting<TrainingSetOptions>>& training_set_settings() {
        "at most this many background samples; 0 = none"},
       {"seed", [](T& o) -> SettingRef { return &o.seed; }, SettingRange::any(),
        "seed of the hold-out and background sampling"},
+      {"calibration_frames", [](T& o) -> SettingRef { return &o.calibration_frames; }, SettingRange::at_least(0),
+       "map frames held out of training whole for the pose calibration, at most; 0 = none"},
+      {"calibration_frame_share", [](T& o) -> SettingRef { return &o.calibration_frame_share; },
+       SettingRange::open_closed(0.0, 1.0), "... and at most this share of the map-session frames"},
+      {"min_calibration_frames", [](T& o) -> SettingRef { return &o.min_calibration_frames; },
+       SettingRange::at_least(1), "none held out when fewer than this would be"},
   };
   return settings;
 }

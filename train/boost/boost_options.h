@@ -24,6 +24,16 @@ struct TrainingSetOptions {
   int64_t background_cap = 40000;  // at most this many background samples (untracked keypoints
                                    // and observations of landmarks not selected); 0 = none
   uint64_t seed = 1;               // deterministic hold-out and background sampling
+  // Map-session frames held out of training whole, so that the pose calibration (lboost export,
+  // eval, calibrate, bundle) is fitted on frames the model never trained on, like a query's
+  // (calibration_holdout_frames, train/boost/training_set.h): at most calibration_frames of them
+  // and at most calibration_frame_share of the map-session frames; none when that is fewer than
+  // min_calibration_frames (a small map keeps every frame for training, and its calibration falls
+  // back to frames the model trained on). calibration_frames 0 = none (a run's config.toml without
+  // the key: trained before it existed, read_run_train_config).
+  int32_t calibration_frames = 50;
+  double calibration_frame_share = 0.05;
+  int32_t min_calibration_frames = 20;
   // Non-empty: the classes are exactly these landmarks (an area's, docs/areas.md; ascending,
   // distinct), top_k_landmarks is not used. Not a config key: set from TrainConfig::area.
   std::vector<landmark_t> class_landmarks;

@@ -247,6 +247,20 @@ TrainConfig read_train_config(const std::filesystem::path& path) {
   return c;
 }
 
+TrainConfig read_run_train_config(const std::filesystem::path& path) {
+  const std::string text = read_file(path, 1 << 20);
+  TrainConfig c;
+  apply_train_config_toml(text, path.string(), &c);
+  const toml::table doc = toml::parse(text, path.string());  // parsed above without an error
+  if (!doc["training_set"]["calibration_frames"]) c.training_set.calibration_frames = 0;
+  try {
+    c.check();
+  } catch (const Error& e) {
+    LMB_FAIL(path.string() << ": " << e.what());
+  }
+  return c;
+}
+
 std::string train_config_toml(const TrainConfig& config) {
   TrainConfig copy = config;
   std::vector<const ConfigKey*> keys;

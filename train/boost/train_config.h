@@ -65,6 +65,11 @@ std::string describe_config_key(const std::string& name);
 void apply_train_config_toml(const std::string& toml_text, const std::string& what, TrainConfig* config);
 // The defaults overridden by the file, then check()ed; every error names the file.
 TrainConfig read_train_config(const std::filesystem::path& path);
+// A run's config.toml (RUN_DIR/config.toml, which `lboost train` writes with every key): as
+// read_train_config, except that a key added after the run was trained takes the value that
+// reproduces that run's training set: without training_set.calibration_frames, 0 (no frame was
+// held out).
+TrainConfig read_run_train_config(const std::filesystem::path& path);
 // Every field, as TOML (round-trips through apply_train_config_toml).
 std::string train_config_toml(const TrainConfig& config);
 

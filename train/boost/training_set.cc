@@ -33,11 +33,63 @@ std::vector<int64_t> held_out_of_landmark(const std::vector<int64_t>& observatio
   return held;
 }
 
+// Per map frame, 1 when calibration_holdout_frames holds it out.
+std::vector<char> holdout_flags(const LandmarkMap& map, const TrainingSetOptions& options) {
+  std::vector<char> out(static_cast<size_t>(map.num_frames()), 0);
+  for (frame_t f : calibration_holdout_frames(map, options)) out[static_cast<size_t>(f)] = 1;
+  return out;
+}
+
+// The map (non-query) observations of every landmark, by landmark: those outside the held-out
+// frames in `kept`, those in them in `held_frames` (each in keypoint order). Checks the frames'
+// keypoint ranges and the keypoints' landmarks.
+void map_observations(const LandmarkMap& map, const std::vector<char>& held_out,
+                      std::vector<std::vector<int64_t>>* kept, std::vector<std::vector<int64_t>>* held_frames,
+                      std::vector<int64_t>* untracked) {
+  const int64_t num_keypoints = static_cast<int64_t>(map.keypoints.size());
+  const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
+  kept->assign(static_cast<size_t>(num_landmarks), {});
+  held_frames->assign(static_cast<size_t>(num_landmarks), {});
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    LMB_CHECK(frame.first_keypoint >= 0 && frame.num_keypoints >= 0 &&
+                  frame.first_keypoint + frame.num_keypoints <= num_keypoints,
+              "map: frame " << f << " (" << frame.name << ") keypoint range out of bounds");
+    if (frame.is_query) continue;
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
+                "map: keypoint " << k << " refers to landmark " << l << " of " << num_landmarks);
+      if (l == kInvalidLandmarkId) {
+        if (untracked != nullptr && !held_out[static_cast<size_t>(f)]) untracked->push_back(k);
+      } else {
+        (held_out[static_cast<size_t>(f)] ? *held_frames : *kept)[static_cast<size_t>(l)].push_back(k);
+      }
+    }
+  }
+}
+
+// An area's class that would keep fewer than min_train_observations observations outside the
+// held-out frames trains on its observations in them too (sorted: keypoint order).
+void keep_starved_classes(const std::vector<landmark_t>& classes, const TrainingSetOptions& options,
+                          std::vector<std::vector<int64_t>>* kept, std::vector<std::vector<int64_t>>* held_frames) {
+  if (options.class_landmarks.empty()) return;
+  for (landmark_t l : classes) {
+    auto& k = (*kept)[static_cast<size_t>(l)];
+    auto& h = (*held_frames)[static_cast<size_t>(l)];
+    if (static_cast<int64_t>(k.size()) >= options.min_train_observations || h.empty()) continue;
+    k.insert(k.end(), h.begin(), h.end());
+    std::sort(k.begin(), k.end());
+    h.clear();
+  }
+}
+
 // The class landmarks, ascending: options.class_landmarks (an area; each checked to exist and to
 // have min_train_observations map observations), or the top_k_landmarks by quality (ties: smaller
 // id) among those with at least min_train_observations.
 std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
                                                const std::vector<std::vector<int64_t>>& observations,
+                                               const std::vector<std::vector<int64_t>>& held_frames,
                                                const TrainingSetOptions& options) {
   const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
   std::vector<landmark_t> candidates;
@@ -50,9 +102,9 @@ std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
       LMB_CHECK(i == 0 || l > options.class_landmarks[i - 1],
                 "training set: class landmarks must be ascending and distinct ("
                     << l << " after " << options.class_landmarks[i - 1] << ")");
-      LMB_CHECK(static_cast<int64_t>(observations[l].size()) >= options.min_train_observations,
+      LMB_CHECK(static_cast<int64_t>(observations[l].size() + held_frames[l].size()) >= options.min_train_observations,
                 "training set: class landmark "
-                    << l << " has " << observations[l].size()
+                    << l << " has " << observations[l].size() + held_frames[l].size()
                     << " map observations, fewer than min_train_observations = " << options.min_train_observations);
     }
     candidates = options.class_landmarks;
@@ -79,6 +131,19 @@ std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
 }
 
 }  // namespace
+
+std::vector<frame_t> calibration_holdout_frames(const LandmarkMap& map, const TrainingSetOptions& options) {
+  options.check();
+  const std::vector<frame_t> all = map.map_session_frames();
+  const auto share =
+      static_cast<int64_t>(std::floor(options.calibration_frame_share * static_cast<double>(all.size())));
+  const int64_t h = std::min<int64_t>(options.calibration_frames, share);
+  if (h <= 0 || h < options.min_calibration_frames) return {};
+  const size_t step = (all.size() + static_cast<size_t>(h) - 1) / static_cast<size_t>(h);
+  std::vector<frame_t> out;
+  for (size_t i = 0; i < all.size(); i += step) out.push_back(all[i]);
+  return out;
+}
 
 void TrainingSet::check() const {
   const int64_t n = num_samples();
@@ -152,31 +217,21 @@ TrainingSet build_training_set(const LandmarkMap& map, const std::vector<int32_t
                                           << " keypoints");
   const int64_t num_landmarks = static_cast<int64_t>(map.landmarks.size());
 
-  // Map (non-query) observations per landmark.
-  std::vector<std::vector<int64_t>> observations(static_cast<size_t>(num_landmarks));
+  // Map (non-query) observations per landmark, outside the calibration frames and in them.
+  const std::vector<char> held_out = holdout_flags(map, options);
+  std::vector<std::vector<int64_t>> observations, in_held_frames;
   std::vector<int64_t> background;
+  map_observations(map, held_out, &observations, &in_held_frames, &background);
   std::vector<frame_t> keypoint_frame(static_cast<size_t>(num_keypoints), kInvalidFrameId);
   for (frame_t f = 0; f < map.num_frames(); ++f) {
     const MapFrame& frame = map.frames[f];
-    LMB_CHECK(frame.first_keypoint >= 0 && frame.num_keypoints >= 0 &&
-                  frame.first_keypoint + frame.num_keypoints <= num_keypoints,
-              "map: frame " << f << " (" << frame.name << ") keypoint range out of bounds");
     if (frame.is_query) continue;
-    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
-      keypoint_frame[k] = f;
-      const landmark_t l = map.keypoint_landmark[k];
-      LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
-                "map: keypoint " << k << " refers to landmark " << l << " of " << num_landmarks);
-      if (l == kInvalidLandmarkId) {
-        background.push_back(k);
-      } else {
-        observations[l].push_back(k);
-      }
-    }
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) keypoint_frame[k] = f;
   }
 
   // Qualification and top-K by quality, or the given classes.
-  const std::vector<landmark_t> candidates = select_class_landmarks(map, observations, options);
+  const std::vector<landmark_t> candidates = select_class_landmarks(map, observations, in_held_frames, options);
+  keep_starved_classes(candidates, options, &observations, &in_held_frames);
 
   TrainingSet set;
   set.num_classes = static_cast<int32_t>(candidates.size());
@@ -251,26 +306,15 @@ std::vector<int64_t> held_out_observations(const LandmarkMap& map, const std::ve
   LMB_CHECK(static_cast<int64_t>(map.keypoint_landmark.size()) == num_keypoints,
             "map: keypoint_landmark has " << map.keypoint_landmark.size() << " entries for " << num_keypoints
                                           << " keypoints");
-  std::vector<char> is_class(static_cast<size_t>(num_landmarks), 0);
   for (landmark_t l : class_landmarks) {
     LMB_CHECK(l >= 0 && l < num_landmarks,
               "held-out observations: class landmark " << l << " out of range [0, " << num_landmarks << ")");
-    is_class[static_cast<size_t>(l)] = 1;
   }
+  std::vector<std::vector<int64_t>> all, in_held_frames;
+  map_observations(map, holdout_flags(map, options), &all, &in_held_frames, nullptr);
+  keep_starved_classes(class_landmarks, options, &all, &in_held_frames);
   std::vector<std::vector<int64_t>> observations(static_cast<size_t>(num_landmarks));
-  for (frame_t f = 0; f < map.num_frames(); ++f) {
-    const MapFrame& frame = map.frames[f];
-    LMB_CHECK(frame.first_keypoint >= 0 && frame.num_keypoints >= 0 &&
-                  frame.first_keypoint + frame.num_keypoints <= num_keypoints,
-              "map: frame " << f << " (" << frame.name << ") keypoint range out of bounds");
-    if (frame.is_query) continue;
-    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
-      const landmark_t l = map.keypoint_landmark[k];
-      LMB_CHECK(l == kInvalidLandmarkId || (l >= 0 && l < num_landmarks),
-                "map: keypoint " << k << " refers to landmark " << l << " of " << num_landmarks);
-      if (l != kInvalidLandmarkId && is_class[static_cast<size_t>(l)]) observations[l].push_back(k);
-    }
-  }
+  for (landmark_t l : class_landmarks) observations[static_cast<size_t>(l)] = std::move(all[static_cast<size_t>(l)]);
   std::vector<int64_t> held;
   for (const std::vector<int64_t>& obs : observations) {
     const std::vector<int64_t> h = held_out_of_landmark(obs, options);

@@ -44,10 +44,19 @@ struct TrainingSet {
   void check() const;
 };
 
-// Builds the training set from the map's non-query frames:
+// The map-session frames held out of training whole for the pose calibration: of the F frames of
+// the map sessions (map order, as calibration_frames of train/eval/pose_calibration_fit.h), h =
+// min(calibration_frames, floor(calibration_frame_share * F)) frames, every ceil(F / h)-th from the
+// first; none when h < min_calibration_frames. Ascending. A function of the map and the options.
+std::vector<frame_t> calibration_holdout_frames(const LandmarkMap& map, const TrainingSetOptions& options);
+
+// Builds the training set from the map's non-query frames outside calibration_holdout_frames (their
+// keypoints are no sample at all, except an area's class observations, below):
 //  - classes: options.class_landmarks when given (each needs min_train_observations map
-//    observations), else the top_k_landmarks landmarks by quality (ties: smaller id) among those
-//    with at least min_train_observations map observations; ordered by landmark id;
+//    observations; a class that would keep fewer outside the held-out frames keeps its observations
+//    in them too), else the top_k_landmarks landmarks by quality (ties: smaller id) among those
+//    with at least min_train_observations map observations outside the held-out frames; ordered by
+//    landmark id;
 //  - validation: per class, floor(validation_fraction * n) observations (at least 1 when
 //    validation_fraction > 0 and n > min_train_observations), chosen by a seeded hash;
 //  - background: untracked keypoints and observations of unselected landmarks, at most
@@ -65,8 +74,8 @@ void add_augmented_copies(TrainingSet* set, int32_t copies, const std::function<
 
 // The held-out map observations of a training set, from the map, its classes' landmarks and the
 // options alone: the keypoints build_training_set marks sample_is_validation when its classes are
-// `class_landmarks` (e.g. a trained model's), sorted. `lboost eval` ranks them: observations of
-// the training sessions that the model never trained on. Throws lmb::Error on a malformed map or
+// `class_landmarks` (e.g. a trained model's), sorted (never a keypoint of a calibration frame). `lboost eval` ranks
+// them: observations of the training sessions that the model never trained on. Throws lmb::Error on a malformed map or
 // a landmark out of range.
 std::vector<int64_t> held_out_observations(const LandmarkMap& map, const std::vector<landmark_t>& class_landmarks,
                                            const TrainingSetOptions& options);

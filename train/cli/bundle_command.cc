@@ -44,6 +44,7 @@ struct BundleArgs {
 };
 
 // The bundle's pose calibration (infer/area_bundle.h, BundleLocalizeResult::evidence), fitted on
+// the frames the areas' training held out (default training options; calibration_holdout_frames), else on
 // map frames (train/eval/pose_calibration_fit.h, calibration_frames: every s-th frame of the map
 // sessions) the way `lboost export` fits a model's, with the support rule; a pose is right within
 // 0.2 m / 5 deg of the frame's map pose. Each frame twice: localized in every area (no prior: the
@@ -58,7 +59,11 @@ bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path&
   const LandmarkMap map = read_map_h5(args.map);
   LMB_CHECK(fingerprint_map(map) == file.map_fingerprint,
             "--map " << args.map << " is not the map " << args.areas << " splits (fingerprints differ)");
-  const std::vector<frame_t> frames = calibration_frames(map, args.calibration_frames);
+  // The frames the areas' training held out (default training options), else every n-th map frame.
+  PoseCalibrationOptions frame_options;
+  frame_options.max_frames = args.calibration_frames;
+  const std::vector<frame_t> frames =
+      calibration_frames(map, with_holdout_frames(frame_options, map, TrainingSetOptions{}));
   const auto bundle = AreaBundle::open(index);
   LocalizerOptions lo;
   lo.classifier.use_inverted_file = args.inverted_file;

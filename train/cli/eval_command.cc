@@ -35,7 +35,7 @@ void run_eval(const EvalOptions& options, const std::string& report_path, const 
     const std::filesystem::path config = std::filesystem::path(run_dir) / "config.toml";
     LMB_CHECK(std::filesystem::exists(config),
               "eval: --run " << run_dir << ": no config.toml (not a `lboost train` run dir)");
-    o.training_set = read_train_config(config).training_set;
+    o.training_set = read_run_train_config(config).training_set;
   }
   EvalResult result = run_evaluation(o);
   if (!run_dir.empty()) attach_training_summary(result.report, run_dir);

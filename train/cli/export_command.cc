@@ -60,9 +60,15 @@ struct ExportArgs {
   PoseCalibrationOptions calibration_options;
 };
 
-// Fits the pose calibration of `data` with the Localizer's default options (see the file comment).
-void add_pose_calibration(const PoseCalibrationOptions& options, const LandmarkMap& map, ModelData& data) {
-  const auto model = std::make_shared<const Model>(data);
+// Fits the pose calibration of `data` with the Localizer's default options (see the file comment)
+// on the frames its training held out (`training`: the run's training-set options, or the
+// defaults), else on options.max_frames map frames. The fusion's exemplars leave those frames'
+// own descriptors out (else each keypoint finds itself at distance 0).
+void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptions& training, const LandmarkMap& map,
+                          ModelData& data) {
+  options = with_holdout_frames(std::move(options), map, training);
+  const std::vector<int64_t> own = calibration_frame_keypoints(map, calibration_frames(map, options));
+  const auto model = without_exemplars(std::make_shared<const Model>(data), map, own, /*keep_sole=*/true);
   const LocalizerOptions localizer;  // what `lboost localize` and the library use by default
   LMB_CHECK(localizer.pose_top_k == 1,
             "export: the pose calibration assumes the Localizer's default of one match per keypoint");
@@ -78,12 +84,13 @@ void add_pose_calibration(const PoseCalibrationOptions& options, const LandmarkM
   }
   data.calibration = fit.calibration;
   spdlog::info(
-      "export: pose calibration on {} map frames: {} poses ({} of them with no landmark of the frame's view in the "
+      "export: pose calibration on {} map frames{}: {} poses ({} of them with no landmark of the frame's view in the "
       "map), {} right; operating point {:.4f} (precision {}: {:.4f}; at most {} of the frames elsewhere: {:.4f}) "
       "keeps {} poses, {} right, {} of them elsewhere",
-      fit.num_frames, fit.num_poses, fit.num_elsewhere, fit.num_right, fit.calibration.threshold,
-      fit.calibration.target_precision, fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold,
-      fit.passed, fit.passed_right, fit.elsewhere_passed);
+      fit.num_frames, options.frames.empty() ? " (the model trained on them)" : " held out of training", fit.num_poses,
+      fit.num_elsewhere, fit.num_right, fit.calibration.threshold, fit.calibration.target_precision,
+      fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold, fit.passed, fit.passed_right,
+      fit.elsewhere_passed);
 }
 
 // The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
@@ -143,12 +150,17 @@ void run_export(const ExportArgs& a) {
   LMB_CHECK(a.fusion == "on" || a.fusion == "off", "export: --fusion must be on or off, got '" << a.fusion << "'");
   ExportStats stats;
   ModelData data = export_model_data(trained.model, map, vocabulary, regions, a.options, &stats);
+  // The run's training set (its config.toml), or the defaults with --boost-model.
+  const std::optional<TrainConfig> run_config =
+      a.run_dir.empty()
+          ? std::nullopt
+          : std::optional<TrainConfig>(read_run_train_config(std::filesystem::path(a.run_dir) / "config.toml"));
   if (a.fusion == "on") {
     // The held-out observations are those of the run's training set: rebuilt from its config.
-    LMB_CHECK(!a.run_dir.empty(),
+    LMB_CHECK(run_config.has_value(),
               "export: --fusion on needs --run (the training set of its config.toml); "
               "give --fusion off with --boost-model");
-    const TrainConfig config = read_train_config(std::filesystem::path(a.run_dir) / "config.toml");
+    const TrainConfig& config = *run_config;
     const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary);
     TrainingSetOptions set_options = config.training_set;
     if (config.area.set()) set_options.class_landmarks = area_class_landmarks(config.area, map);
@@ -169,7 +181,10 @@ void run_export(const ExportArgs& a) {
   }
   LMB_CHECK(a.calibration == "on" || a.calibration == "off",
             "export: --calibration must be on or off, got '" << a.calibration << "'");
-  if (a.calibration == "on") add_pose_calibration(a.calibration_options, map, data);
+  if (a.calibration == "on") {
+    add_pose_calibration(a.calibration_options, run_config ? run_config->training_set : TrainingSetOptions{}, map,
+                         data);
+  }
   const Model model(std::move(data));
   model.save(a.out);
   spdlog::info(
@@ -181,6 +196,7 @@ void run_export(const ExportArgs& a) {
 
 struct CalibrateArgs {
   std::string model, map, out;
+  std::string run_dir;  // optional: the training run (its config.toml's held-out frames)
   PoseCalibrationOptions options;
 };
 
@@ -193,7 +209,11 @@ void run_calibrate(const CalibrateArgs& a) {
   check_model_fits_map(*model, a.model, map, a.map);
   ModelData data = model->data();
   data.calibration.reset();
-  add_pose_calibration(a.options, map, data);
+  add_pose_calibration(a.options,
+                       a.run_dir.empty()
+                           ? TrainingSetOptions{}
+                           : read_run_train_config(std::filesystem::path(a.run_dir) / "config.toml").training_set,
+                       map, data);
   LMB_CHECK(data.calibration.has_value(), "calibrate: too few calibration poses in " << a.map << " (see above)");
   Model(std::move(data)).save(a.out);
   spdlog::info("calibrate: {} -> {}", a.model, a.out);
@@ -208,8 +228,12 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--model", args->model, "The exported model (model.lbm)")->required();
   cmd->add_option("--map", args->map, "The map it was trained on (map.h5)")->required();
   cmd->add_option("--out", args->out, "Output model file with the calibration, written atomically")->required();
+  cmd->add_option("--run", args->run_dir,
+                  "The model's training run: the frames its config.toml held out of training are the calibration "
+                  "frames (default: the frames the default training options hold out)");
   cmd->add_option("--calibration-frames", args->options.max_frames,
-                  "Map frames the calibration is fitted on at most (every n-th map-session frame)")
+                  "Map frames the calibration is fitted on at most (every n-th map-session frame), when training held "
+                  "none out")
       ->capture_default_str();
   cmd->add_option("--target-precision", args->options.target_precision,
                   "Precision of reported poses the operating point is chosen for, in (0, 1]")
@@ -249,7 +273,8 @@ void add_export_command(CLI::App& app) {
                   "trusts a pose by its inlier count alone, as models before format 3)")
       ->capture_default_str();
   cmd->add_option("--calibration-frames", args->calibration_options.max_frames,
-                  "Map frames the calibration is fitted on at most (every n-th map-session frame)")
+                  "Map frames the calibration is fitted on at most (every n-th map-session frame), when the run's "
+                  "training held none out (training_set.calibration_frames)")
       ->capture_default_str();
   cmd->add_option("--target-precision", args->calibration_options.target_precision,
                   "Precision of reported poses the operating point is chosen for, in (0, 1]")

@@ -206,6 +206,11 @@ RankData load_rank_data(const TrainArgs& a, const TrainConfig& config, const Com
                    config.area.file, set_options.class_landmarks.size());
     }
     d.set = build_training_set(map, words, set_options);
+    const size_t calibration_frames = calibration_holdout_frames(map, set_options).size();
+    if (calibration_frames > 0) {
+      spdlog::info("train: {} map frames held out whole for the pose calibration (training_set.calibration_frames)",
+                   calibration_frames);
+    }
     const ContextRegions regions(config.regions);
     FeatureBuildOptions feature_options;
     feature_options.num_threads = config.feature_threads;

@@ -435,10 +435,15 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
   const MethodContext context{model, &map, &a};
   MethodContext held_context{model, &map, &a, &held};
   held_context.excluded_from_fusion = true;
+  // Every method's calibration frames: those the model's training held out (the run's options, or
+  // the defaults), else every n-th map frame.
+  const PoseCalibrationOptions calibration =
+      with_holdout_frames(a.calibration, map, a.training_set.value_or(TrainingSetOptions{}));
   const std::vector<int64_t> calibration_keypoints =
-      calibration_frame_keypoints(map, calibration_frames(map, a.calibration.max_frames));
+      calibration_frame_keypoints(map, calibration_frames(map, calibration));
   MethodContext calibration_context{model, &map, &a, &calibration_keypoints};
   calibration_context.accept_only = true;
+  calibration_context.excluded_from_fusion = true;
   const std::vector<EvalQuery> outside = outside_frames(map);
   MethodContext outside_context = context;
   outside_context.accept_only = true;
@@ -450,11 +455,11 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
     const CalibrationFit fit = [&] {
       const std::unique_ptr<Matcher> matcher = method.make(calibration_context);
       return fit_method_calibration(*matcher, map, a.pose, a.max_correspondences, a.pose_thresholds.front(),
-                                    a.calibration);
+                                    calibration);
     }();
     spdlog::info(
-        "eval: {}: pose calibration on {} map frames: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
-        fit.num_poses, fit.num_right, fit.num_elsewhere,
+        "eval: {}: pose calibration on {} map frames{}: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
+        calibration.frames.empty() ? "" : " held out of training", fit.num_poses, fit.num_right, fit.num_elsewhere,
         fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
     MethodRun run = evaluate_method(method, context, queries, query_session, num_sessions, fit);
     o.confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);

@@ -85,7 +85,7 @@ nlohmann::json LandmarkBoostMatcher::parameters() const {
 }
 
 std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
-                                               const std::vector<int64_t>& excluded) {
+                                               const std::vector<int64_t>& excluded, bool keep_sole) {
   LMB_CHECK(model != nullptr, "eval: no model");
   const ModelData& d = model->data();
   if (!d.fusion.enabled() || excluded.empty()) return model;
@@ -113,6 +113,11 @@ std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model
       const int64_t k = of[c][next++];
       if (std::binary_search(excluded.begin(), excluded.end(), k)) continue;
       out.fusion.exemplars.insert(out.fusion.exemplars.end(), row, row + bytes);
+    }
+    if (keep_sole && static_cast<int64_t>(out.fusion.exemplars.size()) / bytes == out.fusion.exemplar_begin.back()) {
+      out.fusion.exemplars.insert(out.fusion.exemplars.end(),
+                                  d.fusion.exemplars.data() + d.fusion.exemplar_begin[c] * bytes,
+                                  d.fusion.exemplars.data() + d.fusion.exemplar_begin[c + 1] * bytes);
     }
     const int64_t end = static_cast<int64_t>(out.fusion.exemplars.size()) / bytes;
     LMB_CHECK(end > out.fusion.exemplar_begin.back(), "eval: class "

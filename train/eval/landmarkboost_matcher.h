@@ -50,8 +50,9 @@ class LandmarkBoostMatcher : public Matcher {
 // The model itself when it has no fusion or nothing is excluded. The exemplars must be the ones
 // export stores for this map (exemplar_keypoints, train/export/descriptor_fusion.h, or a subset of
 // them in the same order, export --max-exemplars). Throws lmb::Error when they are not, or when a
-// class would keep no exemplar.
+// class would keep no exemplar; with keep_sole, such a class keeps its exemplars instead (the pose
+// calibration's frames: a landmark seen only in them).
 std::shared_ptr<const Model> without_exemplars(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
-                                               const std::vector<int64_t>& excluded);
+                                               const std::vector<int64_t>& excluded, bool keep_sole = false);
 
 }  // namespace lmb

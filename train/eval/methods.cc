@@ -17,11 +17,12 @@ std::unique_ptr<Matcher> make_landmarkboost(const MethodContext& c, bool inverte
   options.use_inverted_file = inverted_file;
   if (inverted_file) options.inverted_file_words = c.options->inverted_file_words;
   options.min_margin = c.options->min_margin;
-  // Ranking held-out map observations: the fusion's exemplars without them (as the descriptor
-  // baselines' index).
-  std::shared_ptr<const Model> model = c.excluded_from_fusion && c.excluded_keypoints != nullptr
-                                           ? without_exemplars(c.model, *c.map, *c.excluded_keypoints)
-                                           : c.model;
+  // Ranking held-out map observations or calibration frames: the fusion's exemplars without them
+  // (as the descriptor baselines' index; a class seen only there keeps its own).
+  std::shared_ptr<const Model> model =
+      c.excluded_from_fusion && c.excluded_keypoints != nullptr
+          ? without_exemplars(c.model, *c.map, *c.excluded_keypoints, /*keep_sole=*/true)
+          : c.model;
   return std::make_unique<LandmarkBoostMatcher>(std::move(model), options, !c.accept_only);
 }
 

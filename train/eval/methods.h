@@ -61,9 +61,9 @@ struct MethodContext {
   // Map keypoints (sorted) the descriptor baselines leave out of their index: the held-out map
   // observations when those are the queries. Null = none.
   const std::vector<int64_t>* excluded_keypoints = nullptr;
-  // True when the held-out map observations are the queries: LandmarkBoost's descriptor fusion
-  // ranks them without their own exemplars (without_exemplars), as the baselines' index is without
-  // them. (The pose calibration's frames stay among the exemplars: the classifier trained on them.)
+  // True when the held-out map observations or the pose calibration's frames are the queries:
+  // LandmarkBoost's descriptor fusion ranks them without their own exemplars (without_exemplars),
+  // as the baselines' index is without them.
   bool excluded_from_fusion = false;
   // True when only the accepted matches are needed (the pose calibration): LandmarkBoost skips its
   // ranking pass.

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "common/error.h"
+#include "train/boost/training_set.h"
 #include "train/eval/pose_stage.h"
 
 namespace lmb {
@@ -21,19 +22,31 @@ void PoseCalibrationOptions::check() const {
 
 std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames) {
   LMB_CHECK(max_frames >= 1, "pose calibration: max_frames = " << max_frames << " must be >= 1");
-  std::vector<frame_t> all;
-  for (frame_t f = 0; f < map.num_frames(); ++f) {
-    const int32_t s = map.frames[f].session;
-    const bool map_session =
-        s >= 0 && static_cast<size_t>(s) < map.sessions.size() && map.sessions[s].kind == SessionKind::kMap;
-    if (map_session && !map.frames[f].is_query) all.push_back(f);
-  }
+  const std::vector<frame_t> all = map.map_session_frames();
   // Every other frame at least, so that the frames between keep the descriptor baselines' index.
   const size_t step =
       std::max<size_t>(2, (all.size() + static_cast<size_t>(max_frames) - 1) / static_cast<size_t>(max_frames));
   std::vector<frame_t> out;
   for (size_t i = 0; i < all.size(); i += step) out.push_back(all[i]);
   return out;
+}
+
+PoseCalibrationOptions with_holdout_frames(PoseCalibrationOptions options, const LandmarkMap& map,
+                                           const TrainingSetOptions& training) {
+  options.frames = calibration_holdout_frames(map, training);
+  return options;
+}
+
+std::vector<frame_t> calibration_frames(const LandmarkMap& map, const PoseCalibrationOptions& options) {
+  options.check();
+  if (options.frames.empty()) return calibration_frames(map, options.max_frames);
+  for (size_t i = 0; i < options.frames.size(); ++i) {
+    const frame_t f = options.frames[i];
+    LMB_CHECK(f >= 0 && f < map.num_frames() && !map.frames[f].is_query,
+              "pose calibration: frame " << f << " is not a map frame of the map");
+    LMB_CHECK(i == 0 || f > options.frames[i - 1], "pose calibration: the frames must be ascending and distinct");
+  }
+  return options.frames;
 }
 
 double pass_share_threshold(std::vector<double> probability, int64_t num_frames, double max_share) {
@@ -119,7 +132,7 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
   options.check();
   pose.check();
   thresholds.check();
-  const std::vector<frame_t> frames = calibration_frames(map, options.max_frames);
+  const std::vector<frame_t> frames = calibration_frames(map, options);
   LMB_CHECK(!frames.empty(), "pose calibration: the map has no frame of a map session to calibrate on");
   CalibrationFit fit;
   fit.num_frames = static_cast<int64_t>(frames.size());

@@ -38,6 +38,7 @@
 #include "common/landmark_map.h"
 #include "infer/pose_confidence.h"
 #include "infer/pose_estimator.h"
+#include "train/boost/boost_options.h"
 #include "train/eval/matcher.h"
 #include "train/eval/metrics.h"
 
@@ -51,8 +52,19 @@ struct PoseCalibrationOptions {
   // frames from outside the map reported localized. 1 = no such bound.
   double max_elsewhere_share = 0.01;
   int min_poses = 10;  // fewer fitted poses: no calibration (CalibrationFit::fitted false)
+  // Non-empty: the calibration frames are exactly these map-session frames (ascending; the frames
+  // the model's training held out, calibration_holdout_frames), and max_frames is not used.
+  std::vector<frame_t> frames;
   void check() const;  // throws lmb::Error naming the field
 };
+
+// The calibration options of a model trained with `training` (its run's training-set options, or
+// the defaults) on `map`: `options` with the frames its training held out
+// (calibration_holdout_frames), or `options` as given when it held out none.
+PoseCalibrationOptions with_holdout_frames(PoseCalibrationOptions options, const LandmarkMap& map,
+                                           const TrainingSetOptions& training);
+// The calibration frames of `options` on `map`: options.frames, or calibration_frames(max_frames).
+std::vector<frame_t> calibration_frames(const LandmarkMap& map, const PoseCalibrationOptions& options);
 
 // The calibration frames of `map` (see the file comment), ascending.
 std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames);

@@ -35,6 +35,28 @@ TEST(TrainConfig, FileOverridesDefaultsAndRoundTrips) {
   EXPECT_EQ(d.regions.num_regions, 64);
 }
 
+// A run's config.toml written before training_set.calibration_frames existed reads as 0 (that run
+// held no frame out, and export must rebuild its training set); a user's config without the key
+// gets the default, and a run's config with it keeps its value.
+TEST(TrainConfig, ARunConfigWithoutTheCalibrationFramesKeyHeldNoneOut) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("lmb_run_config_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path old_run = dir / "old.toml", new_run = dir / "new.toml";
+  write_file_atomically(old_run, "[training_set]\ntop_k_landmarks = 900\n");
+  TrainConfig c;
+  c.training_set.calibration_frames = 30;
+  write_file_atomically(new_run, train_config_toml(c));
+  EXPECT_EQ(read_train_config(old_run).training_set.calibration_frames, TrainingSetOptions().calibration_frames);
+  EXPECT_GT(TrainingSetOptions().calibration_frames, 0);
+  EXPECT_EQ(read_run_train_config(old_run).training_set.calibration_frames, 0);
+  EXPECT_EQ(read_run_train_config(old_run).training_set.top_k_landmarks, 900);
+  EXPECT_EQ(read_run_train_config(new_run).training_set.calibration_frames, 30);
+  write_file_atomically(new_run, "[training_set]\ncalibration_frames = -1\n");
+  EXPECT_THROW(read_run_train_config(new_run), Error);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(TrainConfig, AreaTableRoundTripsOnlyWhenSet) {
   TrainConfig c;
   EXPECT_EQ(train_config_toml(c).find("[area]"), std::string::npos);  // other runs' configs unchanged

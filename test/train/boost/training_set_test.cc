@@ -12,6 +12,26 @@ namespace {
 
 // A map with `num_landmarks` landmarks (quality = id), landmark l observed in (l % 5) + 3 map
 // frames, two untracked keypoints per frame, and one query frame observing every landmark.
+// Appends a frame of session `session` observing `seen`, and two untracked keypoints.
+void add_frame(LandmarkMap* map, bool query, int32_t session, const std::vector<landmark_t>& seen) {
+  MapFrame f;
+  f.is_query = query;
+  f.session = session;
+  f.first_keypoint = static_cast<int64_t>(map->keypoints.size());
+  for (landmark_t l : seen) {
+    map->keypoints.push_back({});
+    map->keypoint_landmark.push_back(l);
+    map->descriptors.push_back(0);
+  }
+  for (int i = 0; i < 2; ++i) {
+    map->keypoints.push_back({});
+    map->keypoint_landmark.push_back(kInvalidLandmarkId);
+    map->descriptors.push_back(0);
+  }
+  f.num_keypoints = static_cast<int32_t>(map->keypoints.size() - f.first_keypoint);
+  map->frames.push_back(f);
+}
+
 LandmarkMap make_map(int num_landmarks) {
   LandmarkMap map;
   map.descriptor_bytes = 1;
@@ -22,33 +42,17 @@ LandmarkMap make_map(int num_landmarks) {
     lm.quality = static_cast<float>(l);
     map.landmarks.push_back(lm);
   }
-  auto add_frame = [&](bool query, const std::vector<landmark_t>& seen) {
-    MapFrame f;
-    f.is_query = query;
-    f.first_keypoint = static_cast<int64_t>(map.keypoints.size());
-    for (landmark_t l : seen) {
-      map.keypoints.push_back({});
-      map.keypoint_landmark.push_back(l);
-      map.descriptors.push_back(0);
-    }
-    for (int i = 0; i < 2; ++i) {
-      map.keypoints.push_back({});
-      map.keypoint_landmark.push_back(kInvalidLandmarkId);
-      map.descriptors.push_back(0);
-    }
-    f.num_keypoints = static_cast<int32_t>(map.keypoints.size() - f.first_keypoint);
-    map.frames.push_back(f);
-  };
+  const auto add = [&](bool query, const std::vector<landmark_t>& seen) { add_frame(&map, query, 0, seen); };
   for (int f = 0; f < 8; ++f) {
     std::vector<landmark_t> seen;
     for (int l = 0; l < num_landmarks; ++l) {
       if (f < (l % 5) + 3) seen.push_back(l);
     }
-    add_frame(false, seen);
+    add(false, seen);
   }
   std::vector<landmark_t> all;
   for (int l = 0; l < num_landmarks; ++l) all.push_back(l);
-  add_frame(true, all);
+  add(true, all);
   return map;
 }
 
@@ -212,6 +216,114 @@ TEST(TrainingSet, HeldOutObservationsAreTheValidationSamples) {
     }
   }
   EXPECT_THROW(held_out_observations(map, {40}, TrainingSetOptions()), Error);
+}
+
+// A map of one map session (40 frames) and a query frame between them (frame 20): landmark l
+// (quality l) is observed in (l % 4) + 2 consecutive map frames from map frame l % 37, plus two
+// untracked keypoints a frame.
+LandmarkMap make_session_map() {
+  LandmarkMap map;
+  map.descriptor_bytes = 1;
+  map.cameras.resize(1);
+  map.sessions = {{"map", SessionKind::kMap}, {"query", SessionKind::kQuery}};
+  const int num_landmarks = 60;
+  for (int l = 0; l < num_landmarks; ++l) {
+    Landmark lm;
+    lm.quality = static_cast<float>(l);
+    map.landmarks.push_back(lm);
+  }
+  int map_frame = 0;
+  for (int f = 0; f < 41; ++f) {
+    const bool query = f == 20;
+    std::vector<landmark_t> seen;
+    for (int l = 0; l < num_landmarks; ++l) {
+      if (query || (map_frame >= l % 37 && map_frame < l % 37 + l % 4 + 2)) seen.push_back(l);
+    }
+    add_frame(&map, query, query ? 1 : 0, seen);
+    if (!query) ++map_frame;
+  }
+  return map;
+}
+
+// The pose calibration's frames are held out of training whole: known frames (every s-th map
+// frame, the query frame skipped), none of their keypoints a sample, a landmark left with too few
+// observations outside them no class, an area's class that would starve keeping them, and the
+// validation samples still what held_out_observations recomputes.
+TEST(TrainingSet, CalibrationFramesAreHeldOutWhole) {
+  const LandmarkMap map = make_session_map();
+  TrainingSetOptions o;
+  o.top_k_landmarks = 60;
+  o.validation_fraction = 0.25;
+  o.calibration_frames = 10;
+  o.calibration_frame_share = 0.25;
+  o.min_calibration_frames = 2;
+  // 40 map frames, h = min(10, floor(0.25 * 40)) = 10, every 4th; frame 20 is the query.
+  EXPECT_EQ(calibration_holdout_frames(map, o), (std::vector<frame_t>{0, 4, 8, 12, 16, 21, 25, 29, 33, 37}));
+  TrainingSetOptions p = o;
+  p.calibration_frame_share = 0.1;  // h = 4, every 10th
+  EXPECT_EQ(calibration_holdout_frames(map, p), (std::vector<frame_t>{0, 10, 21, 31}));
+  p.min_calibration_frames = 5;  // 4 < 5: none
+  EXPECT_TRUE(calibration_holdout_frames(map, p).empty());
+  p = o;
+  p.calibration_frames = 0;
+  EXPECT_TRUE(calibration_holdout_frames(map, p).empty());
+  // The default options hold none out of a 40-frame map (5%: 2 frames, fewer than 20).
+  EXPECT_TRUE(calibration_holdout_frames(map, TrainingSetOptions()).empty());
+
+  std::vector<char> held(map.frames.size(), 0);
+  for (frame_t f : calibration_holdout_frames(map, o)) held[static_cast<size_t>(f)] = 1;
+  // Brute force: a landmark's observations outside the held-out frames.
+  std::vector<int> outside(map.landmarks.size(), 0);
+  for (frame_t f = 0; f < map.num_frames(); ++f) {
+    if (map.frames[f].is_query || held[static_cast<size_t>(f)]) continue;
+    for (int64_t k = map.frames[f].first_keypoint; k < map.frames[f].first_keypoint + map.frames[f].num_keypoints;
+         ++k) {
+      if (map.keypoint_landmark[k] != kInvalidLandmarkId) ++outside[static_cast<size_t>(map.keypoint_landmark[k])];
+    }
+  }
+  const TrainingSet set = build_training_set(map, words_of(map), o);
+  std::vector<landmark_t> expected_classes;
+  for (landmark_t l = 0; l < 60; ++l) {
+    if (outside[static_cast<size_t>(l)] >= o.min_train_observations) expected_classes.push_back(l);
+  }
+  EXPECT_EQ(set.class_landmark, expected_classes);
+  // Landmark 0 (map frames 0 and 1) keeps one observation outside frame 0: no class; without the
+  // hold-out it is one.
+  ASSERT_FALSE(std::binary_search(set.class_landmark.begin(), set.class_landmark.end(), 0));
+  p = o;
+  p.calibration_frames = 0;
+  const TrainingSet all = build_training_set(map, words_of(map), p);
+  EXPECT_EQ(all.class_landmark.front(), 0);
+  EXPECT_GT(all.num_samples(), set.num_samples());
+  std::vector<int64_t> validation;
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    EXPECT_FALSE(held[static_cast<size_t>(set.sample_frame[s])]) << "sample " << s;
+    if (set.sample_is_validation[s]) validation.push_back(set.sample_keypoint[s]);
+  }
+  std::sort(validation.begin(), validation.end());
+  EXPECT_EQ(held_out_observations(map, set.class_landmark, o), validation);
+
+  // An area's classes: landmark 0 would keep one observation, so it trains on both; landmark 5
+  // (map frames 5..7, none held out) is unchanged.
+  TrainingSetOptions area = o;
+  area.class_landmarks = {0, 5};
+  const TrainingSet a = build_training_set(map, words_of(map), area);
+  std::vector<int> of_class(3, 0);
+  bool frame0 = false;
+  validation.clear();
+  for (int64_t s = 0; s < a.num_samples(); ++s) {
+    ++of_class[static_cast<size_t>(a.sample_class[s])];
+    if (a.sample_class[s] == 0 && a.sample_frame[s] == 0) frame0 = true;
+    if (a.sample_class[s] == a.background_class()) {
+      EXPECT_FALSE(held[static_cast<size_t>(a.sample_frame[s])]);
+    }
+    if (a.sample_is_validation[s]) validation.push_back(a.sample_keypoint[s]);
+  }
+  EXPECT_TRUE(frame0);
+  EXPECT_EQ(of_class[0], 2);
+  EXPECT_EQ(of_class[1], 3);
+  std::sort(validation.begin(), validation.end());
+  EXPECT_EQ(held_out_observations(map, a.class_landmark, area), validation);
 }
 
 TEST(TrainingSet, AugmentedCopiesFollowTheOriginalsAndNeverCopyValidation) {

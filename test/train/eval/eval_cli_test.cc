@@ -693,6 +693,25 @@ TEST_F(EvalCliTest, HeldOutObservationsAreNotTheirOwnFusionExemplars) {
   LandmarkMap moved = map;  // the descriptor of a stored row changed
   moved.descriptors[static_cast<size_t>(kept.front() * bytes)] ^= 1;
   EXPECT_THROW(without_exemplars(subset_model, moved, held), Error);
+
+  // Every observation of class 0 excluded (a landmark seen only in the pose calibration's frames):
+  // refused, or with keep_sole the class keeps its exemplars while the others lose theirs.
+  std::vector<int64_t> sole = held;
+  sole.insert(sole.end(), of[0].begin(), of[0].end());
+  std::sort(sole.begin(), sole.end());
+  sole.erase(std::unique(sole.begin(), sole.end()), sole.end());
+  EXPECT_THROW(without_exemplars(model, map, sole), Error);
+  const DescriptorFusion& whole = model->data().fusion;
+  const std::shared_ptr<const Model> sole_model = without_exemplars(model, map, sole, /*keep_sole=*/true);
+  const DescriptorFusion& kept_sole = sole_model->data().fusion;
+  EXPECT_EQ(kept_sole.exemplar_begin[1], whole.exemplar_begin[1]);
+  EXPECT_TRUE(std::equal(kept_sole.exemplars.begin(), kept_sole.exemplars.begin() + whole.exemplar_begin[1] * bytes,
+                         whole.exemplars.begin()));
+  for (int32_t c = 1; c < model->num_classes(); ++c) {
+    EXPECT_EQ(kept_sole.exemplar_begin[c + 1] - kept_sole.exemplar_begin[c],
+              f.exemplar_begin[c + 1] - f.exemplar_begin[c])
+        << "class " << c;
+  }
 }
 
 // export --max-exemplars N keeps at most N exemplars a class, each a map observation of its class

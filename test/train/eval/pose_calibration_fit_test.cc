@@ -13,6 +13,7 @@
 #include "common/error.h"
 #include "common/random.h"
 #include "test/infer/test_models.h"
+#include "train/boost/training_set.h"
 
 namespace lmb {
 namespace {
@@ -163,6 +164,38 @@ TEST(FitMethodCalibrationTest, ElsewhereFramesMatchTheCopyAndTheOperatingPointBo
   EXPECT_EQ(unbounded.calibration.threshold, unbounded.precision_threshold);
   options.max_elsewhere_share = 1.5;
   EXPECT_THROW(fit_method_calibration(matcher, map, PoseEstimatorOptions{}, 0, PoseThresholds{}, options), Error);
+}
+
+// The frames a model's training held out are its calibration frames (with_holdout_frames): exactly
+// those (max_frames unused), or every n-th frame when training held none out; frames that are not
+// ascending map frames are refused.
+TEST(FitMethodCalibrationTest, TheFramesTrainingHeldOutAreTheCalibrationFrames) {
+  const LandmarkMap map = room_and_copy(40);
+  const RoomMatcher matcher(map);
+  TrainingSetOptions training;
+  training.calibration_frames = 8;
+  training.calibration_frame_share = 0.5;
+  training.min_calibration_frames = 2;
+  const std::vector<frame_t> held = calibration_holdout_frames(map, training);
+  ASSERT_EQ(held, (std::vector<frame_t>{0, 5, 10, 15, 20, 25, 30, 35}));
+  PoseCalibrationOptions options;
+  options.max_frames = 3;
+  const PoseCalibrationOptions on_held = with_holdout_frames(options, map, training);
+  EXPECT_EQ(on_held.frames, held);
+  EXPECT_EQ(calibration_frames(map, on_held), held);
+  const CalibrationFit fit = fit_method_calibration(matcher, map, PoseEstimatorOptions{}, 0, PoseThresholds{}, on_held);
+  EXPECT_EQ(fit.num_frames, 8);
+  EXPECT_EQ(fit.num_poses, 16);
+  // Training that held none out (the defaults, on 40 frames): every n-th frame, max_frames of them.
+  const PoseCalibrationOptions legacy = with_holdout_frames(options, map, TrainingSetOptions{});
+  EXPECT_TRUE(legacy.frames.empty());
+  EXPECT_EQ(calibration_frames(map, legacy), calibration_frames(map, 3));
+  EXPECT_EQ(fit_method_calibration(matcher, map, PoseEstimatorOptions{}, 0, PoseThresholds{}, legacy).num_frames, 3);
+  PoseCalibrationOptions bad = on_held;
+  bad.frames = {5, 0};
+  EXPECT_THROW(calibration_frames(map, bad), Error);
+  bad.frames = {40};
+  EXPECT_THROW(calibration_frames(map, bad), Error);
 }
 
 }  // namespace
