@@ -459,7 +459,10 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
     }();
     spdlog::info(
         "eval: {}: pose calibration on {} map frames{}: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
-        calibration.frames.empty() ? "" : " held out of training", fit.num_poses, fit.num_right, fit.num_elsewhere,
+        calibration.frames.empty() ? ""
+        : a.training_set           ? " held out of training by the run"
+                                   : " the default training options hold out (--run RUN_DIR: the run's own)",
+        fit.num_poses, fit.num_right, fit.num_elsewhere,
         fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
     MethodRun run = evaluate_method(method, context, queries, query_session, num_sessions, fit);
     o.confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);
