@@ -714,6 +714,50 @@ TEST_F(EvalCliTest, HeldOutObservationsAreNotTheirOwnFusionExemplars) {
   }
 }
 
+// A run that holds map frames out for the pose calibration (here 6, at most half of the tiny
+// map's frames, at least 2): train names their count, none of them is a training sample, export and
+// eval fit the calibration on exactly them (the log lines and the fitted poses say so), and
+// eval --run uses the run's hold-out.
+TEST_F(EvalCliTest, TheFramesTrainingHeldOutAreTheCalibrationFrames) {
+  const fs::path run_dir = dir_ / "run_holdout", config = dir_ / "holdout.toml", model = dir_ / "holdout.lbm";
+  {
+    std::ofstream(config) << "[training_set]\ncalibration_frames = 6\ncalibration_frame_share = 0.5\n"
+                             "min_calibration_frames = 2\n";
+  }
+  const std::string m = " --map " + map_.string() + " --vocab " + (dir_ / "vocab.lbv").string();
+  const RunResult train = run("train" + m + " --config " + config.string() + " --out " + run_dir.string() +
+                                  " --rounds 10 --dims-per-round 100 --threads 2",
+                              dir_);
+  ASSERT_EQ(train.exit_code, 0) << train.err;
+  const LandmarkMap map = read_map_h5(map_);
+  const TrainConfig c = read_run_train_config(run_dir / "config.toml");
+  EXPECT_EQ(c.training_set.calibration_frames, 6);
+  const std::vector<frame_t> held = calibration_holdout_frames(map, c.training_set);
+  ASSERT_EQ(held.size(), 6u);
+  EXPECT_NE((train.out + train.err).find("train: 6 map frames held out whole for the pose calibration"),
+            std::string::npos)
+      << train.err;
+  const RunResult exported = run("export --run " + run_dir.string() + m + " --out " + model.string(), dir_);
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_NE((exported.out + exported.err).find("pose calibration on 6 map frames held out of training"),
+            std::string::npos)
+      << exported.err;
+  const std::shared_ptr<const Model> loaded = Model::load(model);
+  ASSERT_TRUE(loaded->calibrated());
+  EXPECT_LE(loaded->calibration().num_samples, 12);  // two poses a frame at most
+  EXPECT_GT(loaded->calibration().num_samples, 0);
+  const RunResult evaluated =
+      run("eval --model " + model.string() + " --map " + map_.string() + " --run " + run_dir.string() +
+              " --methods landmarkboost --report " + (dir_ / "holdout.json").string(),
+          dir_);
+  ASSERT_EQ(evaluated.exit_code, 0) << evaluated.err;
+  EXPECT_NE((evaluated.out + evaluated.err).find("pose calibration on 6 map frames held out of training by the run"),
+            std::string::npos)
+      << evaluated.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "holdout.json"));
+  EXPECT_EQ(report.at("methods").at("landmarkboost").at("pose_confidence").at("calibration").at("frames"), 6);
+}
+
 // export --max-exemplars N keeps at most N exemplars a class, each a map observation of its class
 // outside the held-out ones (k_centre_exemplars of them, tested against a brute force in
 // descriptor_fusion_test); the model is smaller, eval ranks its held-out observations with it, and
