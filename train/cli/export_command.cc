@@ -93,6 +93,17 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
       fit.elsewhere_passed);
 }
 
+// The config of a training run dir (RUN/config.toml, read_run_train_config); nullopt without one.
+std::optional<TrainConfig> run_config_of(const std::string& run_dir) {
+  if (run_dir.empty()) return std::nullopt;
+  return read_run_train_config(std::filesystem::path(run_dir) / "config.toml");
+}
+
+// The training-set options a model was trained with: its run's, or the defaults without a run.
+TrainingSetOptions training_set_of(const std::optional<TrainConfig>& run_config) {
+  return run_config ? run_config->training_set : TrainingSetOptions{};
+}
+
 // The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
 // --boost-model names one.
 std::filesystem::path boost_model_path(const ExportArgs& a) {
@@ -151,10 +162,7 @@ void run_export(const ExportArgs& a) {
   ExportStats stats;
   ModelData data = export_model_data(trained.model, map, vocabulary, regions, a.options, &stats);
   // The run's training set (its config.toml), or the defaults with --boost-model.
-  const std::optional<TrainConfig> run_config =
-      a.run_dir.empty()
-          ? std::nullopt
-          : std::optional<TrainConfig>(read_run_train_config(std::filesystem::path(a.run_dir) / "config.toml"));
+  const std::optional<TrainConfig> run_config = run_config_of(a.run_dir);
   if (a.fusion == "on") {
     // The held-out observations are those of the run's training set: rebuilt from its config.
     LMB_CHECK(run_config.has_value(),
@@ -182,8 +190,7 @@ void run_export(const ExportArgs& a) {
   LMB_CHECK(a.calibration == "on" || a.calibration == "off",
             "export: --calibration must be on or off, got '" << a.calibration << "'");
   if (a.calibration == "on") {
-    add_pose_calibration(a.calibration_options, run_config ? run_config->training_set : TrainingSetOptions{}, map,
-                         data);
+    add_pose_calibration(a.calibration_options, training_set_of(run_config), map, data);
   }
   const Model model(std::move(data));
   model.save(a.out);
@@ -209,11 +216,7 @@ void run_calibrate(const CalibrateArgs& a) {
   check_model_fits_map(*model, a.model, map, a.map);
   ModelData data = model->data();
   data.calibration.reset();
-  add_pose_calibration(a.options,
-                       a.run_dir.empty()
-                           ? TrainingSetOptions{}
-                           : read_run_train_config(std::filesystem::path(a.run_dir) / "config.toml").training_set,
-                       map, data);
+  add_pose_calibration(a.options, training_set_of(run_config_of(a.run_dir)), map, data);
   LMB_CHECK(data.calibration.has_value(), "calibrate: too few calibration poses in " << a.map << " (see above)");
   Model(std::move(data)).save(a.out);
   spdlog::info("calibrate: {} -> {}", a.model, a.out);
