@@ -215,6 +215,21 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
   LMB_CHECK(crc == a.crc32, what << ": CRC-32 mismatch with the bundle index (a different or damaged file)");
   std::shared_ptr<const Model> model =
       Model::from_bytes(reinterpret_cast<const uint8_t*>(image.data()), image.size(), what);
+  ModelTransform transform;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    transform = transform_;
+  }
+  if (transform) {
+    const int32_t classes = model->num_classes();
+    try {
+      model = transform(id, std::move(model));
+    } catch (const std::exception& e) {
+      LMB_FAIL(what << ": " << e.what());
+    }
+    LMB_CHECK(model != nullptr && model->num_classes() == classes,
+              what << ": the bundle's model transform returned " << (model ? "a model of other classes" : "no model"));
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   // One descriptor length for every area: a frame's descriptors are read with it.
   LMB_CHECK(descriptor_bytes_ < 0 || model->descriptor_bytes() == descriptor_bytes_,
@@ -238,6 +253,12 @@ std::shared_ptr<const Model> AreaBundle::model(int32_t id) {
     evict_locked(id);
   }
   return models_[i];
+}
+
+void AreaBundle::set_model_transform(ModelTransform transform) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  transform_ = std::move(transform);
+  for (auto& m : models_) m.reset();
 }
 
 void AreaBundle::evict_locked(int32_t keep) {

@@ -38,6 +38,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -107,6 +108,14 @@ class LMB_INFER_EXPORT AreaBundle {
   // the next call. Thread-safe.
   std::shared_ptr<const Model> model(int32_t id);
   bool loaded(int32_t id) const;
+  // A function applied to each area's model as it loads, after the file's checks and before the
+  // bundle keeps it (e.g. `lboost bundle --map` fits the calibration on models whose descriptor
+  // fusion has no exemplar of the calibration frames' own keypoints). Setting one frees the
+  // areas already loaded, so every model the bundle hands out has passed through it; an empty one
+  // removes it. It runs outside the bundle's lock (it must be thread-safe when areas are scored in
+  // parallel) and must return a model of the same classes; what it throws is the area's load error.
+  using ModelTransform = std::function<std::shared_ptr<const Model>(int32_t id, std::shared_ptr<const Model> model)>;
+  void set_model_transform(ModelTransform transform);
   // Frees the models of the areas not in `keep` (a caller holding one keeps it alive).
   void release_except(const std::vector<int32_t>& keep);
 
@@ -151,6 +160,7 @@ class LMB_INFER_EXPORT AreaBundle {
   int64_t loads_ = 0;
   int32_t descriptor_bytes_ = -1;
   BundleCacheLimits limits_;
+  ModelTransform transform_;
 };
 
 struct LMB_INFER_EXPORT BundleLocalizeResult {

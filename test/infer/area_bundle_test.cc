@@ -141,6 +141,53 @@ TEST_F(AreaBundleTest, OpensLazilyLoadsOnFirstUseAndReleases) {
   EXPECT_EQ(m1->num_classes(), model.num_classes());  // the caller's copy lives on
 }
 
+TEST_F(AreaBundleTest, AModelTransformAppliesToEveryLoadAndItsErrorsAreTheAreas) {
+  const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  write_bundle_index(dir_ / "bundle.txt", 2.5, {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, kInf)});
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  const auto before = bundle->model(0);
+  EXPECT_EQ(before->data().bias, model.data().bias);
+  // Each load passes through the transform, which sees the area's id and the file's model; the
+  // areas loaded before it was set are freed, so no untransformed model is handed out.
+  std::vector<int32_t> seen;
+  bundle->set_model_transform([&](int32_t id, std::shared_ptr<const Model> m) {
+    seen.push_back(id);
+    EXPECT_EQ(m->data().bias, model.data().bias);
+    ModelData d = m->data();
+    d.bias.back() += 1.0 + id;
+    return std::make_shared<const Model>(std::move(d));
+  });
+  EXPECT_FALSE(bundle->loaded(0));
+  const auto m0 = bundle->model(0);
+  const auto m1 = bundle->model(1);
+  EXPECT_EQ(bundle->model(1), m1);  // transformed once, then kept
+  EXPECT_EQ(seen, (std::vector<int32_t>{0, 1}));
+  EXPECT_EQ(m0->data().bias.back(), model.data().bias.back() + 1.0);
+  EXPECT_EQ(m1->data().bias.back(), model.data().bias.back() + 2.0);
+  EXPECT_EQ(before->data().bias, model.data().bias);  // a caller's earlier copy is untouched
+  // A transform that throws, returns nothing or changes the classes fails that load with one line
+  // naming the area; the next load tries again.
+  bundle->set_model_transform([](int32_t id, std::shared_ptr<const Model> m) -> std::shared_ptr<const Model> {
+    if (id == 0) throw Error("no exemplar left");
+    return m;
+  });
+  const std::string thrown = load_error(*bundle, 0);
+  EXPECT_NE(thrown.find("area 0 (area-0.lbm): no exemplar left"), std::string::npos) << thrown;
+  EXPECT_FALSE(bundle->loaded(0));
+  EXPECT_EQ(bundle->model(1)->data().bias, model.data().bias);
+  bundle->set_model_transform([](int32_t, std::shared_ptr<const Model>) { return std::shared_ptr<const Model>(); });
+  EXPECT_NE(load_error(*bundle, 1).find("area 1 (area-1.lbm): the bundle's model transform returned no model"),
+            std::string::npos);
+  bundle->set_model_transform([&](int32_t, std::shared_ptr<const Model>) {
+    const test::TestWorld other = test::make_test_world(41, 30, 20, 5);
+    return std::make_shared<const Model>(test::make_code_model_data(other.positions));
+  });
+  EXPECT_NE(load_error(*bundle, 1).find("returned a model of other classes"), std::string::npos);
+  bundle->set_model_transform({});  // removed: the files' models again
+  EXPECT_EQ(bundle->model(0)->data().bias, model.data().bias);
+}
+
 TEST_F(AreaBundleTest, EvictsTheLeastRecentlyUsedAreasBeyondTheLimits) {
   const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
   const Model model(test::make_code_model_data(world.positions));

@@ -25,6 +25,7 @@
 #include "train/areas/area_file.h"
 #include "train/cli/commands.h"
 #include "train/eval/bundle_eval.h"
+#include "train/eval/landmarkboost_matcher.h"
 #include "train/eval/metrics.h"
 #include "train/eval/pose_calibration_fit.h"
 
@@ -46,7 +47,8 @@ struct BundleArgs {
 // The bundle's pose calibration (infer/area_bundle.h, BundleLocalizeResult::evidence), fitted on
 // the frames the areas' training held out (default training options; calibration_holdout_frames), else on
 // map frames (train/eval/pose_calibration_fit.h, calibration_frames: every s-th frame of the map
-// sessions) the way `lboost export` fits a model's, with the support rule; a pose is right within
+// sessions) the way `lboost export` fits a model's, with the support rule and the areas' descriptor
+// fusion without the frames' own exemplars; a pose is right within
 // 0.2 m / 5 deg of the frame's map pose. Each frame twice: localized in every area (no prior: the
 // most areas compete), and "elsewhere", in every area that holds no landmark in its view
 // (landmarks_in_view), i.e. the frame as if taken where the map holds only look-alikes: a map
@@ -62,9 +64,20 @@ bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path&
   // The frames the areas' training held out (default training options), else every n-th map frame.
   PoseCalibrationOptions frame_options;
   frame_options.max_frames = args.calibration_frames;
-  const std::vector<frame_t> frames =
-      calibration_frames(map, with_holdout_frames(frame_options, map, TrainingSetOptions{}));
+  frame_options = with_holdout_frames(frame_options, map, TrainingSetOptions{});
+  const std::vector<frame_t> frames = calibration_frames(map, frame_options);
   const auto bundle = AreaBundle::open(index);
+  // The areas' descriptor fusion without the frames' own descriptors among its exemplars (else each
+  // keypoint finds itself at distance 0), as `lboost export` fits a model's calibration.
+  const std::vector<int64_t> own = calibration_frame_keypoints(map, frames);
+  const auto rows = [](const Model& m) {
+    return m.data().fusion.enabled() ? m.data().fusion.exemplar_begin.back() : int64_t{0};
+  };
+  std::vector<int64_t> file_rows(bundle->areas().size(), -1);  // per area: its file's exemplars (once loaded)
+  bundle->set_model_transform([&](int32_t id, std::shared_ptr<const Model> model) {
+    file_rows[static_cast<size_t>(id)] = rows(*model);
+    return without_exemplars(model, map, own, /*keep_sole=*/true);
+  });
   LocalizerOptions lo;
   lo.classifier.use_inverted_file = args.inverted_file;
   lo.pose.seed = args.seed;
@@ -106,6 +119,13 @@ bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path&
                    elapsed * static_cast<double>(frames.size() - i - 1) / static_cast<double>(i + 1));
     }
   }
+  // The exemplars the calibration's models left out, counted on the models the bundle scored.
+  int64_t exemplars = 0, left_out = 0;
+  for (size_t id = 0; id < file_rows.size(); ++id) {
+    if (file_rows[id] < 0) continue;
+    exemplars += file_rows[id];
+    left_out += file_rows[id] - rows(*bundle->model(static_cast<int32_t>(id)));
+  }
   const int64_t num_right = std::count(right.begin(), right.end(), 1);
   const int64_t num_wrong = static_cast<int64_t>(right.size()) - num_right;
   if (num_right < 5 || num_wrong < 5) {
@@ -134,11 +154,12 @@ bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path&
     kept_elsewhere += p[i] >= c.threshold && elsewhere[i];
   }
   spdlog::info(
-      "bundle: calibration on {} map frames: {} poses ({} of them elsewhere), {} right; operating point "
-      "{:.4f} (precision {}: {:.4f}; at most 1% of the frames elsewhere: {:.4f}) keeps {} poses, {} right, "
-      "{} of them elsewhere",
-      frames.size(), right.size(), p_elsewhere.size(), num_right, c.threshold, args.target_precision, for_precision,
-      for_elsewhere, kept, kept_right, kept_elsewhere);
+      "bundle: calibration on {} map frames{}: {} poses ({} of them elsewhere), {} right; the areas' fusion "
+      "without the frames' own {} of {} exemplars; operating point {:.4f} (precision {}: {:.4f}; at most 1% of the "
+      "frames elsewhere: {:.4f}) keeps {} poses, {} right, {} of them elsewhere",
+      frames.size(), frame_options.frames.empty() ? " (the areas trained on them)" : " held out of training",
+      right.size(), p_elsewhere.size(), num_right, left_out, exemplars, c.threshold, args.target_precision,
+      for_precision, for_elsewhere, kept, kept_right, kept_elsewhere);
   *out = c;
   return true;
 }

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -29,6 +30,7 @@
 #include "train/areas/area_file.h"
 #include "train/areas/area_split.h"
 #include "train/boost/boost_model.h"
+#include "train/eval/pose_calibration_fit.h"
 
 namespace lmb {
 namespace {
@@ -534,6 +536,46 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
                             dir_);
     ASSERT_EQ(c.exit_code, 0) << c.err;
     EXPECT_NE((c.out + c.err).find("bundle: calibration on "), std::string::npos) << c.out << c.err;
+    // The areas' fusion leaves the calibration frames' own descriptors out of its exemplars, as
+    // `lboost export` does: counted here by brute force over every area's exemplar rows (a class
+    // whose rows all come from those frames keeps them).
+    {
+      const LandmarkMap m = read_map_h5(map_);
+      PoseCalibrationOptions options;
+      options.max_frames = 40;
+      const std::vector<frame_t> frames = calibration_frames(m, with_holdout_frames(options, m, TrainingSetOptions{}));
+      ASSERT_FALSE(frames.empty());
+      int64_t rows = 0, left_out = 0;
+      for (int id = 0; id < num_areas; ++id) {
+        const ModelData d = Model::load(cal / ("area-" + std::to_string(id) + ".lbm"))->data();
+        ASSERT_TRUE(d.fusion.enabled());
+        const size_t bytes = static_cast<size_t>(d.descriptor_bytes);
+        for (int32_t k = 0; k < d.num_classes; ++k) {
+          int64_t own = 0;
+          for (int64_t r = d.fusion.exemplar_begin[k]; r < d.fusion.exemplar_begin[k + 1]; ++r) {
+            const uint8_t* row = d.fusion.exemplars.data() + r * d.descriptor_bytes;
+            bool in_frames = false;
+            for (frame_t f : frames) {
+              const MapFrame& fr = m.frames[f];
+              for (int64_t q = fr.first_keypoint; q < fr.first_keypoint + fr.num_keypoints && !in_frames; ++q) {
+                in_frames =
+                    m.keypoint_landmark[q] == d.class_landmark[k] && std::memcmp(row, m.descriptor(q), bytes) == 0;
+              }
+            }
+            own += in_frames;
+          }
+          const int64_t n = d.fusion.exemplar_begin[k + 1] - d.fusion.exemplar_begin[k];
+          rows += n;
+          left_out += own < n ? own : 0;
+        }
+      }
+      ASSERT_GT(left_out, 0) << "the calibration frames hold some area's exemplars";
+      EXPECT_NE((c.out + c.err)
+                    .find("the areas' fusion without the frames' own " + std::to_string(left_out) + " of " +
+                          std::to_string(rows) + " exemplars"),
+                std::string::npos)
+          << c.out << c.err;
+    }
     const auto calibrated = AreaBundle::open(cal / "bundle.txt");
     ASSERT_TRUE(calibrated->calibrated()) << c.err;
     EXPECT_GT(calibrated->calibration().num_samples, calibrated->calibration().num_positive);
