@@ -157,7 +157,9 @@ bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path&
       "bundle: calibration on {} map frames{}: {} poses ({} of them elsewhere), {} right; the areas' fusion "
       "without the frames' own {} of {} exemplars; operating point {:.4f} (precision {}: {:.4f}; at most 1% of the "
       "frames elsewhere: {:.4f}) keeps {} poses, {} right, {} of them elsewhere",
-      frames.size(), frame_options.frames.empty() ? " (the areas trained on them)" : " held out of training",
+      frames.size(),
+      frame_options.frames.empty() ? " (the default training options hold none out)"
+                                   : " (the ones the default training options hold out of training)",
       right.size(), p_elsewhere.size(), num_right, left_out, exemplars, c.threshold, args.target_precision,
       for_precision, for_elsewhere, kept, kept_right, kept_elsewhere);
   *out = c;
