@@ -31,6 +31,27 @@ struct DetectorOptions {
     LMB_CHECK(brisk_octaves >= 0 && brisk_octaves <= 8,
               "detector options: brisk_octaves must be in 0..8, got " << brisk_octaves);
   }
+
+  // The smallest width and height (pixels) the detector takes: OpenCV fails with an assertion on
+  // smaller images. BRISK's scale space has 2 * octaves layers, the last at a third of the image
+  // per 2^(octaves - 2) (6 px at the default 3 octaves; layers under 3 px fail too); ORB's pyramid
+  // needs 2 px.
+  int min_image_side() const {
+    if (detector == "ORB") return 2;
+    if (brisk_octaves == 0) return 1;
+    return brisk_octaves == 1 ? 3 : 3 << (brisk_octaves - 2);
+  }
+
+  // Throws lmb::Error "<what>: image is WxH pixels, smaller than the NxN that <detector> takes"
+  // for an image the detector cannot take (see min_image_side).
+  void check_image_size(int width, int height, const std::string& what) const {
+    const int side = min_image_side();
+    LMB_CHECK(width >= side && height >= side,
+              what << ": image is " << width << "x" << height << " pixels, smaller than the " << side << "x" << side
+                   << " that " << detector
+                   << (detector == "BRISK" ? " with " + std::to_string(brisk_octaves) + " octaves" : std::string())
+                   << " takes");
+  }
 };
 
 }  // namespace lmb

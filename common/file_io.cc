@@ -15,6 +15,8 @@
 #include <fstream>
 #include <sstream>
 #include <system_error>
+#include <utility>
+#include <vector>
 
 #include "common/error.h"
 
@@ -177,6 +179,84 @@ void check_writable_folder(const fs::path& folder, const std::string& what) {
     LMB_FAIL(what << ": " << e.what());
   }
 }
+
+namespace {
+
+// A file's identity: its device and inode (stat(2), symbolic links followed), when it exists.
+struct FileId {
+  bool exists = false;
+  dev_t dev = 0;
+  ino_t ino = 0;
+  bool operator==(const FileId& o) const { return exists && o.exists && dev == o.dev && ino == o.ino; }
+};
+
+FileId file_id(const fs::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return FileId{};
+  return FileId{true, st.st_dev, st.st_ino};
+}
+
+// The absolute path, symbolic links resolved as far as it exists, normalized, without a trailing
+// separator.
+fs::path resolved_path(const fs::path& path) {
+  std::error_code ec;
+  fs::path absolute = fs::absolute(path, ec);
+  if (ec) absolute = path;
+  fs::path r = fs::weakly_canonical(absolute, ec);
+  if (ec) r = absolute;
+  r = r.lexically_normal();
+  if (!r.has_filename() && r.has_relative_path()) r = r.parent_path();
+  return r;
+}
+
+// A path as check_outputs_not_inputs compares it.
+struct ComparedPath {
+  explicit ComparedPath(const fs::path& path) : resolved(resolved_path(path)), id(file_id(resolved)) {}
+  fs::path resolved;
+  FileId id;
+};
+
+bool same(const ComparedPath& a, const ComparedPath& b) { return a.id == b.id || a.resolved == b.resolved; }
+
+// Whether `path` lies (strictly) inside `folder`: by name, or an existing folder above `path` is
+// `folder` itself (a bind mount, another spelling the names do not show).
+bool lies_inside(const ComparedPath& path, const ComparedPath& folder) {
+  const fs::path& p = path.resolved;
+  const fs::path& f = folder.resolved;
+  auto pi = p.begin();
+  bool prefix = true;
+  for (auto fi = f.begin(); fi != f.end() && prefix; ++fi, ++pi) prefix = pi != p.end() && *pi == *fi;
+  if (prefix && pi != p.end()) return true;
+  if (!folder.id.exists) return false;
+  for (fs::path up = p.parent_path(); up.has_relative_path(); up = up.parent_path()) {
+    if (file_id(up) == folder.id) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void check_outputs_not_inputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
+  std::vector<std::pair<const NamedPath*, ComparedPath>> in;
+  for (const NamedPath& i : inputs) {
+    if (!i.path.empty()) in.emplace_back(&i, ComparedPath(i.path));
+  }
+  for (const NamedPath& o : outputs) {
+    if (o.path.empty()) continue;
+    const ComparedPath out(o.path);
+    for (const auto& [input, compared] : in) {
+      const char* relation = same(out, compared)                           ? "is"
+                             : input->folder && lies_inside(out, compared) ? "lies inside"
+                             : o.folder && lies_inside(compared, out)      ? "contains"
+                                                                           : nullptr;
+      if (relation == nullptr) continue;
+      LMB_FAIL(o.what << " " << o.path.string() << " " << relation << " the input " << input->what << " "
+                      << input->path.string() << " (an output never replaces an input)");
+    }
+  }
+}
+
+bool same_file(const fs::path& a, const fs::path& b) { return same(ComparedPath(a), ComparedPath(b)); }
 
 void remove_stale_temporaries(const fs::path& folder) {
   std::error_code ec;

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace lmb {
 
@@ -66,6 +67,28 @@ void check_writable_file(const std::filesystem::path& path, const std::string& w
 
 // The same for a folder a command will write into (created when missing).
 void check_writable_folder(const std::filesystem::path& folder, const std::string& what);
+
+// A file or folder a command reads or writes, and the option that names it ("--map"). `folder`: the
+// command reads or writes it as a folder (a collection's sparse model, a run folder), not a file.
+struct NamedPath {
+  std::filesystem::path path;
+  std::string what;
+  bool folder = false;
+};
+
+// Inputs are never outputs: fails, before any work, when one of a command's outputs would replace
+// or write into one of its inputs. An output is refused when it is the same file or folder as an
+// input (same device and inode when both exist: a hard link, a symbolic link, "./x" for "x"; else
+// the same absolute path with symbolic links resolved), when it lies inside an input folder, or
+// when it is an output folder that contains an input. (Nothing can be written inside a file, and
+// a file output cannot replace a folder: a path given for a file that is a folder is left to the
+// reader or writer, which says so.) Entries with an empty path (an option not given) are skipped.
+// Throws lmb::Error, one line naming both: "--out m1.h5 is the input --map m1.h5 (an output never
+// replaces an input)", "... lies inside the input ...", "... contains the input ...".
+void check_outputs_not_inputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs);
+
+// Whether `a` and `b` name the same file or folder, as check_outputs_not_inputs compares them.
+bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);
 
 // Removes temporaries ".<anything>.tmp-PID" in `folder` whose writer (PID) no longer runs on this
 // machine: left by a process killed while it wrote. Never fails.

@@ -1,5 +1,6 @@
 #include "common/text_lines.h"
 
+#include <cstdio>
 #include <cstring>
 
 #include "common/error.h"
@@ -19,6 +20,7 @@ TextLineReader::TextLineReader(const std::filesystem::path& path) : path_(path),
     for (size_t i = 0; i < nul; ++i) line += text_[i] == '\n';
     LMB_FAIL(path_.string() << " line " << line << ": contains a NUL byte (not a text file?)");
   }
+  pos_ = utf8_bom_size(text_);
 }
 
 bool TextLineReader::next() {
@@ -40,7 +42,45 @@ bool TextLineReader::next() {
 
 std::vector<std::string> TextLineReader::tokens() const { return split_fields(line_); }
 
+int64_t TextLineReader::lines_left() const {
+  if (pos_ >= text_.size()) return 0;
+  int64_t lines = 0;
+  for (size_t i = pos_; i < text_.size(); ++i) lines += text_[i] == '\n';
+  return lines + (text_.back() != '\n');
+}
+
 std::string TextLineReader::where() const { return path_.string() + " line " + std::to_string(number_); }
+
+std::vector<std::string> TextLineReader::expect(const char* key, size_t count) {
+  LMB_CHECK(next(), path_.string() << ": ends before the '" << key << "' line");
+  std::vector<std::string> t = tokens();
+  LMB_CHECK(!t.empty() && t[0] == key && t.size() == count + 1,
+            where() << ": expected '" << key << "' and " << count << " value(s), found '" << line_ << "'");
+  t.erase(t.begin());
+  return t;
+}
+
+std::string escape_control_bytes(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '\0') {
+      out += "\\0";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c < 0x20 || c == 0x7F) {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02X", c);
+      out += hex;
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
 
 std::vector<std::string> split_fields(std::string_view line) {
   std::vector<std::string> out;

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "common/error.h"
-#include "infer/area_bundle.h"
+#include "infer/bundle_localizer.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "infer/version.h"

@@ -85,7 +85,7 @@ typedef struct lmb_localize_options {
   double max_reprojection_error_px; /* inlier threshold, default 8 */
   int min_inliers;                  /* default 12 */
   uint64_t seed;                    /* RANSAC seed, default 0 */
-  /* Appended in 0.1 (stop 40); a caller's shorter struct gets the default. */
+  /* Appended in 0.1; a caller's shorter struct gets the default. */
   int inverted_file_words; /* with use_inverted_file: the candidates of the keypoint's N nearest
                               words, 1..256 (default 1: its own word; 2: multiple assignment) */
 } lmb_localize_options;

@@ -625,17 +625,19 @@ KeypointMatches Classifier::classify_indexed(const FrameKeypoints& frame, const 
   // Several words a keypoint: its groups' rankings merged (a class in two lists has the same score
   // in both), best first, ties: smaller class, at most top_k.
   if (per_keypoint > 1) merge_pending();
+  if (embedding_ms) *embedding_ms = std::chrono::duration<double, std::milli>(embedding).count();
+  return pending_matches(n);
+}
+
+KeypointMatches Classifier::pending_matches(int32_t n) const {
   // Back to keypoint order (pending_ holds each keypoint's matches best first, contiguously).
   KeypointMatches out;
   out.begin.assign(static_cast<size_t>(n) + 1, 0);
   for (const auto& p : pending_) ++out.begin[p.first + 1];
   for (int32_t k = 0; k < n; ++k) out.begin[k + 1] += out.begin[k];
   out.matches.resize(pending_.size());
-  {
-    std::vector<int32_t> fill(out.begin.begin(), out.begin.end() - 1);
-    for (const auto& p : pending_) out.matches[fill[p.first]++] = p.second;
-  }
-  if (embedding_ms) *embedding_ms = std::chrono::duration<double, std::milli>(embedding).count();
+  std::vector<int32_t> fill(out.begin.begin(), out.begin.end() - 1);
+  for (const auto& p : pending_) out.matches[fill[p.first]++] = p.second;
   return out;
 }
 

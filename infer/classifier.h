@@ -129,6 +129,8 @@ class Classifier {
   // pending_ in keypoint order, each keypoint's matches from its several words' groups merged: best
   // first (ties: smaller class), each class once, at most top_k.
   void merge_pending();
+  // pending_'s matches of keypoints 0..n-1 in keypoint order, each keypoint's best first.
+  KeypointMatches pending_matches(int32_t n) const;
 
   std::shared_ptr<const Model> model_;
   ClassifierOptions options_;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fault injection for distributed training (issue #9): real `mpirun -n 2 lboost train` runs on the
+# Fault injection for distributed training: real `mpirun -n 2 lboost train` runs on the
 # tiny rendered world, each hit by one fault, then checked and rerun:
 #   scripts/fault_inject.sh [--seeds N | --seeds S1,S2,...] [--cases C1,C2,...] [--rounds N]
 #                           [--work DIR] [--keep]
@@ -40,22 +40,50 @@
 # fixture; the vocabulary from its own images) is made once in WORK/tiny (about 1 min).
 # Needs root (mount) and mpirun. LBOOST: the lboost binary (default ${LMB_BUILD_DIR:-build}/train/lboost,
 # build it with scripts/build.sh); MPIEXEC: the launcher (default mpirun).
+#
+# Damaged inputs of the inference commands (no root, no MPI; 20-30 s with the defaults once the
+# inputs exist):
+#   scripts/fault_inject.sh --inputs [--seeds N | --seeds S1,S2,...] [--faults N] [--cases C1,...]
+#                           [--work DIR] [--keep]
+# Each case damages one input FAULTS times per seed (default 2): truncated at a random length, one
+# byte XORed with a random value, or a burst of random bytes written over it (the seed and the fault
+# number choose which and where), then runs what reads it:
+#   model         model.lbm: `lboost localize --model` (must fail: the file has a CRC-32) and
+#                 landmarkboost.load (must raise landmarkboost.Error)
+#   bundle_index  bundle.txt beside the area models: `lboost localize --bundle --no-prior`, and
+#                 landmarkboost.load, then each area's model
+#   areas         the areas file: `lboost bundle --areas` and `lboost train --area FILE:0`
+#   sessions      the collection's sessions.txt (without its comments): `lboost map`
+#   report        report.json of `lboost eval`: landmarkboost.read_report
+# Each command must end by itself (no hang: LMB_FAULT_TIMEOUT s, default 60 here; no signal) with
+# exit 0 (a fault that left a valid input) or exit 1 and exactly one stderr line
+# "lboost CMD: error: ..." naming the damaged input; a Python entry point returns or raises
+# landmarkboost.Error naming the file, nothing else; the damaged file is byte for byte what it was
+# before. The inputs (a model with its eval report, the map split into areas, one model per area
+# and their bundle) are made once in WORK/tiny/inputs (about 1.5 min, with the tiny world when it
+# is missing). The Python checks use the build's package (<build>/python, with the interpreter of
+# its CMakeCache.txt, or PYTHON) and are skipped when it does not import.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 seeds_arg=3
 cases_arg=kill9,kill9_ckpt,disk_full,read_only,sigterm,sigterm_load,sigterm_mpirun
 rounds=100
-work=/tmp/lmb_fault_inject
+work=${TMPDIR:-/tmp}/lmb_fault_inject
 keep_work=0
+mode=training
+cases_given=0
+faults=2
 while [ $# -gt 0 ]; do
   case "$1" in
     --seeds) seeds_arg=$2; shift 2 ;;
-    --cases) cases_arg=$2; shift 2 ;;
+    --cases) cases_arg=$2; cases_given=1; shift 2 ;;
     --rounds) rounds=$2; shift 2 ;;
     --work) work=$2; shift 2 ;;
     --keep) keep_work=1; shift ;;
-    *) sed -n '2,40p' "$0"; exit 2 ;;
+    --inputs) mode=inputs; shift ;;
+    --faults) faults=$2; shift 2 ;;
+    *) sed -n '2,/^set -uo/{/^#/p}' "$0"; exit 2 ;;
   esac
 done
 if [[ "$seeds_arg" == *,* ]]; then IFS=, read -r -a seeds <<< "$seeds_arg"; else seeds=($(seq 1 "$seeds_arg")); fi
@@ -64,6 +92,240 @@ mpiexec=${MPIEXEC:-mpirun}
 limit=${LMB_FAULT_TIMEOUT:-300}
 interval=10  # checkpoint interval (rounds)
 [ -x "$lboost" ] || { echo "fault_inject: no lboost at $lboost (scripts/build.sh, or set LBOOST)" >&2; exit 2; }
+# ---- --inputs: corrupted inputs of the inference commands -----------------------------------------
+if [ "$mode" = inputs ]; then
+  limit=${LMB_FAULT_TIMEOUT:-60}
+  [ "$cases_given" -eq 1 ] || cases_arg=model,bundle_index,areas,sessions,report
+  build_dir=$(dirname "$(dirname "$lboost")")
+  python=$(sed -n 's/^Python3_EXECUTABLE:FILEPATH=//p' "$build_dir/CMakeCache.txt" 2> /dev/null)
+  python=${PYTHON:-${python:-python3}}
+  export PYTHONPATH="$build_dir/python${PYTHONPATH:+:$PYTHONPATH}" PYTHONDONTWRITEBYTECODE=1
+  have_python=1
+  "$python" -c "import landmarkboost" 2> /dev/null || have_python=0
+  mkdir -p "$work"
+  work=$(cd "$work" && pwd)
+  trap '[ "$keep_work" -eq 1 ] || rm -rf "$work"/inputs-seed-*' EXIT
+  trap 'exit 130' INT TERM
+
+  # The fixture, made once in WORK/tiny (about 2 min; reused by later runs): the tiny world and its
+  # map as in the training mode, a model with its run and eval report, the map split into areas, one
+  # model per area and their bundle.
+  tiny=$work/tiny
+  fx=$tiny/inputs
+  make_inputs() {
+    local map=$tiny/map.h5 vocab=$tiny/vocab.lbv eligible id
+    if [ ! -f "$map" ] || [ ! -f "$vocab" ]; then
+      rm -rf "$tiny" && mkdir -p "$fx/bundle"
+      "$lboost" world --preset tiny --seed 1 --out "$tiny/collection" || return 1
+      "$lboost" map --collection "$tiny/collection" --out "$map" || return 1
+      "$lboost" vocab --images "$tiny/collection/images" --out "$vocab" --words 16 --seed 7 || return 1
+    fi
+    "$lboost" train --map "$map" --vocab "$vocab" --out "$fx/run" --rounds 20 --dims-per-round 100 --threads 2 || return 1
+    "$lboost" export --run "$fx/run" --map "$map" --vocab "$vocab" --out "$fx/model.lbm" || return 1
+    "$lboost" eval --model "$fx/model.lbm" --map "$map" --run "$fx/run" --report "$fx/report.json" || return 1
+    # Areas of a third of the eligible landmarks each (as test/train/cli/areas_cli_test.cc).
+    "$lboost" areas --map "$map" --out "$fx/one_area.txt" --min-observations 3 --max-classes 1000000 || return 1
+    eligible=$(sed -n 's/^eligible //p' "$fx/one_area.txt")
+    "$lboost" areas --map "$map" --out "$fx/areas.txt" --min-observations 3 --overlap 0.2 \
+      --max-classes $(( eligible / 3 )) || return 1
+    for id in $(sed -n 's/^area \([0-9]*\) .*/\1/p' "$fx/areas.txt"); do
+      "$lboost" train --map "$map" --vocab "$vocab" --out "$fx/area-run-$id" --rounds 6 --dims-per-round 64 \
+        --area "$fx/areas.txt:$id" || return 1
+      "$lboost" export --run "$fx/area-run-$id" --map "$map" --vocab "$vocab" --out "$fx/bundle/area-$id.lbm" || return 1
+    done
+    "$lboost" bundle --areas "$fx/areas.txt" --models "$fx/bundle" || return 1
+    touch "$fx/ready"
+  }
+  if [ ! -f "$fx/ready" ]; then
+    echo "fault_inject: making the inference inputs in $fx"
+    rm -rf "$fx" && mkdir -p "$fx/bundle"
+    make_inputs > "$tiny/inputs.log" 2>&1 || { tail -20 "$tiny/inputs.log"; echo "fault_inject: the inputs fixture failed" >&2; exit 1; }
+  fi
+  # The collection's sessions without its comments, so that most faults hit the sessions (a
+  # collection without the file has the sessions "map" and "query": lboost map --query-prefix).
+  sessions_file=$fx/sessions.txt
+  if [ -f "$tiny/collection/sessions.txt" ]; then
+    grep -v '^#' "$tiny/collection/sessions.txt" > "$sessions_file"
+  else
+    printf 'map map\nquery query\n' > "$sessions_file"
+  fi
+
+  # corrupt SRC DST KIND: DST = SRC with one fault at a random offset: KIND 0 truncates it there, 1
+  # XORs that byte with a random non-zero value, 2 overwrites a burst of 2-16 bytes with random ones.
+  # $fault describes it. (RANDOM in this shell, never in a $(...) subshell: a seed replays exactly.)
+  corrupt() {
+    local src=$1 dst=$2 size at x old len i bytes=""
+    size=$(stat -c %s "$src")
+    cp "$src" "$dst"
+    at=$(( (RANDOM * 32768 + RANDOM) % size ))
+    case $3 in
+      0) truncate -s "$at" "$dst"; fault="truncated to $at of $size bytes" ;;
+      1)
+        x=$(( 1 + RANDOM % 255 ))
+        old=$(od -An -tu1 -j "$at" -N1 "$src" | tr -d ' ')
+        printf '%b' "\\0$(printf '%03o' $(( old ^ x )))" | dd of="$dst" bs=1 seek="$at" conv=notrunc status=none
+        fault="byte $at of $size XOR $x"
+        ;;
+      2)
+        len=$(( 2 + RANDOM % 15 ))
+        for (( i = 0; i < len; i++ )); do bytes+="\\0$(printf '%03o' $(( RANDOM % 256 )))"; done
+        printf '%b' "$bytes" | dd of="$dst" bs=1 seek="$at" conv=notrunc status=none
+        fault="$len random bytes at $at of $size"
+        ;;
+    esac
+  }
+  # run_lboost DIR NAME CMD ARGS...: runs `lboost CMD ARGS` under timeout (stdout, stderr in
+  # DIR/NAME.out, .err); $st is its exit status.
+  run_lboost() {
+    local dir=$1 name=$2
+    shift 2
+    st=0
+    timeout -k 5 "$limit" "$lboost" "$@" > "$dir/$name.out" 2> "$dir/$name.err" < /dev/null || st=$?
+  }
+  # expect_clean NAME CMD MUST_FAIL ERRFILE DIR: the run ended by itself, not by a signal, and either
+  # exited 0 (a fault that left a valid input; not allowed when MUST_FAIL is 1) or exited 1 with
+  # exactly one line "lboost CMD: error: ..." on stderr that names the damaged input (a path in
+  # DIR, the case's folder). $outcome += what happened.
+  expect_clean() {
+    local name=$1 cmd=$2 must_fail=$3 err=$4 dir=$5
+    if [ "$st" -eq 124 ] || [ "$st" -eq 137 ]; then
+      problem="$problem; $name: hang (stopped after $limit s)"
+    elif [ "$st" -gt 128 ]; then
+      problem="$problem; $name: killed by signal $(( st - 128 ))"
+    elif [ "$st" -eq 0 ]; then
+      [ "$must_fail" -eq 1 ] && problem="$problem; $name: accepted the damaged input"
+      outcome="$outcome; $name accepted"
+    elif [ "$st" -eq 1 ]; then
+      if [ "$(wc -l < "$err")" -ne 1 ] || ! grep -q "^lboost $cmd: error: " "$err"; then
+        problem="$problem; $name: exit 1 without exactly one line 'lboost $cmd: error: ...' ($(head -c 300 "$err" | tr '\n' '|'))"
+      elif ! grep -qF "$dir/" "$err"; then
+        problem="$problem; $name: the error names no damaged input ($(head -c 300 "$err"))"
+      fi
+      outcome="$outcome; $name: $(cut -c1-110 "$err")"
+    else
+      problem="$problem; $name: exit $st"
+    fi
+  }
+  # expect_python KIND FILE MUST_FAIL: landmarkboost's entry point for the file (load, or read_report)
+  # returns or raises landmarkboost.Error naming the file; never another exception or a crash.
+  py_check='
+import sys
+import landmarkboost as lb
+kind, path = sys.argv[1], sys.argv[2]
+try:
+    if kind == "report":
+        lb.read_report(path)
+    else:
+        loaded = lb.load(path)
+        if isinstance(loaded, lb.AreaBundle):
+            for i in range(loaded.num_areas):
+                try:
+                    loaded.model(i)
+                except lb.Error:
+                    pass
+    print("accepted")
+except lb.Error as e:
+    if path not in str(e):
+        sys.exit(f"landmarkboost.Error without the file name: {e}")
+    print("error")
+'
+  expect_python() {
+    [ "$have_python" -eq 1 ] || return 0
+    local out pst=0
+    out=$(timeout -k 5 "$limit" "$python" -c "$py_check" "$1" "$2" 2>&1) || pst=$?
+    if [ "$pst" -eq 124 ] || [ "$pst" -eq 137 ]; then
+      problem="$problem; python $1: hang"
+    elif [ "$pst" -ne 0 ]; then
+      problem="$problem; python $1: exit $pst: $(echo "$out" | tail -n 1 | cut -c1-200)"
+    elif [ "$3" -eq 1 ] && [ "$out" != error ]; then
+      problem="$problem; python $1: accepted the damaged input"
+    else
+      outcome="$outcome; python $out"
+    fi
+  }
+  # unchanged FILE COPY: the damaged input is byte for byte its copy made before the commands ran.
+  unchanged() { cmp -s "$1" "$2" || problem="$problem; $(basename "$1") changed by the commands"; }
+  # models_dir DIR: DIR/models holds links to the bundle's area models (commands write beside them).
+  models_dir() {
+    local m
+    mkdir -p "$1/models"
+    for m in "$fx"/bundle/area-*.lbm; do ln -s "$m" "$1/models/$(basename "$m")"; done
+  }
+
+  input_model() {
+    corrupt "$fx/model.lbm" "$1/model.lbm" "$2"
+    cp "$1/model.lbm" "$1/before"
+    run_lboost "$1" localize localize --model "$1/model.lbm" --map "$tiny/map.h5" --out "$1/poses.json"
+    expect_clean "localize" localize 1 "$1/localize.err" "$1"
+    expect_python model "$1/model.lbm" 1
+    unchanged "$1/model.lbm" "$1/before"
+  }
+  input_bundle_index() {
+    models_dir "$1"
+    corrupt "$fx/bundle/bundle.txt" "$1/models/bundle.txt" "$2"
+    cp "$1/models/bundle.txt" "$1/before"
+    run_lboost "$1" localize localize --bundle "$1/models/bundle.txt" --no-prior --map "$tiny/map.h5" \
+      --out "$1/poses.json"
+    expect_clean "localize --bundle" localize 0 "$1/localize.err" "$1"
+    expect_python bundle "$1/models/bundle.txt" 0
+    unchanged "$1/models/bundle.txt" "$1/before"
+  }
+  input_areas() {
+    models_dir "$1"
+    corrupt "$fx/areas.txt" "$1/areas.txt" "$2"
+    cp "$1/areas.txt" "$1/before"
+    run_lboost "$1" bundle bundle --areas "$1/areas.txt" --models "$1/models"
+    expect_clean "bundle" bundle 0 "$1/bundle.err" "$1"
+    run_lboost "$1" train train --map "$tiny/map.h5" --vocab "$tiny/vocab.lbv" --area "$1/areas.txt:0" --rounds 2 \
+      --dims-per-round 32 --threads 1 --out "$1/run"
+    expect_clean "train --area" train 0 "$1/train.err" "$1"
+    unchanged "$1/areas.txt" "$1/before"
+  }
+  input_sessions() {
+    local e
+    mkdir -p "$1/collection"
+    for e in "$tiny"/collection/*; do
+      [ "$(basename "$e")" = sessions.txt ] || ln -s "$e" "$1/collection/$(basename "$e")"
+    done
+    corrupt "$sessions_file" "$1/collection/sessions.txt" "$2"
+    cp "$1/collection/sessions.txt" "$1/before"
+    run_lboost "$1" map map --collection "$1/collection" --out "$1/map.h5" --threads 2
+    expect_clean "map" map 0 "$1/map.err" "$1"
+    unchanged "$1/collection/sessions.txt" "$1/before"
+  }
+  input_report() {
+    corrupt "$fx/report.json" "$1/report.json" "$2"
+    cp "$1/report.json" "$1/before"
+    expect_python report "$1/report.json" 0
+    unchanged "$1/report.json" "$1/before"
+  }
+
+  IFS=, read -r -a cases <<< "$cases_arg"
+  for c in "${cases[@]}"; do declare -F "input_$c" > /dev/null || { echo "fault_inject: no input case '$c'" >&2; exit 2; }; done
+  [ "$have_python" -eq 1 ] || echo "fault_inject: $python cannot import landmarkboost from $build_dir/python: Python checks skipped"
+  failures=0 total=0
+  started=$(date +%s)
+  for seed in "${seeds[@]}"; do
+    for c in "${cases[@]}"; do
+      for (( k = 0; k < faults; k++ )); do
+        RANDOM=$(( seed * 1000 + k * 101 + ${#c} * 17 + $(printf '%d' "'${c:0:1}") ))
+        dir=$work/inputs-seed-$seed/$c-$k
+        rm -rf "$dir" && mkdir -p "$dir"
+        problem="" outcome="" fault=""
+        "input_$c" "$dir" $(( (seed + k) % 3 ))
+        total=$(( total + 1 ))
+        verdict=PASS
+        if [ -n "$problem" ]; then verdict=FAIL; failures=$(( failures + 1 )); fi
+        why=${problem#; }
+        printf '%-4s %-12s seed %-3s %-38s %s\n' "$verdict" "$c" "$seed" "$fault" "${outcome#; }${why:+ -- $why}"
+      done
+    done
+  done
+  echo "fault_inject: $(( total - failures )) of $total damaged inputs handled (seeds ${seeds[*]}, $faults faults each, $(( $(date +%s) - started )) s)"
+  [ "$failures" -eq 0 ]
+  exit
+fi
+
 command -v "$mpiexec" > /dev/null || { echo "fault_inject: no $mpiexec" >&2; exit 2; }
 [ "$(id -u)" -eq 0 ] || { echo "fault_inject: needs root (tmpfs and bind mounts)" >&2; exit 2; }
 if [ "$(id -u)" -eq 0 ]; then export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1; fi

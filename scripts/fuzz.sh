@@ -19,7 +19,8 @@ cd "$(dirname "$0")/.."
 root=$(pwd)
 seconds=${1:-60}
 shift || true
-all_targets=(model vocabulary map_h5 colmap_text colmap_binary train_config gravity trained_model checkpoint)
+all_targets=(model vocabulary map_h5 colmap_text colmap_binary train_config gravity trained_model checkpoint
+             bundle_index area_file session_file)
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then targets=("${all_targets[@]}"); fi
 build=${LMB_FUZZ_BUILD_DIR:-build-fuzz}

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the inference library and its tests with ThreadSanitizer (clang 14, -O1 -g) in
 # ${LMB_TSAN_BUILD_DIR:-build-tsan} and runs them: the concurrency tests (a Localizer and the pose
-# estimator shared by 4 threads, the C API's per-thread errors) and the classifier's tests.
+# estimator shared by 4 threads, the C API's per-thread errors, a bundle's areas scored on a thread
+# pool) and the classifier's tests.
 #   scripts/tsan.sh [ctest args ...]
 # A data race fails the test (halt_on_error). Suppressions: test/sanitizers/tsan.supp.
 # clang, not gcc: with gcc 12's shared libtsan.so.2 every test linking liblmb_infer.so crashed inside
@@ -24,7 +25,7 @@ cmake -S . -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1" >/dev/null
 # Not model_test: it replaces operator new to count allocations, which clang's static TSan
 # runtime also defines (and it runs no threads).
-tests=(localizer_test pose_estimator_test c_api_test classifier_test)
+tests=(localizer_test pose_estimator_test c_api_test classifier_test area_bundle_test)
 cmake --build "$build" -j "${LMB_JOBS:-$(nproc)}" --target $(printf 'infer_%s ' "${tests[@]}")
 
 export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$root/test/sanitizers/tsan.supp"

@@ -21,11 +21,13 @@
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "common/feature_space.h"
 #include "common/file_container.h"
 #include "common/io/colmap_binary.h"
 #include "common/io/colmap_model.h"
 #include "common/io/gravity_file.h"
 #include "common/io/map_h5.h"
+#include "common/io/session_file.h"
 #include "common/vocabulary.h"
 #include "infer/area_bundle.h"
 #include "infer/detail/model_format.h"
@@ -33,6 +35,7 @@
 #include "infer/model.h"
 #include "test/common/io/test_maps.h"
 #include "test/infer/test_models.h"
+#include "train/areas/area_file.h"
 #include "train/boost/boost_model.h"
 #include "train/boost/train_config.h"
 
@@ -114,28 +117,25 @@ std::string with_byte(std::string s, size_t at, char value) {
 // ---- bundle.txt -------------------------------------------------------------------------------
 
 // Writes DIR/area-ID.lbm for each model and DIR/bundle.txt indexing them (write_bundle_index,
-// version 1), then applies `edit` to the index's text and opens it; `then` (when set) uses it.
+// version 3), then applies `edit` to the index's text and opens it; `then` (when set) uses it.
 std::function<void(const fs::path&)> bundle_with(std::function<void(std::string&)> edit,
                                                  std::function<void(AreaBundle&)> then = {},
                                                  std::vector<ModelData> models = {good_model_data()}) {
   return [edit, then, models](const fs::path& dir) {
     std::vector<BundleArea> areas;
     for (size_t i = 0; i < models.size(); ++i) {
-      BundleArea a;
-      a.id = static_cast<int32_t>(i);
-      a.file = "area-" + std::to_string(i) + ".lbm";
-      const std::string image = as_string(Model(models[i]).to_bytes());
-      write_bytes(dir / a.file, image);
-      a.bytes = image.size();
-      a.crc32 = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
-      a.landmarks = models[i].num_classes;
+      const std::string file = "area-" + std::to_string(i) + ".lbm";
+      const Model model(models[i]);
+      const std::string image = as_string(model.to_bytes());
+      write_bytes(dir / file, image);
+      BundleArea a = describe_area(static_cast<int32_t>(i), file, image, model);
       a.cell_lo = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
       a.cell_hi = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
       a.cell_lo.x() = static_cast<double>(i);
       if (i + 1 < models.size()) a.cell_hi.x() = static_cast<double>(i + 1);
       areas.push_back(a);
     }
-    write_bundle_index(dir / "bundle.txt", 1.0, areas);
+    test::write_test_bundle(dir / "bundle.txt", 1.0, areas);
     std::string text = read_bytes(dir / "bundle.txt");
     if (edit) edit(text);
     write_bytes(dir / "bundle.txt", text);
@@ -241,6 +241,35 @@ std::function<void(const fs::path&)> gravity_with(const std::string& content) {
   return [=](const fs::path& dir) {
     write_bytes(dir / "gravity.txt", content);
     read_gravity_file(dir / "gravity.txt", small_colmap());
+  };
+}
+
+std::function<void(const fs::path&)> sessions_with(const std::string& content) {
+  return [=](const fs::path& dir) {
+    write_bytes(dir / "sessions.txt", content);
+    read_session_file(dir / "sessions.txt");
+  };
+}
+
+// An areas file of one area of test::random_map(1)'s 6 landmarks, `edit`ed, read for that map.
+std::function<void(const fs::path&)> areas_with(std::function<void(std::string&)> edit) {
+  return [edit](const fs::path& dir) {
+    const LandmarkMap map = test::random_map(1);
+    AreaFile file;
+    file.map_fingerprint = fingerprint_map(map);
+    file.map_landmarks = static_cast<int64_t>(map.landmarks.size());
+    file.split.options.reach = 2.0;
+    file.split.num_eligible = file.map_landmarks;
+    Area area;
+    area.bounds.lo = Eigen::Vector3d::Zero();
+    area.bounds.hi = Eigen::Vector3d::Ones();
+    area.num_core = file.map_landmarks;
+    area.landmarks = {0, 1, 2, 3, 4, 5};
+    file.split.areas.push_back(area);
+    std::string text = area_file_text(file, "");
+    edit(text);
+    write_bytes(dir / "areas.txt", text);
+    read_area_landmarks(dir / "areas.txt", 0, map);
   };
 }
 
@@ -541,19 +570,41 @@ std::vector<Row> rows() {
   r.push_back(
       {"COLMAP binary", "trailing bytes", colmap_binary_with({}, "points3D.bin", [](std::string& b) { b += "xyz"; }),
        "DIR/sparse/points3D.bin: 3 trailing bytes after the last record (wrong count?) (at byte offset 75 of 78)"});
-  // bundle.txt (infer/area_bundle.h)
-  r.push_back({"bundle.txt", "format version 3", bundle_with(replaced("lmb-bundle 1", "lmb-bundle 3")),
-               "DIR/bundle.txt line 1: format version 3 is not supported (this build reads 1 and 2)"});
+  // bundle.txt (infer/bundle_index.h)
+  r.push_back({"bundle.txt", "format version 4", bundle_with(replaced("lmb-bundle 3", "lmb-bundle 4")),
+               "DIR/bundle.txt line 1: format version 4 is not supported (this build reads 1 to 3)"});
   r.push_back({"bundle.txt", "reach not a number", bundle_with(replaced("reach 1", "reach x")),
                "DIR/bundle.txt line 3: reach is not a number: 'x'"});
-  r.push_back({"bundle.txt", "version 2 without its calibration line",
-               bundle_with(replaced("lmb-bundle 1", "lmb-bundle 2")),
-               "DIR/bundle.txt line 4: expected 'calibration' and 12 value(s), found 'areas 1'"});
-  r.push_back({"bundle.txt", "calibration threshold 1.5", bundle_with([](std::string& text) {
-                 replaced("lmb-bundle 1", "lmb-bundle 2")(text);
-                 replaced("areas 1", "calibration 0 0 0 0 0 0 0 0 1.5 10 5 0.95\nareas 1")(text);
-               }),
-               "DIR/bundle.txt line 4: calibration: threshold 1.5 is outside [0, 1]"});
+  r.push_back({"bundle.txt", "map fingerprint not 16 hex digits",
+               bundle_with(replaced("map 5eed0f0e5eed0f0e", "map x")),
+               "DIR/bundle.txt line 4: map is not 16 hex digits: 'x'"});
+  r.push_back({"bundle.txt", "calibration line one value short",
+               bundle_with(replaced("areas 1", "calibration 0 0 0 0 0 0 0 0 0.5 10 5\nareas 1")),
+               "DIR/bundle.txt line 5: expected 'calibration' and 12 value(s), found 'calibration 0 0 0 0 0 0 0 0 0.5 "
+               "10 5'"});
+  r.push_back({"bundle.txt", "calibration threshold 1.5",
+               bundle_with(replaced("areas 1", "calibration 0 0 0 0 0 0 0 0 1.5 10 5 0.95\nareas 1")),
+               "DIR/bundle.txt line 5: calibration: threshold 1.5 is outside [0, 1]"});
+  r.push_back({"bundle.txt", "an area file outside the bundle folder",
+               bundle_with(replaced("file area-0.lbm", "file ../area-0.lbm")),
+               "DIR/bundle.txt line 6: file '../area-0.lbm' must be a file name in the bundle's folder (no folder, no "
+               "'..', printable UTF-8)"});
+  r.push_back({"bundle.txt", "two areas name one file",
+               bundle_with(replaced("file area-1.lbm", "file area-0.lbm"), {}, {good_model_data(), good_model_data()}),
+               "DIR/bundle.txt line 7: file 'area-0.lbm' is another area's model too"});
+  r.push_back({"bundle.txt", "an area's class count not its model's",
+               bundle_with(replaced("landmarks 3 first_landmark", "landmarks 2 first_landmark"),
+                           [](AreaBundle& b) { b.model(0); }),
+               "DIR: area 0 (area-0.lbm): 3 classes, the bundle index says 2 (a model of another area or map)"});
+  r.push_back({"bundle.txt", "an area's model of another map (classes differ)",
+               bundle_with(
+                   [](std::string& text) {
+                     const size_t at = text.rfind(" classes ") + 9;  // the area line, not the comment
+                     text[at] = text[at] == '1' ? '2' : '1';
+                   },
+                   [](AreaBundle& b) { b.model(0); }),
+               "DIR: area 0 (area-0.lbm): its classes (landmark ids and positions) differ from the ones the bundle "
+               "index records (a model of another area or map)"});
   r.push_back({"bundle.txt", "an area's model damaged (one byte)",
                bundle_with({},
                            [](AreaBundle& b) {
@@ -610,6 +661,22 @@ std::vector<Row> rows() {
                "DIR/train.toml: context regions: max_area = inf must be finite and >= min_area (1)"});
   r.push_back({"train config (TOML)", "negative seed", config_with("[regions]\nseed = -1\n"),
                "DIR/train.toml: regions.seed: -1 is out of range"});
+  // sessions.txt (common/io/session_file.h)
+  r.push_back({"sessions.txt", "duplicate name", sessions_with("map map\nquery query\nmap outside\n"),
+               "DIR/sessions.txt line 3: duplicate session name map (first on line 1)"});
+  r.push_back({"sessions.txt", "NUL byte in a name", sessions_with(std::string("map map\nqu\0ery query\n", 21)),
+               "DIR/sessions.txt line 2: session name 'qu\\0ery' (expected letters, digits, '-', '_' or '.': the "
+               "image folder of the session)"});
+  // areas.txt (train/areas/area_file.h)
+  r.push_back({"areas.txt", "areas 1000000 in a file of one area",
+               areas_with([](std::string& text) { text.replace(text.find("\nareas 1\n"), 9, "\nareas 1000000\n"); }),
+               "DIR/areas.txt line 10: areas 1000000, but the file has only 2 line(s) left (each area needs an area "
+               "and a members line)"});
+  r.push_back({"areas.txt", "map_landmarks 2147483647 (the map has 6)", areas_with([](std::string& text) {
+                 text.replace(text.find("map_landmarks 6"), 15, "map_landmarks 2147483647");
+               }),
+               "DIR/areas.txt: map_landmarks 2147483647, but its map has 6 landmarks (an edited or damaged file); run "
+               "lboost areas on this map"});
   return r;
 }
 

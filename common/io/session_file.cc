@@ -1,11 +1,14 @@
 #include "common/io/session_file.h"
 
-#include <fstream>
 #include <map>
 #include <sstream>
+#include <string_view>
+#include <unordered_map>
+#include <unordered_set>
 
 #include "common/error.h"
 #include "common/file_io.h"
+#include "common/text_lines.h"
 
 namespace lmb {
 
@@ -17,44 +20,42 @@ void check_session_name(const std::string& name, const std::string& where) {
     ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_' ||
                 c == '.');
   }
-  LMB_CHECK(ok, where << ": session name '" << name
+  LMB_CHECK(ok, where << ": session name '" << escape_control_bytes(name)
                       << "' (expected letters, digits, '-', '_' or '.': the image folder of the session)");
 }
 
 std::vector<MapSession> read_session_file(const fs::path& path) {
-  std::ifstream in(path);
-  LMB_CHECK(in.good(), path.string() << ": cannot open sessions file");
+  const std::string text = read_file(path);
   std::vector<MapSession> sessions;
-  std::string line;
+  std::unordered_map<std::string, int> listed_on;  // session name -> its line
+  size_t pos = utf8_bom_size(text);
   int number = 0;
-  while (std::getline(in, line)) {
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
     ++number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     const size_t first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
     const std::string at = path.string() + " line " + std::to_string(number);
-    std::istringstream fields(line);
-    std::vector<std::string> tokens;
-    std::string token;
-    while (fields >> token) tokens.push_back(token);
+    const std::vector<std::string> tokens = split_fields(line);
     LMB_CHECK(tokens.size() == 2, at << ": expected 2 fields (NAME KIND), got " << tokens.size());
     check_session_name(tokens[0], at);
-    for (const MapSession& s : sessions) {
-      LMB_CHECK(s.name != tokens[0], at << ": duplicate session name " << tokens[0]);
-    }
-    sessions.push_back(MapSession{tokens[0], parse_session_kind(tokens[1], at)});
+    const auto [it, added] = listed_on.emplace(tokens[0], number);
+    LMB_CHECK(added, at << ": duplicate session name " << tokens[0] << " (first on line " << it->second << ")");
+    sessions.push_back(MapSession{tokens[0], parse_session_kind(escape_control_bytes(tokens[1]), at)});
   }
-  LMB_CHECK(!in.bad(), path.string() << ": read error");
   LMB_CHECK(!sessions.empty(), path.string() << ": no session listed");
   return sessions;
 }
 
 void write_session_file(const std::vector<MapSession>& sessions, const fs::path& path) {
-  for (size_t s = 0; s < sessions.size(); ++s) {
-    check_session_name(sessions[s].name, path.string());
-    for (size_t t = 0; t < s; ++t) {
-      LMB_CHECK(sessions[t].name != sessions[s].name, path.string() << ": duplicate session name " << sessions[s].name);
-    }
+  std::unordered_set<std::string> names;
+  for (const MapSession& s : sessions) {
+    check_session_name(s.name, path.string());
+    LMB_CHECK(names.insert(s.name).second, path.string() << ": duplicate session name " << s.name);
   }
   std::ostringstream out;
   out << "# Sessions of this collection: an image belongs to the session named by its first folder.\n"

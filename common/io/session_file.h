@@ -25,8 +25,10 @@ inline constexpr const char* kSessionFileName = "sessions.txt";
 // or ".."). Throws lmb::Error "<where>: ..." otherwise.
 void check_session_name(const std::string& name, const std::string& where);
 
-// Reads a sessions file. Throws lmb::Error naming the file, line and reason: wrong field count, a
-// bad name or kind, a duplicate name, no session at all.
+// Reads a sessions file (lines as common/text_lines.h reads them: CRLF and a leading UTF-8 byte order
+// mark are fine). Throws lmb::Error naming the file, line and reason: wrong field count, a bad name
+// or kind (quoted with control bytes such as NUL escaped), a duplicate name (with the line of its
+// first listing), no session at all.
 std::vector<MapSession> read_session_file(const std::filesystem::path& path);
 
 // Writes a sessions file, replacing `path`. Throws lmb::Error for a bad or duplicate name or a

@@ -10,11 +10,9 @@
 
 namespace lmb {
 
-ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& options) {
-  options.check();
-  LMB_CHECK(!image.empty() && image.depth() == CV_8U &&
-                (image.channels() == 1 || image.channels() == 3 || image.channels() == 4),
-            "detect_features: expected an 8-bit image with 1, 3 or 4 channels");
+namespace {
+
+ImageFeatures detect_checked(const cv::Mat& image, const DetectorOptions& options) {
   // OpenCV's BRISK describes some keypoints differently in a view into a larger buffer (a
   // non-continuous Mat: an ROI, or rows with a stride) than in the same pixels stored alone, so a
   // view is copied first: the result depends on the pixels only, as the mapper's does.
@@ -65,6 +63,24 @@ ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& optio
     out.descriptors.insert(out.descriptors.end(), row, row + bytes);
   }
   return out;
+}
+
+}  // namespace
+
+ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& options) {
+  options.check();
+  LMB_CHECK(!image.empty() && image.depth() == CV_8U &&
+                (image.channels() == 1 || image.channels() == 3 || image.channels() == 4),
+            "detect_features: expected an 8-bit image with 1, 3 or 4 channels");
+  options.check_image_size(image.cols, image.rows, "detect_features");
+  try {
+    return detect_checked(image, options);
+  } catch (const cv::Exception& e) {
+    // One line naming the image's size, not OpenCV's multi-line assertion text.
+    LMB_FAIL("detect_features: OpenCV failed on a " << image.cols << "x" << image.rows << " image with "
+                                                    << image.channels() << " channel(s): " << e.err << " (in " << e.func
+                                                    << ")");
+  }
 }
 
 }  // namespace lmb

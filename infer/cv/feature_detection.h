@@ -35,7 +35,9 @@ struct ImageFeatures {
 };
 
 // Detects keypoints in an 8-bit image (1, 3 or 4 channels) and computes their descriptors.
-// Throws lmb::Error for an empty image, another pixel type or invalid options.
+// Throws lmb::Error for an empty image, another pixel type, an image smaller than the detector
+// takes (DetectorOptions::min_image_side: 6x6 for BRISK's defaults), invalid options, or any other
+// OpenCV failure (one line naming the image's size).
 LMB_INFER_EXPORT ImageFeatures detect_features(const cv::Mat& image, const DetectorOptions& options = {});
 
 }  // namespace lmb

@@ -30,7 +30,7 @@ if ! command -v slurmctld > /dev/null || ! command -v munged > /dev/null; then
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends slurm-wlm munge > /dev/null
 fi
 
-work=$(mktemp -d /tmp/lmb_slurm.XXXXXX)
+work=$(mktemp -d -t lmb_slurm.XXXXXX)
 chmod 755 "$work"
 host=$(hostname -s)
 export SLURM_CONF=$work/slurm.conf

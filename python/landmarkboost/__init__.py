@@ -27,6 +27,7 @@ Submodules, loaded on first use so that an app that only localizes loads neither
                      mapper detects them (OpenCV)
 """
 import importlib as _importlib
+import os as _os
 import sys as _sys
 
 try:
@@ -38,6 +39,7 @@ except ImportError as _e:
 
 from ._core import (AreaBundle, BundleLocalizeResult, BundleLocalizer, Camera, Error, LocalizeResult,
                     Localizer, LocalizerOptions, Model, Rigid3d, __version__)
+from ._path import fspath as _fspath
 from .report import Report, read_report
 
 _MODEL_MAGIC = b"LMBMODEL"
@@ -49,17 +51,20 @@ def load(path):
     `lboost bundle`) for BundleLocalizer. Raises landmarkboost.Error naming the file.
 
     A file is recognized by its first bytes (the model's magic, the bundle index's first line).
+    path: str, bytes or os.PathLike (TypeError for anything else).
     """
+    path = _fspath(path, "load: path")
+    name = _os.fsdecode(path)
     try:
         with open(path, "rb") as f:
             magic = f.read(max(len(_MODEL_MAGIC), len(_BUNDLE_MAGIC)))
     except OSError as e:
-        raise Error(f"{path}: cannot open ({e.strerror})") from None
+        raise Error(f"{name}: cannot open ({e.strerror})") from None
     if magic.startswith(_MODEL_MAGIC):
         return Model.load(path)
     if magic.startswith(_BUNDLE_MAGIC):
         return AreaBundle.open(path)
-    raise Error(f"{path}: neither a LandmarkBoost model (magic {_MODEL_MAGIC!r}) nor a bundle index "
+    raise Error(f"{name}: neither a LandmarkBoost model (magic {_MODEL_MAGIC!r}) nor a bundle index "
                 f"({_BUNDLE_MAGIC.decode()}...): starts with {magic!r}")
 
 

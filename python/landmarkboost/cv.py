@@ -11,11 +11,13 @@ different pixels, hence a few different keypoints).
 
     features = landmarkboost.cv.detect_features(landmarkboost.cv.read_image("photo.jpg"))
 """
+import os
 from typing import NamedTuple
 
 import numpy as np
 
 from . import _cv
+from ._path import fspath
 
 
 class Features(NamedTuple):
@@ -37,8 +39,9 @@ def detect_features(image, channels="RGB", **options):
 
 def read_image(path):
     """The image file as an 8-bit grey (h, w) numpy array, decoded as `lboost map` decodes it
-    (OpenCV, grey). Raises landmarkboost.Error naming the file when it cannot be read."""
-    return _cv.read_image(str(path))
+    (OpenCV, grey). path: str, bytes or os.PathLike (TypeError for anything else). Raises
+    landmarkboost.Error naming the file when it cannot be read."""
+    return _cv.read_image(os.fsdecode(fspath(path, "read_image: path")))
 
 
 __all__ = ["Features", "detect_features", "read_image"]

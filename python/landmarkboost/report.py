@@ -13,12 +13,21 @@ inf, -inf or nan. The reader follows the file: fields it does not know are kept 
 """
 import json
 import math
+import os
 from collections.abc import Mapping
 
 import numpy as np
 
+from ._core import Error
+from ._path import fspath
+
 _NON_FINITE = {"inf": math.inf, "+inf": math.inf, "-inf": -math.inf, "nan": math.nan,
                "Infinity": math.inf, "-Infinity": -math.inf, "NaN": math.nan}
+_INT64 = np.iinfo(np.int64)
+
+
+class ReportError(Error, ValueError):
+    """A file that is not a readable report (landmarkboost.Error, and a ValueError)."""
 
 
 def _is_number(v):
@@ -33,9 +42,12 @@ def _convert(v):
         return _NON_FINITE[v]
     if isinstance(v, list):
         if v and all(_is_number(x) for x in v) and any(x is not None for x in v):
-            if all(isinstance(x, int) for x in v):
+            if all(isinstance(x, int) and _INT64.min <= x <= _INT64.max for x in v):
                 return np.array(v, dtype=np.int64)
-            return np.array([math.nan if x is None else _NON_FINITE.get(x, x) for x in v], dtype=np.float64)
+            try:
+                return np.array([math.nan if x is None else _NON_FINITE.get(x, x) for x in v], dtype=np.float64)
+            except OverflowError:  # an integer beyond float64's range: the numbers as they are
+                pass
         return [_convert(x) for x in v]
     return v
 
@@ -74,7 +86,7 @@ class Report(Record):
 
     def __init__(self, data, path=None):
         if not isinstance(data, dict) or not isinstance(data.get("methods"), dict):
-            raise ValueError(f"{path or 'report'}: not a LandmarkBoost report (no 'methods' object)")
+            raise ReportError(f"{path or 'report'}: not a LandmarkBoost report (no 'methods' object)")
         super().__init__(data)
         self.__dict__["raw"] = data
         self.__dict__["path"] = path
@@ -84,12 +96,25 @@ class Report(Record):
 
 
 def read_report(path):
-    """Reads report.json. Raises OSError for an unreadable file and ValueError (naming the file)
-    for invalid JSON or a file that is not a report."""
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    """Reads report.json (path: str, bytes or os.PathLike). Raises OSError for a file that cannot
+    be read and landmarkboost.Error, also a ValueError, naming the file for one that is not a
+    report: not UTF-8, invalid JSON, nested deeper than Python's recursion limit, or without the
+    'methods' object."""
+    path = fspath(path, "read_report: path")
+    name = os.fsdecode(path)
+    with open(path, "rb") as f:
+        raw = f.read()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ReportError(f"{name}: not UTF-8 text (byte {e.start}: {raw[e.start:e.start + 1]!r})") from None
     try:
         data = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{path}: invalid JSON: {e}") from None
-    return Report(data, str(path))
+    except RecursionError:
+        raise ReportError(f"{name}: invalid JSON: nested too deeply") from None
+    except ValueError as e:  # json.JSONDecodeError, or an integer of more digits than Python converts
+        raise ReportError(f"{name}: invalid JSON: {e}") from None
+    try:
+        return Report(data, name)
+    except RecursionError:
+        raise ReportError(f"{name}: nested too deeply to read (Python's recursion limit)") from None

@@ -1,10 +1,11 @@
 // landmarkboost._core: the inference library (infer/localizer.h, infer/model.h, common/camera.h,
-// infer/area_bundle.h) for Python. Inputs are numpy arrays (descriptors are read in place when they are a C-contiguous
-// uint8 array); results are read-only numpy views into the C++ result, kept alive by it. The GIL
-// is released while a frame is localized, so Python threads localize in parallel.
+// infer/area_bundle.h, infer/bundle_localizer.h) for Python. Inputs are numpy arrays (descriptors are read in place
+// when they are a C-contiguous uint8 array); results are read-only numpy views into the C++ result, kept alive by it.
+// The GIL is released while a frame is localized, so Python threads localize in parallel.
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -21,7 +22,8 @@
 #include "common/error.h"
 #include "common/rigid3.h"
 #include "common/types.h"
-#include "infer/area_bundle.h"
+#include "common/vocabulary.h"
+#include "infer/bundle_localizer.h"
 #include "infer/c_api.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
@@ -35,14 +37,69 @@ static_assert(sizeof(Keypoint) == 4 * sizeof(float), "Keypoint must be 4 packed 
 // Localize calls that ran with the GIL released (read by the tests through _calls_without_gil).
 std::atomic<int64_t> calls_without_gil{0};
 
+// ---- Argument values: Python numbers of the kind the C++ field holds ----------------------------
+// (pybind11's own conversions would take any object with __bool__ for a bool, and fail with
+// "Unable to cast Python instance" naming no argument for an integer out of the field's range.)
+
+// "3.5 (float)" for error messages.
+std::string value_and_type(const py::handle& v) {
+  std::string r = py::repr(v).cast<std::string>();
+  if (r.size() > 60) r = r.substr(0, 57) + "...";
+  return r + " (" + py::type::of(v).attr("__name__").cast<std::string>() + ")";
+}
+
+bool is_bool(const py::handle& v) {
+  return py::isinstance<py::bool_>(v) || py::isinstance(v, py::module_::import("numpy").attr("bool_"));
+}
+
+// True or False (or a numpy bool); `what` names the argument in the TypeError.
+bool bool_from(const py::handle& v, const std::string& what) {
+  if (!is_bool(v)) throw py::type_error(what + ": expected True or False; got " + value_and_type(v));
+  return PyObject_IsTrue(v.ptr()) == 1;
+}
+
+// A real number: int, float or a numpy integer or floating scalar (not bool, not complex).
+double real_from(const py::handle& v, const std::string& what) {
+  if (is_bool(v) || !py::isinstance(v, py::module_::import("numbers").attr("Real"))) {
+    throw py::type_error(what + ": expected a real number; got " + value_and_type(v));
+  }
+  const double d = PyFloat_AsDouble(v.ptr());
+  if (d == -1.0 && PyErr_Occurred()) {
+    PyErr_Clear();
+    LMB_FAIL(what << " = " << value_and_type(v) << ": beyond the range of a double");
+  }
+  return d;
+}
+
+// An integer in lo..hi: int or a numpy integer (not bool, not float).
+template <class T>
+T integer_from(const py::handle& v, const std::string& what, T lo, T hi) {
+  const std::string range = std::to_string(lo) + ".." + std::to_string(hi);
+  if (is_bool(v) || !py::isinstance(v, py::module_::import("numbers").attr("Integral"))) {
+    throw py::type_error(what + ": expected an integer in " + range + "; got " + value_and_type(v));
+  }
+  const py::int_ i(py::reinterpret_borrow<py::object>(v));
+  LMB_CHECK(!(i < py::int_(lo)) && !(i > py::int_(hi)),
+            what << " = " << py::repr(i).cast<std::string>() << ": must be an integer in " << range);
+  return i.cast<T>();
+}
+
+template <class T, T kLo, T kHi>
+T integer_in(const py::handle& v, const std::string& what) {
+  return integer_from<T>(v, what, kLo, kHi);
+}
+
 // ---- Camera -------------------------------------------------------------------------------------
 
 Camera make_camera(const py::object& model, int width, int height, const std::vector<double>& params) {
   Camera c;
   if (py::isinstance<py::str>(model)) {
     c.model = camera_model_from_name(model.cast<std::string>(), "Camera: model");
+  } else if (!is_bool(model) && py::isinstance(model, py::module_::import("numbers").attr("Integral"))) {
+    c.model = camera_model_from_id(integer_from<int>(model, "Camera: model", 0, std::numeric_limits<int>::max()));
   } else {
-    c.model = camera_model_from_id(model.cast<int>());
+    throw py::type_error("Camera: model: expected a model name (str) or a COLMAP model id (int); got " +
+                         value_and_type(model));
   }
   c.width = width;
   c.height = height;
@@ -60,38 +117,50 @@ struct OptionField {
   const char* doc;
 };
 
-#define LMB_OPTION(NAME, MEMBER, TYPE, DOC)                                              \
-  OptionField {                                                                          \
-    NAME, [](const LocalizerOptions& o) -> py::object { return py::cast(o.MEMBER); },    \
-        [](LocalizerOptions& o, const py::object& v) { o.MEMBER = v.cast<TYPE>(); }, DOC \
+// FROM: the conversion of the Python value (bool_from, real_from, integer_in<T, LO, HI>), whose
+// errors name the option.
+#define LMB_OPTION(NAME, MEMBER, FROM, DOC)                                           \
+  OptionField {                                                                       \
+    NAME, [](const LocalizerOptions& o) -> py::object { return py::cast(o.MEMBER); }, \
+        [](LocalizerOptions& o, const py::object& v) {                                \
+          o.MEMBER = FROM(v, std::string("LocalizerOptions: ") + NAME);               \
+        },                                                                            \
+        DOC                                                                           \
   }
 
+constexpr int kIntMax = std::numeric_limits<int>::max();
+
+// The integer ranges are those LocalizerOptions::check() accepts (pose_top_k is also <= top_k).
 const std::vector<OptionField>& option_fields() {
   static const std::vector<OptionField> fields = {
-      LMB_OPTION("top_k", classifier.top_k, int, "Matches kept per keypoint (>= 1)."),
-      LMB_OPTION("use_inverted_file", classifier.use_inverted_file, bool,
+      LMB_OPTION("top_k", classifier.top_k, (integer_in<int, 1, 1000000>), "Matches kept per keypoint (1..1000000)."),
+      LMB_OPTION("use_inverted_file", classifier.use_inverted_file, bool_from,
                  "Score only the candidate classes of the keypoint's visual word."),
-      LMB_OPTION("inverted_file_words", classifier.inverted_file_words, int,
+      LMB_OPTION("inverted_file_words", classifier.inverted_file_words, (integer_in<int, 1, kMaxVocabularyWords>),
                  "With the inverted file: the candidates of the keypoint's N nearest words (1 = its own)."),
-      LMB_OPTION("min_margin", classifier.min_margin, double,
+      LMB_OPTION("min_margin", classifier.min_margin, real_from,
                  "A match's score must exceed the background's by more than this (-inf: no rejection)."),
-      LMB_OPTION("min_score", classifier.min_score, double, "... and be at least this (-inf: no bound)."),
-      LMB_OPTION("screening", classifier.screening, bool,
+      LMB_OPTION("min_score", classifier.min_score, real_from, "... and be at least this (-inf: no bound)."),
+      LMB_OPTION("screening", classifier.screening, bool_from,
                  "Skip classes whose score bound cannot pass (same matches either way)."),
-      LMB_OPTION("pose_top_k", pose_top_k, int, "Matches per keypoint given to RANSAC (1..top_k)."),
-      LMB_OPTION("max_correspondences", max_correspondences, int,
+      LMB_OPTION("pose_top_k", pose_top_k, (integer_in<int, 1, 1000000>),
+                 "Matches per keypoint given to RANSAC (1..top_k)."),
+      LMB_OPTION("max_correspondences", max_correspondences, (integer_in<int, 0, kIntMax>),
                  "At most this many correspondences, the largest margins (0 = all)."),
-      LMB_OPTION("ransac_iterations", pose.max_iterations, int, "Most RANSAC hypotheses."),
-      LMB_OPTION("max_reprojection_error_px", pose.max_reprojection_error_px, double,
+      LMB_OPTION("ransac_iterations", pose.max_iterations, (integer_in<int, 1, kIntMax>),
+                 "Most RANSAC hypotheses (>= 1)."),
+      LMB_OPTION("max_reprojection_error_px", pose.max_reprojection_error_px, real_from,
                  "RANSAC inlier threshold, pixels."),
-      LMB_OPTION("ransac_confidence", pose.success_probability, double,
+      LMB_OPTION("ransac_confidence", pose.success_probability, real_from,
                  "RANSAC's early stop: probability that no better-supported pose was missed, in (0, 1)."),
-      LMB_OPTION("prosac", pose.progressive_sampling, bool,
+      LMB_OPTION("prosac", pose.progressive_sampling, bool_from,
                  "PROSAC: sample the matches of largest margin first (False = uniform sampling)."),
-      LMB_OPTION("seed", pose.seed, uint64_t, "RANSAC seed: equal seeds and inputs give equal results."),
-      LMB_OPTION("min_inliers", pose.min_inliers, int, "Fewest inliers for a pose (>= 4)."),
-      LMB_OPTION("refine", pose.refine, bool, "Non-linear refinement on the inliers."),
-      LMB_OPTION("min_confidence", min_confidence, double,
+      LMB_OPTION(
+          "seed", pose.seed, (integer_in<uint64_t, 0, static_cast<uint64_t>(std::numeric_limits<int64_t>::max())>),
+          "RANSAC seed (0..2**63 - 1, as every seed of the project): equal seeds and inputs give equal results."),
+      LMB_OPTION("min_inliers", pose.min_inliers, (integer_in<int, 4, kIntMax>), "Fewest inliers for a pose (>= 4)."),
+      LMB_OPTION("refine", pose.refine, bool_from, "Non-linear refinement on the inliers."),
+      LMB_OPTION("min_confidence", min_confidence, real_from,
                  "Probability a calibrated model's pose must reach (negative: the model's operating point)."),
   };
   return fields;
@@ -125,12 +194,28 @@ std::vector<Keypoint> keypoints_from(const py::array& a) {
   if (a.ndim() != 2 || a.shape(1) != 4) {
     throw py::value_error("localize: keypoints: expected an (n, 4) array of x, y, size, angle; got a " + describe(a));
   }
+  const char kind = a.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    throw py::value_error("localize: keypoints: expected real numbers (a float or integer array); got a " +
+                          describe(a));
+  }
   // float32 C-contiguous arrays are read as they are; other dtypes and layouts are converted.
   const auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
   if (!f) throw py::value_error("localize: keypoints: cannot convert a " + describe(a) + " to float32");
   std::vector<Keypoint> keypoints(static_cast<size_t>(a.shape(0)));
   if (!keypoints.empty())
     std::memcpy(static_cast<void*>(keypoints.data()), f.data(), keypoints.size() * sizeof(Keypoint));
+  // As float32 (values beyond its range are inf): what the library checks, and the angle, which it
+  // does not read.
+  for (size_t i = 0; i < keypoints.size(); ++i) {
+    const Keypoint& k = keypoints[i];
+    LMB_CHECK(std::isfinite(k.x) && std::isfinite(k.y) && std::isfinite(k.scale) && k.scale > 0.f &&
+                  std::isfinite(k.angle) && std::abs(k.angle) <= 360.f,
+              "localize: keypoints: row " << i << " (x, y, size, angle) = (" << k.x << ", " << k.y << ", " << k.scale
+                                          << ", " << k.angle
+                                          << "): x and y must be finite, size finite and > 0, angle degrees in "
+                                             "[-360, 360] (-1: none)");
+  }
   return keypoints;
 }
 
@@ -183,11 +268,20 @@ AreaWinner area_winner_from(const std::string& name) {
 
 std::optional<PositionPrior> prior_from(const py::object& prior) {
   if (prior.is_none()) return std::nullopt;
-  const auto t = prior.cast<py::tuple>();
-  if (t.size() != 2) throw py::value_error("prior: expected (position, radius) or None");
+  if ((!py::isinstance<py::tuple>(prior) && !py::isinstance<py::list>(prior)) || py::len(prior) != 2) {
+    throw py::value_error("prior: expected (position, radius) or None; got " + value_and_type(prior));
+  }
+  const auto t = prior.cast<py::sequence>();
+  const py::array position = py::module_::import("numpy").attr("asarray")(t[0]);
+  const char kind = position.dtype().kind();
+  if ((kind != 'f' && kind != 'i' && kind != 'u') || position.ndim() != 1 || position.shape(0) != 3) {
+    throw py::value_error("prior: position: expected 3 real numbers (x, y, z, world frame); got a " +
+                          describe(position));
+  }
+  const auto xyz = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(position);
   PositionPrior p;
-  p.position = t[0].cast<Eigen::Vector3d>();
-  p.radius = t[1].cast<double>();
+  p.position = Eigen::Vector3d(xyz.at(0), xyz.at(1), xyz.at(2));
+  p.radius = real_from(py::object(t[1]), "prior: radius");
   return p;
 }
 
@@ -232,7 +326,7 @@ PYBIND11_MODULE(_core, m) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const Error& e) {
-      error(e.what());
+      raise_error(error.ptr(), e.what());
     }
   });
   m.def(
@@ -570,6 +664,8 @@ damaged area fails alone; the others still load.)")
                   "Reads and checks bundle.txt; raises landmarkboost.Error naming the line.")
       .def_property_readonly("num_areas", [](const AreaBundle& b) { return b.areas().size(); })
       .def_property_readonly("reach", &AreaBundle::reach, "Metres: how far the map's cameras see.")
+      .def_property_readonly("map_fingerprint", &AreaBundle::map_fingerprint,
+                             "Fingerprint of the map the areas split (0: an index of version 1 or 2 records none).")
       .def_property_readonly("index_path", &AreaBundle::index_path)
       .def_property_readonly(
           "areas",
@@ -582,13 +678,17 @@ damaged area fails alone; the others still load.)")
               d["bytes"] = a.bytes;
               d["crc32"] = a.crc32;
               d["landmarks"] = a.landmarks;
+              d["first_landmark"] = a.first_landmark;
+              d["last_landmark"] = a.last_landmark;
+              d["classes"] = a.classes;
               d["cell_lo"] = a.cell_lo;
               d["cell_hi"] = a.cell_hi;
               out.append(d);
             }
             return out;
           },
-          "list of dict: id, file, bytes, crc32, landmarks, cell_lo, cell_hi (world frame; ends may be +-inf).")
+          "list of dict: id, file, bytes, crc32, landmarks, first_landmark, last_landmark, classes (the model's "
+          "classes fingerprint; 0 in indexes of version 1 and 2), cell_lo, cell_hi (world frame; ends may be +-inf).")
       .def(
           "select",
           [](const AreaBundle& b, const py::object& prior) {

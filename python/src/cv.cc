@@ -60,8 +60,14 @@ PYBIND11_MODULE(_cv, m) {
           cv::Mat input = mat;
           // The C++ front-end takes OpenCV's BGR order; an RGB image is converted to grey here
           // with the same weights, so both orders give the same pixels.
-          if (channels == "RGB" && c == 3) cv::cvtColor(mat, input, cv::COLOR_RGB2GRAY);
-          if (channels == "RGB" && c == 4) cv::cvtColor(mat, input, cv::COLOR_RGBA2GRAY);
+          try {
+            if (channels == "RGB" && c == 3) cv::cvtColor(mat, input, cv::COLOR_RGB2GRAY);
+            if (channels == "RGB" && c == 4) cv::cvtColor(mat, input, cv::COLOR_RGBA2GRAY);
+          } catch (const cv::Exception& e) {
+            // landmarkboost.Error with one line, as detect_features raises for OpenCV's failures.
+            throw Error("detect_features: OpenCV failed on a " + std::to_string(cols) + "x" + std::to_string(rows) +
+                        " image: " + e.err);
+          }
           f = detect_features(input, options);
         }
         const py::ssize_t n = static_cast<py::ssize_t>(f.keypoints.size());

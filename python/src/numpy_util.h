@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <exception>
 #include <string>
 #include <utility>
@@ -18,6 +19,20 @@ namespace lmb::python {
 
 namespace py = pybind11;
 
+// Raises the Python exception `type` with an lmb::Error's message. The message need not be UTF-8
+// (it may quote a damaged file's bytes): bytes that are not become \xNN escapes instead of an
+// exception without its message.
+inline void raise_error(PyObject* type, const char* what) {
+  PyObject* message = PyUnicode_DecodeUTF8(what, static_cast<Py_ssize_t>(std::strlen(what)), "backslashreplace");
+  if (message == nullptr) {
+    PyErr_Clear();
+    PyErr_SetString(type, "(an error whose message cannot be decoded)");
+    return;
+  }
+  PyErr_SetObject(type, message);
+  Py_DECREF(message);
+}
+
 // Makes lmb::Error thrown in this extension module raise landmarkboost._core.Error (for the
 // modules other than _core, which defines it).
 inline void translate_errors_to_core_error() {
@@ -26,7 +41,7 @@ inline void translate_errors_to_core_error() {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const Error& e) {
-      PyErr_SetString(error.ptr(), e.what());
+      raise_error(error.ptr(), e.what());
     }
   });
 }

@@ -55,6 +55,17 @@ def test_colour_orders_options_and_errors():
         cv.detect_features(rgb, detector="SIFT")
 
 
+def test_images_smaller_than_the_detector_takes_raise_landmarkboost_error():
+    for image in (np.zeros((4, 5), np.uint8), np.zeros((4, 5, 3), np.uint8), np.zeros((1, 1), np.uint8)):
+        h, w = image.shape[:2]
+        with pytest.raises(lb.Error, match=rf"^detect_features: image is {w}x{h} pixels, smaller than the 6x6 that "
+                                           r"BRISK with 3 octaves takes$"):
+            cv.detect_features(image)
+    with pytest.raises(lb.Error, match="image is 1x3 pixels, smaller than the 2x2 that ORB takes"):
+        cv.detect_features(np.zeros((3, 1), np.uint8), detector="ORB")
+    assert len(cv.detect_features(np.zeros((6, 6), np.uint8)).keypoints) == 0
+
+
 def test_read_image_decodes_as_the_mapper(tiny, tmp_path):
     m = lb.io.read_map(tiny.map)
     f = m.query_frames[0]

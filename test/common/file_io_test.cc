@@ -242,5 +242,98 @@ TEST_F(FileIoTest, TextLineReaderNumbersDataLines) {
   EXPECT_EQ(error_of([&] { TextLineReader x(dir_); }), dir_.string() + ": is a folder, not a file");
 }
 
+TEST_F(FileIoTest, TextLineReaderSkipsALeadingByteOrderMark) {
+  // A comment behind the mark stays a comment; a data line behind it has no stray bytes.
+  write_file_atomically(dir_ / "bom.txt", "\xEF\xBB\xBF# comment\r\n1 a\r\n");
+  TextLineReader r(dir_ / "bom.txt");
+  ASSERT_TRUE(r.next());
+  EXPECT_EQ(r.number(), 2);
+  EXPECT_EQ(r.tokens(), (std::vector<std::string>{"1", "a"}));
+  EXPECT_FALSE(r.next());
+  write_file_atomically(dir_ / "bom2.txt",
+                        "\xEF\xBB\xBF"
+                        "1 a\n2 \xEF\xBB\xBF\n");
+  TextLineReader r2(dir_ / "bom2.txt");
+  ASSERT_TRUE(r2.next());
+  EXPECT_EQ(r2.line(), "1 a");
+  EXPECT_EQ(r2.number(), 1);
+  ASSERT_TRUE(r2.next());
+  EXPECT_EQ(r2.line(), "2 \xEF\xBB\xBF");  // only the first bytes of the file are a mark
+  EXPECT_EQ(escape_control_bytes(std::string("a\0b\nc\td\x01", 8)), "a\\0b\\nc\\td\\x01");
+}
+
+// Inputs are never outputs: every spelling of an input, a path inside an input folder and a folder
+// holding an input are refused with one line naming both options; other paths pass.
+TEST_F(FileIoTest, OutputsThatAreInputsAreRefused) {
+  const fs::path map = dir_ / "m1.h5", sparse = dir_ / "C" / "sparse";
+  write_file_atomically(map, "map");
+  fs::create_directories(sparse);
+  write_file_atomically(sparse / "images.txt", "images");
+  const std::vector<NamedPath> inputs = {{map, "--map"}, {sparse, "--collection", true}, {"", "--vocab"}};
+  // `out` as an output file, or as an output folder.
+  const auto refusal = [&](const fs::path& out, bool folder = false) {
+    return error_of([&] { check_outputs_not_inputs({{out, "--out", folder}}, inputs); });
+  };
+  const std::string suffix = " (an output never replaces an input)";
+  // The same file: the same name, another spelling, a relative one, a hard link, a symbolic link.
+  EXPECT_EQ(refusal(map), "--out " + map.string() + " is the input --map " + map.string() + suffix);
+  EXPECT_EQ(refusal(dir_ / "." / "C" / ".." / "m1.h5"),
+            "--out " + (dir_ / "." / "C" / ".." / "m1.h5").string() + " is the input --map " + map.string() + suffix);
+  const fs::path relative = fs::relative(map, fs::current_path());
+  ASSERT_TRUE(relative.is_relative());
+  EXPECT_EQ(refusal(relative), "--out " + relative.string() + " is the input --map " + map.string() + suffix);
+  fs::create_hard_link(map, dir_ / "hard.h5");
+  EXPECT_EQ(refusal(dir_ / "hard.h5"),
+            "--out " + (dir_ / "hard.h5").string() + " is the input --map " + map.string() + suffix);
+  fs::create_symlink(map, dir_ / "soft.h5");
+  EXPECT_EQ(refusal(dir_ / "soft.h5"),
+            "--out " + (dir_ / "soft.h5").string() + " is the input --map " + map.string() + suffix);
+  // Inside an input folder, existing or not, also through a symbolic link to the folder.
+  EXPECT_EQ(refusal(sparse / "images.txt"), "--out " + (sparse / "images.txt").string() +
+                                                " lies inside the input --collection " + sparse.string() + suffix);
+  EXPECT_EQ(refusal(sparse / "new" / "x.txt"), "--out " + (sparse / "new" / "x.txt").string() +
+                                                   " lies inside the input --collection " + sparse.string() + suffix);
+  fs::create_directory_symlink(sparse, dir_ / "alias");
+  EXPECT_EQ(refusal(dir_ / "alias" / "cameras.txt"), "--out " + (dir_ / "alias" / "cameras.txt").string() +
+                                                         " lies inside the input --collection " + sparse.string() +
+                                                         suffix);
+  EXPECT_EQ(refusal(dir_ / "alias"),
+            "--out " + (dir_ / "alias").string() + " is the input --collection " + sparse.string() + suffix);
+  // An output folder that contains an input (with a trailing separator too), existing or not.
+  EXPECT_EQ(refusal(dir_, true), "--out " + dir_.string() + " contains the input --map " + map.string() + suffix);
+  EXPECT_EQ(refusal(dir_ / "C" / "", true),
+            "--out " + (dir_ / "C" / "").string() + " contains the input --collection " + sparse.string() + suffix);
+  const fs::path run = dir_ / "run", config = run / "new.toml";
+  EXPECT_EQ(error_of([&] {
+              check_outputs_not_inputs({{run, "--out", true}}, {{config, "--config"}});
+            }),
+            "--out " + run.string() + " contains the input --config " + config.string() + suffix);
+  // A path given for a file that is a folder: nothing can be written inside a file, and a file cannot
+  // replace a folder (the reader or writer says it is a folder).
+  EXPECT_EQ(refusal(dir_), "");
+  EXPECT_NO_THROW(check_outputs_not_inputs({{sparse / "poses.json", "--out"}}, {{sparse, "--model"}}));
+  // Unrelated paths pass: a sibling, a name that merely starts like an input folder, a new file.
+  EXPECT_EQ(refusal(dir_ / "poses.json"), "");
+  EXPECT_EQ(refusal(dir_ / "C" / "sparse2" / "x.txt"), "");
+  EXPECT_EQ(refusal(dir_ / "C" / "map.h5"), "");
+  EXPECT_EQ(refusal(dir_ / "new" / "run"), "");
+  EXPECT_NO_THROW(check_outputs_not_inputs({{"", "--json"}, {dir_ / "m2.h5", "--out"}}, inputs));
+  EXPECT_NO_THROW(check_outputs_not_inputs({{map, "--out"}}, {}));
+  // Neither exists yet: the same path is still the same file.
+  EXPECT_EQ(error_of([&] {
+              check_outputs_not_inputs({{dir_ / "a.json", "--report"}}, {{dir_ / "a.json", "--map"}});
+            }),
+            "--report " + (dir_ / "a.json").string() + " is the input --map " + (dir_ / "a.json").string() + suffix);
+  // The first output that is an input is named.
+  EXPECT_EQ(error_of([&] {
+              check_outputs_not_inputs({{dir_ / "ok.json", "--report"}, {map, "--keypoint-ranks"}}, inputs);
+            }),
+            "--keypoint-ranks " + map.string() + " is the input --map " + map.string() + suffix);
+  EXPECT_TRUE(same_file(map, dir_ / "hard.h5"));
+  EXPECT_TRUE(same_file(dir_ / "alias", sparse));
+  EXPECT_FALSE(same_file(map, sparse));
+  EXPECT_EQ(read_file(map), "map");
+}
+
 }  // namespace
 }  // namespace lmb

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <string>
@@ -15,11 +16,16 @@
 #include "common/io/colmap_model.h"
 #include "common/io/gravity_file.h"
 #include "common/io/map_h5.h"
+#include "common/io/session_file.h"
 #include "common/vocabulary.h"
+#include "infer/area_bundle.h"
+#include "infer/bundle_index.h"
 #include "infer/model.h"
 #include "test/common/io/test_maps.h"
 #include "test/fuzz/fuzz_util.h"
 #include "test/infer/test_models.h"
+#include "train/areas/area_file.h"
+#include "train/areas/area_split.h"
 #include "train/boost/boost_model.h"
 #include "train/boost/stump_learner.h"
 #include "train/boost/synthetic_problem.h"
@@ -177,6 +183,91 @@ void make_seeds(const fs::path& out, const fs::path& scratch) {
       write_checkpoint(path, ck);
       put(out / "checkpoint", path.filename().string(), read_file(path));
     }
+  }
+  // bundle.txt: the writer's version with 3 areas, without and with a calibration, and a version 1
+  // index (older `lboost bundle`); each opens (checked here).
+  {
+    const double inf = std::numeric_limits<double>::infinity();
+    BundleIndex index;
+    index.reach = 5.0558576932189325;
+    index.map_fingerprint = 0x0123456789abcdefULL;
+    for (int32_t id = 0; id < 3; ++id) {
+      BundleArea a;
+      a.id = id;
+      a.file = "area-" + std::to_string(id) + ".lbm";
+      a.bytes = 6246098 + id;
+      a.crc32 = 0x1a2b3c4du + static_cast<uint32_t>(id);
+      a.landmarks = 6866 + id;
+      a.first_landmark = 10 * id;
+      a.last_landmark = 9120 + id;
+      a.classes = 0xfedcba9876543210ULL + static_cast<uint64_t>(id);
+      a.cell_lo = Eigen::Vector3d(id == 0 ? -inf : id - 0.5, -inf, -inf);
+      a.cell_hi = Eigen::Vector3d(id == 2 ? inf : id + 0.5, inf, 2.5);
+      index.areas.push_back(a);
+    }
+    write_bundle_index(scratch / "bundle.txt", index);
+    put(out / "bundle_index", "three_areas.txt", read_file(scratch / "bundle.txt"));
+    PoseCalibration c;
+    for (size_t k = 0; k < c.weights.size(); ++k) c.weights[k] = 0.25 * static_cast<double>(k) - 0.5;
+    c.bias = -2.5;
+    c.threshold = 0.8;
+    c.num_samples = 50;
+    c.num_positive = 30;
+    c.target_precision = 0.95;
+    index.calibration = c;
+    write_bundle_index(scratch / "bundle.txt", index);
+    put(out / "bundle_index", "calibrated.txt", read_file(scratch / "bundle.txt"));
+    put(out / "bundle_index", "version1.txt",
+        "lmb-bundle 1\nreach 1.0\nareas 2\n"
+        "area 0 file area-0.lbm bytes 10 crc32 0000abcd landmarks 3 cell -inf -inf -inf 0 inf inf\n"
+        "area 1 file area-1.lbm bytes 12 crc32 ffffffff landmarks 4 cell 0 -inf -inf inf inf inf\n");
+    for (const char* name : {"three_areas.txt", "calibrated.txt", "version1.txt"}) {
+      AreaBundle::open(out / "bundle_index" / name);
+    }
+  }
+  // Areas files: the split of the map_h5 tests' random map into areas of 2 landmarks, and one
+  // area written by hand; each reads back (checked here).
+  {
+    const LandmarkMap map = test::random_map(1);
+    AreaSplitOptions options;
+    options.max_classes = 2;
+    options.min_observations = 1;
+    options.overlap = 0.5;
+    AreaFile file;
+    file.map_fingerprint = fingerprint_map(map);
+    file.map_landmarks = static_cast<int64_t>(map.landmarks.size());
+    file.split = split_map_into_areas(map, options);
+    write_area_file(scratch / "areas.txt", file, "test::random_map(1)");
+    put(out / "area_file", "random_map.txt", read_file(scratch / "areas.txt"));
+    AreaFile one;
+    one.map_fingerprint = 0x0123456789abcdefULL;
+    one.map_landmarks = 10;
+    one.split.options.max_classes = 4;
+    one.split.options.min_observations = 2;
+    one.split.options.overlap = 1.0;
+    one.split.options.reach = 2.5;
+    one.split.num_eligible = 4;
+    Area a;
+    a.landmarks = {1, 3, 4, 9};
+    a.num_core = 4;
+    a.bounds.lo = Eigen::Vector3d(0.0, -1.0, 0.5);
+    a.bounds.hi = Eigen::Vector3d(1.0, 2.0, 3.0);
+    one.split.areas = {a};
+    write_area_file(scratch / "one_area.txt", one, "");
+    put(out / "area_file", "one_area.txt", read_file(scratch / "one_area.txt"));
+    for (const char* name : {"random_map.txt", "one_area.txt"}) read_area_file(out / "area_file" / name);
+  }
+  // Sessions files: four sessions of every kind from the writer, and one with comments and blank
+  // lines; each reads back (checked here).
+  {
+    write_session_file({{"map", SessionKind::kMap},
+                        {"map-2", SessionKind::kMap},
+                        {"query_1", SessionKind::kQuery},
+                        {"outside.a", SessionKind::kOutside}},
+                       scratch / "sessions.txt");
+    put(out / "session_file", "four.txt", read_file(scratch / "sessions.txt"));
+    put(out / "session_file", "comments.txt", "# the sessions of a collection\n\nmap map\n# held out\nquery query\n");
+    for (const char* name : {"four.txt", "comments.txt"}) read_session_file(out / "session_file" / name);
   }
 }
 

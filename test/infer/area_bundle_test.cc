@@ -3,16 +3,23 @@
 // through the bundle (one area = the single model's result; several areas = the one that holds the
 // frame's landmarks wins) and BundleLocalizer's tracking mode.
 #include "infer/area_bundle.h"
+#include "infer/detail/bundle_search.h"
+#include "infer/detail/task_pool.h"
 
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -52,14 +59,9 @@ class AreaBundleTest : public ::testing::Test {
   // Saves `model` as area `id` of a bundle in `folder` (default: the test's folder).
   BundleArea add(const Model& model, int32_t id, double x_lo, double x_hi, const fs::path& folder = {}) {
     const fs::path dir = folder.empty() ? dir_ : folder;
-    BundleArea a;
-    a.id = id;
-    a.file = "area-" + std::to_string(id) + ".lbm";
-    model.save(dir / a.file);
-    const std::string image = read_file(dir / a.file);
-    a.bytes = image.size();
-    a.crc32 = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
-    a.landmarks = model.num_classes();
+    const std::string file = "area-" + std::to_string(id) + ".lbm";
+    model.save(dir / file);
+    BundleArea a = describe_area(id, file, read_file(dir / file), model);
     a.cell_lo = Eigen::Vector3d(x_lo, -kInf, -kInf);
     a.cell_hi = Eigen::Vector3d(x_hi, kInf, kInf);
     return a;
@@ -109,11 +111,11 @@ class AreaBundleTest : public ::testing::Test {
     Rng rng(29);
     const Eigen::Vector3d axis = f.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitZ();
     const double x = f.cam_from_world.center().x();
-    write_bundle_index(dir_ / "track.txt", 50.0,
-                       {add(*area_model(world, seen, rng, 0, 45, 3.0 * axis), 0, x - 1.0, x + 1.0),
-                        add(*area_model(world, seen, rng, 0, 60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0),
-                        add(*area_model(world, seen, rng, 0, 20, Eigen::Vector3d::Zero()), 2, x + 2.0, kInf),
-                        add(*area_model(world, seen, rng, 0, 0, Eigen::Vector3d::Zero()), 3, -kInf, x - 1.0)});
+    test::write_test_bundle(dir_ / "track.txt", 50.0,
+                            {add(*area_model(world, seen, rng, 0, 45, 3.0 * axis), 0, x - 1.0, x + 1.0),
+                             add(*area_model(world, seen, rng, 0, 60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0),
+                             add(*area_model(world, seen, rng, 0, 20, Eigen::Vector3d::Zero()), 2, x + 2.0, kInf),
+                             add(*area_model(world, seen, rng, 0, 0, Eigen::Vector3d::Zero()), 3, -kInf, x - 1.0)});
   }
   fs::path dir_;
 };
@@ -122,7 +124,7 @@ TEST_F(AreaBundleTest, OpensLazilyLoadsOnFirstUseAndReleases) {
   const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
   const Model model(test::make_code_model_data(world.positions));
   std::vector<BundleArea> areas = {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, 10.0), add(model, 2, 10.0, kInf)};
-  write_bundle_index(dir_ / "bundle.txt", 2.5, areas);
+  test::write_test_bundle(dir_ / "bundle.txt", 2.5, areas);
   const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
   ASSERT_EQ(bundle->areas().size(), 3u);
   EXPECT_EQ(bundle->reach(), 2.5);
@@ -144,7 +146,7 @@ TEST_F(AreaBundleTest, OpensLazilyLoadsOnFirstUseAndReleases) {
 TEST_F(AreaBundleTest, AModelTransformAppliesToEveryLoadAndItsErrorsAreTheAreas) {
   const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
   const Model model(test::make_code_model_data(world.positions));
-  write_bundle_index(dir_ / "bundle.txt", 2.5, {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, kInf)});
+  test::write_test_bundle(dir_ / "bundle.txt", 2.5, {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, kInf)});
   const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
   const auto before = bundle->model(0);
   EXPECT_EQ(before->data().bias, model.data().bias);
@@ -193,7 +195,7 @@ TEST_F(AreaBundleTest, EvictsTheLeastRecentlyUsedAreasBeyondTheLimits) {
   const Model model(test::make_code_model_data(world.positions));
   std::vector<BundleArea> areas;
   for (int32_t i = 0; i < 4; ++i) areas.push_back(add(model, i, i == 0 ? -kInf : i, i == 3 ? kInf : i + 1.0));
-  write_bundle_index(dir_ / "bundle.txt", 1.0, areas);
+  test::write_test_bundle(dir_ / "bundle.txt", 1.0, areas);
   const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
   EXPECT_THROW(bundle->set_cache_limits({-1, 0}), Error);
   bundle->set_cache_limits({2, 0});
@@ -233,7 +235,7 @@ TEST_F(AreaBundleTest, EvictsTheLeastRecentlyUsedAreasBeyondTheLimits) {
     prior.position = Eigen::Vector3d(x, 0, 0);
     prior.radius = 0.0;
     const BundleLocalizeResult r =
-        localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
+        detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
     EXPECT_FALSE(r.scored.empty());
     EXPECT_LE(bundle->loaded_ids().size(), 2u);
   }
@@ -242,8 +244,8 @@ TEST_F(AreaBundleTest, EvictsTheLeastRecentlyUsedAreasBeyondTheLimits) {
 TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
   const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
   const Model model(test::make_code_model_data(world.positions));
-  write_bundle_index(dir_ / "bundle.txt", 1.0,
-                     {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, 10.0), add(model, 2, 10.0, kInf)});
+  test::write_test_bundle(dir_ / "bundle.txt", 1.0,
+                          {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, 10.0), add(model, 2, 10.0, kInf)});
   // Area 1: one byte flipped; area 2: missing.
   std::string image = read_file(dir_ / "area-1.lbm");
   image[image.size() / 2] ^= 0x10;
@@ -264,10 +266,140 @@ TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
   // localize_in_bundle scores the good area and reports the others.
   const test::TestFrame& f = world.frame;
   const BundleLocalizeResult r =
-      localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+      detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
   EXPECT_EQ(r.scored, std::vector<int32_t>{0});
   EXPECT_EQ(r.errors.size(), 2u);
   EXPECT_EQ(r.area, 0);
+}
+
+// The pool that scores a frame's areas: every task of a batch runs once, on up to threads()
+// threads at a time, run() returns when all have finished and rethrows the first failure in task
+// order; batches of several callers run at once.
+TEST(TaskPool, RunsEveryTaskOnceAndRethrowsTheFirstFailure) {
+  detail::TaskPool pool(3);
+  EXPECT_EQ(pool.threads(), 3);
+  std::vector<std::atomic<int>> runs(50);
+  std::atomic<int> running{0}, most{0};
+  std::vector<std::function<void()>> tasks;
+  for (size_t i = 0; i < runs.size(); ++i) {
+    tasks.emplace_back([&, i] {
+      const int now = ++running;
+      for (int m = most; now > m && !most.compare_exchange_weak(m, now);) {
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      ++runs[i];
+      --running;
+    });
+  }
+  pool.run(tasks);
+  for (const auto& r : runs) EXPECT_EQ(r.load(), 1);
+  EXPECT_LE(most.load(), 3);
+  std::vector<std::function<void()>> failing = {[] {}, [] { throw Error("second"); }, [] { throw Error("third"); }};
+  try {
+    pool.run(failing);
+    ADD_FAILURE() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "second");
+  }
+  // Two callers at once, each waits for its own batch.
+  std::atomic<int> done{0};
+  std::vector<std::function<void()>> batch;
+  for (int i = 0; i < 20; ++i) batch.emplace_back([&] { ++done; });
+  std::thread other([&] { pool.run(batch); });
+  pool.run(batch);
+  other.join();
+  EXPECT_EQ(done.load(), 40);
+  EXPECT_THROW(detail::TaskPool(0), Error);
+}
+
+// An area's file replaced by another model, even with the index's bytes and CRC-32 made to match
+// it, fails to load alone: its classes are not the ones the index records.
+TEST_F(AreaBundleTest, AnAreaWhoseModelIsNotTheIndexedOneFailsAlone) {
+  const test::TestWorld world = test::make_test_world(40, 30, 20, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  std::vector<Eigen::Vector3d> moved = world.positions;
+  for (Eigen::Vector3d& p : moved) p.x() += 1e-3;  // another map: the same landmarks 1 mm away
+  const Model other(test::make_code_model_data(moved));
+  const std::vector<BundleArea> areas = {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, kInf)};
+  other.save(dir_ / "area-1.lbm");
+  std::vector<BundleArea> forged = areas;
+  const BundleArea of_other = describe_area(1, "area-1.lbm", read_file(dir_ / "area-1.lbm"), other);
+  forged[1].bytes = of_other.bytes;
+  forged[1].crc32 = of_other.crc32;
+  test::write_test_bundle(dir_ / "bundle.txt", 1.0, forged);
+  const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_NO_THROW(bundle->model(0));
+  const std::string what = load_error(*bundle, 1);
+  EXPECT_NE(what.find(": area 1 (area-1.lbm): its classes (landmark ids and positions) differ"), std::string::npos)
+      << what;
+  EXPECT_FALSE(bundle->loaded(1));
+  // The entry's fingerprint is of the classes alone: the same model in another file loads.
+  EXPECT_EQ(of_other.classes, fingerprint_classes(other));
+  EXPECT_NE(of_other.classes, areas[1].classes);
+  EXPECT_EQ(areas[0].classes, areas[1].classes);
+}
+
+// Indexes of versions 1 and 2 (no map, areas by class count only) still open and load.
+TEST_F(AreaBundleTest, VersionOneAndTwoIndexesStillOpen) {
+  const test::TestWorld world = test::make_test_world(10, 8, 2, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  const BundleArea a = add(model, 0, -kInf, kInf);
+  char crc[16];
+  std::snprintf(crc, sizeof(crc), "%08x", a.crc32);
+  const std::string area_line = "area 0 file area-0.lbm bytes " + std::to_string(a.bytes) + " crc32 " + crc +
+                                " landmarks " + std::to_string(a.landmarks) + " cell -inf -inf -inf inf inf inf\n";
+  write_file_atomically(dir_ / "v1.txt", "lmb-bundle 1\nreach 1.5\nareas 1\n" + area_line);
+  write_file_atomically(dir_ / "v2.txt",
+                        "lmb-bundle 2\nreach 1.5\ncalibration 0 0 0 0 0 0 0 0 0.5 10 5 0.95\nareas 1\n" + area_line);
+  for (const char* name : {"v1.txt", "v2.txt"}) {
+    const auto bundle = AreaBundle::open(dir_ / name);
+    EXPECT_EQ(bundle->map_fingerprint(), 0u) << name;
+    EXPECT_EQ(bundle->calibrated(), std::string(name) == "v2.txt");
+    EXPECT_EQ(bundle->model(0)->num_classes(), model.num_classes());
+  }
+  // A class count other than the model's is refused on load, in every version.
+  std::string wrong = area_line;
+  const std::string count = " landmarks " + std::to_string(a.landmarks) + " ";
+  wrong.replace(wrong.find(count), count.size(), " landmarks 3 ");
+  write_file_atomically(dir_ / "v1.txt", "lmb-bundle 1\nreach 1.5\nareas 1\n" + wrong);
+  EXPECT_NE(load_error(*AreaBundle::open(dir_ / "v1.txt"), 0)
+                .find(std::to_string(model.num_classes()) + " classes, the bundle index says 3"),
+            std::string::npos);
+}
+
+// A bundle made in memory (AreaBundle::create) is the bundle its written index opens.
+TEST_F(AreaBundleTest, ABundleInMemoryEqualsItsWrittenIndex) {
+  const test::TestWorld world = test::make_test_world(10, 8, 2, 5);
+  const Model model(test::make_code_model_data(world.positions));
+  BundleIndex index;
+  index.reach = 2.0;
+  index.map_fingerprint = test::kTestMapFingerprint;
+  index.areas = {add(model, 0, -kInf, 0.0), add(model, 1, 0.0, kInf)};
+  const auto memory = AreaBundle::create(dir_ / "bundle.txt", index);
+  EXPECT_FALSE(fs::exists(dir_ / "bundle.txt"));
+  write_bundle_index(dir_ / "bundle.txt", index);
+  const auto file = AreaBundle::open(dir_ / "bundle.txt");
+  EXPECT_EQ(memory->map_fingerprint(), file->map_fingerprint());
+  EXPECT_EQ(memory->reach(), file->reach());
+  ASSERT_EQ(memory->areas().size(), file->areas().size());
+  for (size_t i = 0; i < file->areas().size(); ++i) {
+    EXPECT_EQ(memory->areas()[i].classes, file->areas()[i].classes);
+    EXPECT_EQ(memory->areas()[i].first_landmark, file->areas()[i].first_landmark);
+    EXPECT_EQ(memory->areas()[i].last_landmark, file->areas()[i].last_landmark);
+  }
+  EXPECT_EQ(memory->model(1)->num_classes(), model.num_classes());
+  // The writer refuses what the reader would: a file outside the folder, one file for two areas,
+  // no map fingerprint.
+  BundleIndex bad = index;
+  bad.areas[1].file = "../area-1.lbm";
+  EXPECT_THROW(write_bundle_index(dir_ / "bad.txt", bad), Error);
+  bad = index;
+  bad.areas[1].file = bad.areas[0].file;
+  EXPECT_THROW(write_bundle_index(dir_ / "bad.txt", bad), Error);
+  bad = index;
+  bad.map_fingerprint = 0;
+  EXPECT_THROW(write_bundle_index(dir_ / "bad.txt", bad), Error);
+  EXPECT_FALSE(fs::exists(dir_ / "bad.txt"));
 }
 
 // Every area of a bundle reads the frame's descriptors with one length: an area whose model has
@@ -282,7 +414,7 @@ TEST_F(AreaBundleTest, AnAreaWithAnotherDescriptorLengthFailsAlone) {
   for (auto& b : words) b = static_cast<uint8_t>(rng.below(256));
   wide_data.vocabulary = Vocabulary(wide_data.descriptor_bytes, words);
   const Model wide(std::move(wide_data));
-  write_bundle_index(dir_ / "bundle.txt", 1.0, {add(model, 0, -kInf, 0.0), add(wide, 1, 0.0, kInf)});
+  test::write_test_bundle(dir_ / "bundle.txt", 1.0, {add(model, 0, -kInf, 0.0), add(wide, 1, 0.0, kInf)});
   const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
   EXPECT_EQ(bundle->descriptor_bytes(), -1);
   EXPECT_NO_THROW(bundle->model(0));
@@ -294,7 +426,7 @@ TEST_F(AreaBundleTest, AnAreaWithAnotherDescriptorLengthFailsAlone) {
   EXPECT_FALSE(bundle->loaded(1));
   const test::TestFrame& f = world.frame;
   const BundleLocalizeResult r =
-      localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+      detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
   EXPECT_EQ(r.scored, std::vector<int32_t>{0});
   ASSERT_EQ(r.errors.size(), 1u);
   // The other way round: the wide area first, then the 8-byte one fails.
@@ -307,7 +439,7 @@ TEST_F(AreaBundleTest, AnAreaWithAnotherDescriptorLengthFailsAlone) {
 TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
   const test::TestWorld world = test::make_test_world(10, 8, 2, 5);
   const Model model(test::make_code_model_data(world.positions));
-  write_bundle_index(dir_ / "bundle.txt", 1.0, {add(model, 0, -kInf, kInf)});
+  test::write_test_bundle(dir_ / "bundle.txt", 1.0, {add(model, 0, -kInf, kInf)});
   const std::string good = read_file(dir_ / "bundle.txt");
   // An index of this text fails to open with a message naming the file and holding `needle`.
   auto expect_text_rejected = [&](const std::string& text, const std::string& needle) {
@@ -328,24 +460,36 @@ TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
     expect_text_rejected(text, needle);
   };
   expect_rejected("reach 1", "reach -1", "reach -1 is negative");
-  // The line named is the one at fault (the header, a comment, then reach and areas).
+  // The line named is the one at fault (the header, a comment, then reach, map and areas).
   expect_rejected("reach 1", "reach x", "bad.txt line 3: reach is not a number: 'x'");
-  expect_rejected("areas 1", "areas x", "bad.txt line 4: areas is not a number");
+  expect_rejected("map ", "map 0", "bad.txt line 4: map is not 16 hex digits");
+  expect_rejected("areas 1", "areas x", "bad.txt line 5: areas is not a number");
   expect_rejected("areas 1", "areas 2", "ends before the 'area' line");
   expect_rejected(" crc32 ", " crc ", "expected 'crc32'");
-  expect_rejected("file area-0.lbm", "file /abs/area-0.lbm", "must be relative");
+  expect_rejected(" classes ", " class ", "expected 'classes'");
+  // An area's file is a plain name in the bundle's folder.
+  for (const std::string name :
+       {"/abs/area-0.lbm", "../area-0.lbm", "sub/area-0.lbm", "..", ".", "a\x01.lbm", "a\xff.lbm", "a\xc3.lbm"}) {
+    expect_rejected("file area-0.lbm", "file " + name, "must be a file name in the bundle's folder");
+  }
   expect_rejected(" cell -inf", " cell inf", "cell on axis 0 lies at infinity");
-  // Version 2 needs its calibration line; version 3 is refused.
-  expect_rejected("reach 1", "reach 1\ncalibration 0 0 0 0 0 0 0 0 0.5 1 1 0.9", "bad.txt line 4: expected 'areas'");
-  std::string v2 = good;
-  v2.replace(v2.find("lmb-bundle 1"), 12, "lmb-bundle 2");
-  expect_text_rejected(v2, "bad.txt line 4: expected 'calibration'");
-  std::string v3 = good;
-  v3.replace(v3.find("lmb-bundle 1"), 12, "lmb-bundle 3");
-  expect_text_rejected(v3, "bad.txt line 1: format version 3 is not supported");
-  v2.replace(v2.find("areas 1"), 7, "calibration 0 0 0 0 0 0 0 0 1.5 1 1 0.9\nareas 1");
-  expect_text_rejected(v2, "bad.txt line 4: calibration");
-
+  // A line of white space only where the calibration or areas line belongs.
+  expect_rejected("areas 1", "\v\nareas 1", "bad.txt line 5: expected 'areas'");
+  {
+    // A landmark range narrower than the class count.
+    const size_t at = good.rfind(" first_landmark ") + 16;  // the area line, not the comment
+    const std::string first = good.substr(at, good.find(' ', at) - at);
+    const size_t last_at = good.rfind(" last_landmark ") + 15;
+    const std::string last = good.substr(last_at, good.find(' ', last_at) - last_at);
+    expect_rejected(" last_landmark " + last + " ", " last_landmark " + first + " ", "cannot hold");
+  }
+  // The calibration line is optional; one value short is refused; version 4 is refused.
+  expect_rejected("areas 1", "calibration 0 0 0 0 0 0 0 0 0.5 1 1\nareas 1",
+                  "bad.txt line 5: expected 'calibration' and 12 value(s)");
+  expect_rejected("areas 1", "calibration 0 0 0 0 0 0 0 0 1.5 1 1 0.9\nareas 1", "bad.txt line 5: calibration");
+  std::string v4 = good;
+  v4.replace(v4.find("lmb-bundle 3"), 12, "lmb-bundle 4");
+  expect_text_rejected(v4, "bad.txt line 1: format version 4 is not supported");
   EXPECT_THROW(AreaBundle::open(dir_ / "missing.txt"), Error);
 }
 
@@ -355,7 +499,7 @@ TEST_F(AreaBundleTest, PriorSelectsTheAreasWithinRadiusPlusReach) {
   std::vector<BundleArea> areas;
   const std::vector<double> cuts = {-kInf, 0.0, 4.0, 8.0, 12.0, kInf};
   for (int32_t i = 0; i < 5; ++i) areas.push_back(add(model, i, cuts[i], cuts[i + 1]));
-  write_bundle_index(dir_ / "bundle.txt", 1.5, areas);
+  test::write_test_bundle(dir_ / "bundle.txt", 1.5, areas);
   const auto bundle = AreaBundle::open(dir_ / "bundle.txt");
   EXPECT_EQ(bundle->select(nullptr), (std::vector<int32_t>{0, 1, 2, 3, 4}));
   PositionPrior prior;
@@ -385,10 +529,10 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   const std::shared_ptr<const Model>& model = n.model;
   const Model& far_model = *n.far_model;
   const test::TestFrame& f = n.world.frame;
-  write_bundle_index(dir_ / "one.txt", 1.0, {add(*model, 0, -kInf, kInf)});
+  test::write_test_bundle(dir_ / "one.txt", 1.0, {add(*model, 0, -kInf, kInf)});
   const auto one = AreaBundle::open(dir_ / "one.txt");
   const BundleLocalizeResult b =
-      localize_in_bundle(*one, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+      detail::localize_in_bundle(*one, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
   const LocalizeResult single =
       Localizer(model).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
   ASSERT_EQ(b.area, 0);
@@ -400,10 +544,10 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   EXPECT_EQ(b.result.correspondence_keypoint, single.correspondence_keypoint);
   // Two areas: the far one first, then the frame's own; the own area wins on inliers. With a prior
   // near the far area only, only it is scored.
-  write_bundle_index(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
+  test::write_test_bundle(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
   const auto two = AreaBundle::open(dir_ / "two.txt");
   const BundleLocalizeResult both =
-      localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+      detail::localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
   EXPECT_EQ(both.scored, (std::vector<int32_t>{0, 1}));
   EXPECT_EQ(both.area, 1);
   EXPECT_EQ(both.inliers[1], single.pose.num_inliers);
@@ -412,7 +556,7 @@ TEST_F(AreaBundleTest, OneAreaEqualsTheSingleModelAndTheRightAreaWins) {
   prior.position = Eigen::Vector3d(50, 0, 0);
   prior.radius = 5.0;
   const BundleLocalizeResult far_only =
-      localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
+      detail::localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior);
   EXPECT_EQ(far_only.scored, std::vector<int32_t>{0});
 }
 
@@ -431,13 +575,14 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   const auto area_model = [&](size_t first, size_t count, const Eigen::Vector3d& offset) {
     return AreaBundleTest::area_model(world, seen, rng, first, count, offset);
   };
-  write_bundle_index(dir_ / "aliased.txt", 1.0,
-                     {add(*area_model(0, 36, shift), 0, -kInf, 0.0), add(*area_model(0, 30, {0, 0, 0}), 1, 0.0, 1.0),
-                      add(*area_model(30, 30, {0, 0, 0}), 2, 1.0, kInf)});
+  test::write_test_bundle(
+      dir_ / "aliased.txt", 1.0,
+      {add(*area_model(0, 36, shift), 0, -kInf, 0.0), add(*area_model(0, 30, {0, 0, 0}), 1, 0.0, 1.0),
+       add(*area_model(30, 30, {0, 0, 0}), 2, 1.0, kInf)});
   const auto bundle = AreaBundle::open(dir_ / "aliased.txt");
   const auto run = [&](AreaWinner winner) {
-    return localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
-                              AreaSearch::kAll, winner);
+    return detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr,
+                                      {}, AreaSearch::kAll, winner);
   };
   const BundleLocalizeResult by_support = run(AreaWinner::kSupport);
   ASSERT_EQ(by_support.scored, (std::vector<int32_t>{0, 1, 2}));
@@ -465,19 +610,19 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   EXPECT_EQ(by_support.localized, by_support.result.localized);
   // localize_in_areas: the areas given, in that order, as a bundle search without a prior.
   const BundleLocalizeResult listed =
-      localize_in_areas(*bundle, {2, 0, 1}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+      detail::localize_in_areas(*bundle, {2, 0, 1}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
   EXPECT_EQ(listed.scored, (std::vector<int32_t>{2, 0, 1}));
   EXPECT_EQ(listed.support, (std::vector<int32_t>{60, 36, 60}));
   EXPECT_EQ(listed.area, 1);  // ties on support and inliers: the smaller id
   const BundleLocalizeResult alone =
-      localize_in_areas(*bundle, {0}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+      detail::localize_in_areas(*bundle, {0}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
   EXPECT_EQ(alone.area, 0);
   EXPECT_EQ(alone.support, std::vector<int32_t>{36});
   EXPECT_EQ(alone.rival_support, 0);
-  EXPECT_THROW(localize_in_areas(*bundle, {0, 3}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam),
-               Error);
-  EXPECT_THROW(localize_in_areas(*bundle, {1, 1}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam),
-               Error);
+  EXPECT_THROW(
+      detail::localize_in_areas(*bundle, {0, 3}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam), Error);
+  EXPECT_THROW(
+      detail::localize_in_areas(*bundle, {1, 1}, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam), Error);
   // A calibrated bundle (index version 2): the confidence is the calibration's probability of the
   // bundle's evidence, localized at its operating point or at options.min_confidence.
   PoseCalibration c;
@@ -488,8 +633,8 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   c.num_positive = 30;
   c.target_precision = 0.95;
   std::vector<BundleArea> areas = bundle->areas();
-  write_bundle_index(dir_ / "calibrated.txt", 1.0, areas, &c);
-  EXPECT_EQ(read_file(dir_ / "calibrated.txt").rfind("lmb-bundle 2\n", 0), 0u);
+  test::write_test_bundle(dir_ / "calibrated.txt", 1.0, areas, &c);
+  EXPECT_NE(read_file(dir_ / "calibrated.txt").find("\ncalibration "), std::string::npos);
   const auto calibrated = AreaBundle::open(dir_ / "calibrated.txt");
   ASSERT_TRUE(calibrated->calibrated());
   EXPECT_EQ(calibrated->calibration().weights, c.weights);
@@ -499,8 +644,8 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   EXPECT_EQ(calibrated->calibration().num_positive, 30);
   EXPECT_EQ(calibrated->calibration().target_precision, 0.95);
   EXPECT_FALSE(bundle->calibrated());
-  const BundleLocalizeResult cal = localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(),
-                                                      f.gravity_in_cam, nullptr, {}, AreaSearch::kAll);
+  const BundleLocalizeResult cal = detail::localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(),
+                                                              f.gravity_in_cam, nullptr, {}, AreaSearch::kAll);
   ASSERT_EQ(cal.area, 1);
   EXPECT_TRUE(cal.calibrated);
   EXPECT_EQ(cal.confidence, c.probability(cal.evidence));
@@ -508,13 +653,13 @@ TEST_F(AreaBundleTest, TheWinnerExplainsMostKeypointsWithEveryAreasMatches) {
   EXPECT_EQ(cal.localized, cal.confidence >= 0.5);
   LocalizerOptions strict;
   strict.min_confidence = 1.0;
-  const BundleLocalizeResult never = localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(),
-                                                        f.gravity_in_cam, nullptr, strict, AreaSearch::kAll);
+  const BundleLocalizeResult never = detail::localize_in_bundle(
+      *calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, strict, AreaSearch::kAll);
   EXPECT_EQ(never.confidence_threshold, 1.0);
   EXPECT_FALSE(never.localized);
   strict.min_confidence = 0.0;
-  EXPECT_TRUE(localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr,
-                                 strict, AreaSearch::kAll)
+  EXPECT_TRUE(detail::localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
+                                         nullptr, strict, AreaSearch::kAll)
                   .localized);
   // The bundle localizer takes the rule from its options.
   BundleLocalizerOptions options;
@@ -579,15 +724,15 @@ TEST_F(AreaBundleTest, NearestFirstStopsAtTheFirstCalibratedLocalizedArea) {
                             AreaSearch search) {
     const fs::path folder = dir_ / ("case-" + std::to_string(case_id++));
     fs::create_directories(folder);
-    write_bundle_index(folder / "bundle.txt", 1.0,
-                       {add(*model(far_data, far_bias), 0, 25.0, kInf, folder),
-                        add(*model(own_data, own_bias), 1, -kInf, 25.0, folder)});
+    test::write_test_bundle(folder / "bundle.txt", 1.0,
+                            {add(*model(far_data, far_bias), 0, 25.0, kInf, folder),
+                             add(*model(own_data, own_bias), 1, -kInf, 25.0, folder)});
     const auto two = AreaBundle::open(folder / "bundle.txt");
     PositionPrior prior;
     if (at != nullptr) prior.position = *at;
     prior.radius = 30.0;  // both areas selected
-    return localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
-                              at != nullptr ? &prior : nullptr, {}, search);
+    return detail::localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
+                                      at != nullptr ? &prior : nullptr, {}, search);
   };
   const auto run = [&](std::optional<double> own_bias, std::optional<double> far_bias, const Eigen::Vector3d& at,
                        AreaSearch search) { return run_with(own_bias, far_bias, &at, search); };
@@ -644,7 +789,7 @@ TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
     if (id == 2) d.calibration = constant_calibration(8.0);
     areas.push_back(add(Model(std::move(d)), id, id == 0 ? -kInf : id, id == 4 ? kInf : id + 1.0));
   }
-  write_bundle_index(dir_ / "five.txt", 1.0, areas);
+  test::write_test_bundle(dir_ / "five.txt", 1.0, areas);
   std::string image = read_file(dir_ / "area-3.lbm");
   image[image.size() / 2] ^= 0x10;
   write_file_atomically(dir_ / "area-3.lbm", image);
@@ -656,8 +801,8 @@ TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
     for (AreaSearch search : {AreaSearch::kNearestFirst, AreaSearch::kAll}) {
       const auto run = [&](int threads) {
         const auto bundle = AreaBundle::open(dir_ / "five.txt");
-        return localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, p, {}, search,
-                                  AreaWinner::kSupport, threads);
+        return detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, p, {},
+                                          search, AreaWinner::kSupport, threads);
       };
       const BundleLocalizeResult one = run(1);
       if (p != nullptr && search == AreaSearch::kNearestFirst) {
@@ -680,12 +825,12 @@ TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
     PoseCalibration c;
     c.bias = bias;
     c.threshold = 0.5;
-    write_bundle_index(dir_ / "five_cal.txt", 1.0, areas, &c);
+    test::write_test_bundle(dir_ / "five_cal.txt", 1.0, areas, &c);
     for (int threads : {1, 3}) {
       const auto calibrated = AreaBundle::open(dir_ / "five_cal.txt");
       const BundleLocalizeResult r =
-          localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior, {},
-                             AreaSearch::kNearestFirst, AreaWinner::kSupport, threads);
+          detail::localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior,
+                                     {}, AreaSearch::kNearestFirst, AreaWinner::kSupport, threads);
       if (bias > 0) {
         EXPECT_EQ(r.scored, std::vector<int32_t>{0}) << threads;
         EXPECT_EQ(r.area, 0);
@@ -693,16 +838,16 @@ TEST_F(AreaBundleTest, AreaThreadsGiveTheOneThreadResult) {
       } else {
         EXPECT_EQ(r.scored, (std::vector<int32_t>{0, 1, 2, 4})) << threads;  // area 3 is damaged
         EXPECT_FALSE(r.localized);
-        EXPECT_EQ(r.area, localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
-                                             &prior, {}, AreaSearch::kAll)
+        EXPECT_EQ(r.area, detail::localize_in_bundle(*calibrated, f.camera, f.keypoints, f.descriptors.data(),
+                                                     f.gravity_in_cam, &prior, {}, AreaSearch::kAll)
                               .area);
       }
     }
   }
   const auto bundle = AreaBundle::open(dir_ / "five.txt");
   for (int bad : {0, -1, 257}) {
-    EXPECT_THROW(localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
-                                    AreaSearch::kAll, AreaWinner::kSupport, bad),
+    EXPECT_THROW(detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam,
+                                            nullptr, {}, AreaSearch::kAll, AreaWinner::kSupport, bad),
                  Error)
         << bad;
     BundleLocalizerOptions options;
@@ -717,7 +862,7 @@ TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne
   const Model& far_model = *n.far_model;
   const test::TestFrame& f = n.world.frame;
   const Eigen::Vector3d centre = f.cam_from_world.center();
-  write_bundle_index(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
+  test::write_test_bundle(dir_ / "two.txt", 1.0, {add(far_model, 0, 25.0, kInf), add(*model, 1, -kInf, 25.0)});
   BundleLocalizerOptions options;
   options.tracking_radius = 2.0;
   BundleLocalizer localizer(AreaBundle::open(dir_ / "two.txt"), options);
@@ -751,7 +896,7 @@ TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne
 
   // The frame's own area sits where the last pose is not: the prior's area (missing) gives no pose,
   // so track() relocalizes in every area, reporting the missing one once.
-  write_bundle_index(dir_ / "swapped.txt", 1.0, {add(*model, 0, 25.0, kInf), add(far_model, 1, -kInf, 25.0)});
+  test::write_test_bundle(dir_ / "swapped.txt", 1.0, {add(*model, 0, 25.0, kInf), add(far_model, 1, -kInf, 25.0)});
   fs::remove(dir_ / "area-1.lbm");
   BundleLocalizer swapped(AreaBundle::open(dir_ / "swapped.txt"), options);
   const BundleLocalizeResult a = swapped.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
@@ -780,8 +925,8 @@ TEST_F(AreaBundleTest, TrackingUsesTheLastPoseAsThePriorAndRelocalizesWithoutOne
     PoseCalibration constant;
     constant.bias = bias;
     constant.threshold = 0.5;
-    write_bundle_index(folder / "bundle.txt", 1.0,
-                       {add(far_model, 0, 25.0, kInf, folder), add(*model, 1, -kInf, 25.0, folder)}, &constant);
+    test::write_test_bundle(folder / "bundle.txt", 1.0,
+                            {add(far_model, 0, 25.0, kInf, folder), add(*model, 1, -kInf, 25.0, folder)}, &constant);
     BundleLocalizer calibrated(AreaBundle::open(folder / "bundle.txt"), options);
     const BundleLocalizeResult one = calibrated.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
     const BundleLocalizeResult two = calibrated.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
@@ -814,14 +959,14 @@ TEST_F(AreaBundleTest, WinnersViewScoresTheAreasTheWinningPoseSeesNextOnAnyThrea
   image[image.size() / 2] ^= 0x10;
   write_file_atomically(dir_ / "area-4.lbm", image);
   areas.push_back(damaged);
-  write_bundle_index(dir_ / "view.txt", 50.0, areas);
+  test::write_test_bundle(dir_ / "view.txt", 50.0, areas);
   PositionPrior prior;
   prior.position = f.cam_from_world.center();
   prior.radius = 0.5;  // every area (reach 50 m)
   const auto run = [&](AreaSearch search, int threads) {
     const auto bundle = AreaBundle::open(dir_ / "view.txt");
-    return localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior, {},
-                              search, AreaWinner::kSupport, threads);
+    return detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, &prior,
+                                      {}, search, AreaWinner::kSupport, threads);
   };
   // Uncalibrated: nothing stops the search, so the order shows. Nearest first: area 0 (its cell
   // holds the prior), then 1, 3 and 4 (1 m; by id), then 2 (2 m).
@@ -848,12 +993,12 @@ TEST_F(AreaBundleTest, WinnersViewScoresTheAreasTheWinningPoseSeesNextOnAnyThrea
   PoseCalibration accept;
   accept.bias = 50.0;
   accept.threshold = 0.5;
-  write_bundle_index(dir_ / "view.txt", 50.0, areas, &accept);
+  test::write_test_bundle(dir_ / "view.txt", 50.0, areas, &accept);
   for (int threads : {1, 2}) EXPECT_EQ(run(AreaSearch::kWinnersView, threads).scored, std::vector<int32_t>{0});
   // Without a prior every area is scored in id order (kAll), whatever the search.
   const auto bundle = AreaBundle::open(dir_ / "view.txt");
-  EXPECT_EQ(localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr, {},
-                               AreaSearch::kWinnersView)
+  EXPECT_EQ(detail::localize_in_bundle(*bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr,
+                                       {}, AreaSearch::kWinnersView)
                 .scored,
             (std::vector<int32_t>{0, 1, 2, 3}));
   BundleLocalizerOptions options;
@@ -942,7 +1087,7 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   // A look-alike of all 60 landmarks 0.8 m to the side (inside the gate too): both poses explain
   // 60 keypoints, each the other's rival. Neither is a clear winner: not tracked.
   const Eigen::Vector3d side = f.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitX();
-  write_bundle_index(
+  test::write_test_bundle(
       dir_ / "tie.txt", 50.0,
       {add(*area_model(60, Eigen::Vector3d::Zero()), 0, -kInf, x), add(*area_model(60, 0.8 * side), 1, x, kInf)});
   {
@@ -966,10 +1111,10 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   distrust.threshold = 0.5;
   const fs::path folder = dir_ / "distrusting";
   fs::create_directories(folder);
-  write_bundle_index(folder / "bundle.txt", 50.0,
-                     {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0, folder),
-                      add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0, folder)},
-                     &distrust);
+  test::write_test_bundle(folder / "bundle.txt", 50.0,
+                          {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0, folder),
+                           add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 1.0, x + 2.0, folder)},
+                          &distrust);
   BundleLocalizerOptions options;
   options.tracking_radius = 1.0;
   options.relocalize_without_prior = false;
@@ -995,10 +1140,10 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   // outside the gate) and the distrusting calibration sends the frame to every area.
   const fs::path beyond = dir_ / "beyond";
   fs::create_directories(beyond);
-  write_bundle_index(beyond / "bundle.txt", 0.5,
-                     {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0, beyond),
-                      add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 5.0, kInf, beyond)},
-                     &distrust);
+  test::write_test_bundle(beyond / "bundle.txt", 0.5,
+                          {add(*area_model(45, 3.0 * axis), 0, x - 1.0, x + 1.0, beyond),
+                           add(*area_model(60, Eigen::Vector3d::Zero()), 1, x + 5.0, kInf, beyond)},
+                          &distrust);
   options.relocalize_without_prior = true;
   BundleLocalizer relocalizing(AreaBundle::open(beyond / "bundle.txt"), options);
   relocalizing.set_last_pose(f.cam_from_world);

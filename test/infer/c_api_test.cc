@@ -17,7 +17,7 @@
 
 #include <gtest/gtest.h>
 
-#include "infer/area_bundle.h"
+#include "infer/bundle_localizer.h"
 #include "infer/localizer.h"
 #include "infer/version.h"
 #include "test/infer/test_models.h"
@@ -265,7 +265,7 @@ TEST(CApiTest, ErrorsAreStatusesWithMessages) {
   EXPECT_EQ(lmb_model_load("/nonexistent/model.lbm", &model), LMB_ERROR_MODEL_FILE);
   EXPECT_EQ(model, nullptr);
   EXPECT_NE(std::string(lmb_last_error()).find("/nonexistent/model.lbm"), std::string::npos);
-  // A folder given as the model (issue 16): a model-file error naming it, not LMB_ERROR_INTERNAL.
+  // A folder given as the model: a model-file error naming it, not LMB_ERROR_INTERNAL.
   const std::string folder = std::filesystem::temp_directory_path().string();
   EXPECT_EQ(lmb_model_load(folder.c_str(), &model), LMB_ERROR_MODEL_FILE);
   EXPECT_EQ(std::string(lmb_last_error()), "lmb_model_load: " + folder + ": is a folder, not a file");
@@ -356,25 +356,24 @@ struct CBundleFixture : CFixture {
     const double inf = std::numeric_limits<double>::infinity();
     std::vector<BundleArea> areas(2);
     for (int32_t id = 0; id < 2; ++id) {
-      BundleArea& a = areas[id];
-      a.id = id;
-      a.file = "area-" + std::to_string(id) + ".lbm";
-      (id == 0 ? far_model : model).save(dir / a.file);
-      std::ifstream in(dir / a.file, std::ios::binary);
+      const std::string file = "area-" + std::to_string(id) + ".lbm";
+      const Model& area_model = id == 0 ? far_model : model;
+      area_model.save(dir / file);
+      std::ifstream in(dir / file, std::ios::binary);
       const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-      a.bytes = bytes.size();
-      a.crc32 = reference_crc32(bytes);
-      a.landmarks = 101;
+      BundleArea& a = areas[id];
+      a = describe_area(id, file, bytes, area_model);
+      EXPECT_EQ(a.crc32, reference_crc32(bytes));
       a.cell_lo = Eigen::Vector3d(id == 0 ? 25.0 : -inf, -inf, -inf);
       a.cell_hi = Eigen::Vector3d(id == 0 ? inf : 25.0, inf, inf);
     }
-    write_bundle_index(index, 1.0, areas);
+    test::write_test_bundle(index, 1.0, areas);
     // The same areas with a bundle calibration that accepts every pose, and one that accepts none.
     for (double bias : {50.0, -50.0}) {
       PoseCalibration c;
       c.bias = bias;
       c.threshold = 0.5;
-      write_bundle_index(dir / (bias > 0 ? "accept.txt" : "reject.txt"), 1.0, areas, &c);
+      test::write_test_bundle(dir / (bias > 0 ? "accept.txt" : "reject.txt"), 1.0, areas, &c);
     }
   }
   ~CBundleFixture() { std::filesystem::remove_all(dir); }
@@ -400,7 +399,7 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
   EXPECT_EQ(lmb_bundle_num_loaded(bundle), 2);
   const auto cpp_bundle = AreaBundle::open(fx.index);
   const BundleLocalizeResult want =
-      localize_in_bundle(*cpp_bundle, f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
+      BundleLocalizer(cpp_bundle).localize(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam, nullptr);
   ASSERT_EQ(want.area, 1);
   EXPECT_EQ(area, 1);
   EXPECT_EQ(pose.success, 1);

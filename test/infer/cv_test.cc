@@ -84,5 +84,51 @@ TEST(InferCvTest, RejectsBadImagesAndOptions) {
   EXPECT_TRUE(detect_features(cv::Mat(40, 40, CV_8UC1, cv::Scalar(0))).keypoints.empty());
 }
 
+// OpenCV's pyramids fail with a multi-line assertion on tiny images: checked first, one line with the
+// image's size and the detector's minimum.
+TEST(InferCvTest, ImagesSmallerThanTheDetectorTakesAreOneLineErrors) {
+  cv::Mat noise(200, 200, CV_8UC1);
+  cv::randu(noise, 0, 255);
+  auto error = [&](int width, int height, const DetectorOptions& o) -> std::string {
+    try {
+      detect_features(noise(cv::Rect(0, 0, width, height)), o);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const DetectorOptions brisk;
+  EXPECT_EQ(brisk.min_image_side(), 6);
+  EXPECT_EQ(error(5, 40, brisk),
+            "detect_features: image is 5x40 pixels, smaller than the 6x6 that BRISK with 3 "
+            "octaves takes");
+  EXPECT_EQ(error(1, 1, brisk),
+            "detect_features: image is 1x1 pixels, smaller than the 6x6 that BRISK with 3 "
+            "octaves takes");
+  try {
+    detect_features(cv::Mat(5, 40, CV_8UC3, cv::Scalar(10, 200, 30)));
+    ADD_FAILURE() << "a 40x5 colour image was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("image is 40x5 pixels"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(error(6, 6, brisk), "");
+  DetectorOptions orb;
+  orb.detector = "ORB";
+  EXPECT_EQ(error(1, 9, orb), "detect_features: image is 1x9 pixels, smaller than the 2x2 that ORB takes");
+  EXPECT_EQ(error(2, 2, orb), "");
+  // Every size from the minimum up works, at every octave count.
+  for (int octaves = 0; octaves <= 8; ++octaves) {
+    DetectorOptions o;
+    o.brisk_octaves = octaves;
+    const int side = o.min_image_side();
+    SCOPED_TRACE(octaves);
+    if (side > 1) {
+      EXPECT_NE(error(side - 1, 200, o), "");
+      EXPECT_NE(error(200, side - 1, o), "");
+    }
+    for (int w = side; w < side + 8; ++w) EXPECT_EQ(error(w, side + (w % 3), o), "");
+  }
+}
+
 }  // namespace
 }  // namespace lmb

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
 #include <Eigen/Core>
@@ -19,6 +20,7 @@
 #include "common/random.h"
 #include "common/rigid3.h"
 #include "common/types.h"
+#include "infer/bundle_index.h"
 #include "infer/model.h"
 
 namespace lmb::test {
@@ -157,6 +159,20 @@ inline TestWorld make_test_world(int32_t num_classes, int32_t num_inliers, int32
     f.keypoint_class.push_back(cls);
   }
   return w;
+}
+
+// The map fingerprint the tests' bundle indexes record (their models come from no map file).
+constexpr uint64_t kTestMapFingerprint = 0x5eed0f0e5eed0f0eull;
+
+// Writes a bundle index (version 3) of `areas` (entries of describe_area) for the test map.
+inline void write_test_bundle(const std::filesystem::path& path, double reach, const std::vector<BundleArea>& areas,
+                              const PoseCalibration* calibration = nullptr) {
+  BundleIndex index;
+  index.reach = reach;
+  index.map_fingerprint = kTestMapFingerprint;
+  index.areas = areas;
+  if (calibration != nullptr) index.calibration = *calibration;
+  write_bundle_index(path, index);
 }
 
 }  // namespace lmb::test

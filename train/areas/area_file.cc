@@ -77,15 +77,7 @@ AreaFile read_area_file(const std::filesystem::path& path) {
   TextLineReader in(path);
   AreaFile file;
   AreaSplit& s = file.split;
-  // The next data line, which must be "<key> <values...>" with `count` values.
-  auto expect = [&](const char* key, size_t count) {
-    LMB_CHECK(in.next(), path.string() << ": ends before the '" << key << "' line");
-    std::vector<std::string> t = in.tokens();
-    LMB_CHECK(!t.empty() && t[0] == key && t.size() == count + 1,
-              in.where() << ": expected '" << key << "' and " << count << " value(s), found '" << in.line() << "'");
-    t.erase(t.begin());
-    return t;
-  };
+  const auto expect = [&in](const char* key, size_t count) { return in.expect(key, count); };
   {
     const auto t = expect("lmb-areas", 1);
     LMB_CHECK(t[0] == "1", in.where() << ": format version " << t[0] << " is not supported (this build reads 1)");
@@ -122,6 +114,10 @@ AreaFile read_area_file(const std::filesystem::path& path) {
   s.num_eligible = parse_integer(v, where, "eligible", 1, file.map_landmarks);
   v = value("areas");
   const int64_t num_areas = parse_integer(v, where, "areas", 1, 1000000);
+  // Before allocating for them: each area takes two lines (its area line and its members line).
+  LMB_CHECK(num_areas <= in.lines_left() / 2, where << ": areas " << num_areas << ", but the file has only "
+                                                    << in.lines_left()
+                                                    << " line(s) left (each area needs an area and a members line)");
   s.areas.resize(static_cast<size_t>(num_areas));
   std::vector<int64_t> counts(s.areas.size());
   for (int64_t i = 0; i < num_areas; ++i) {
@@ -176,11 +172,7 @@ uint64_t landmark_list_hash(const std::vector<landmark_t>& landmarks) {
   return h;
 }
 
-std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, int32_t id, const LandmarkMap& map) {
-  AreaFile file = read_area_file(path);
-  LMB_CHECK(id >= 0 && static_cast<size_t>(id) < file.split.areas.size(),
-            path.string() << ": has no area " << id << " (it has " << file.split.areas.size() << ", ids 0.."
-                          << file.split.areas.size() - 1 << ")");
+void check_area_file_map(const AreaFile& file, const std::filesystem::path& path, const LandmarkMap& map) {
   const uint64_t fingerprint = fingerprint_map(map);
   char want[24], got[24];
   std::snprintf(want, sizeof(want), "%016" PRIx64, fingerprint);
@@ -188,6 +180,19 @@ std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, i
   LMB_CHECK(file.map_fingerprint == fingerprint, path.string() << ": made from another map (map_fingerprint " << got
                                                                << ", this map's is " << want
                                                                << "); run lboost areas on this map");
+  const auto landmarks = static_cast<int64_t>(map.landmarks.size());
+  LMB_CHECK(file.map_landmarks == landmarks, path.string() << ": map_landmarks " << file.map_landmarks
+                                                           << ", but its map has " << landmarks
+                                                           << " landmarks (an edited or damaged file); run lboost "
+                                                              "areas on this map");
+}
+
+std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, int32_t id, const LandmarkMap& map) {
+  AreaFile file = read_area_file(path);
+  LMB_CHECK(id >= 0 && static_cast<size_t>(id) < file.split.areas.size(),
+            path.string() << ": has no area " << id << " (it has " << file.split.areas.size() << ", ids 0.."
+                          << file.split.areas.size() - 1 << ")");
+  check_area_file_map(file, path, map);
   return std::move(file.split.areas[static_cast<size_t>(id)].landmarks);
 }
 

@@ -39,16 +39,23 @@ std::string area_file_text(const AreaFile& file, const std::string& source);
 void write_area_file(const std::filesystem::path& path, const AreaFile& file, const std::string& source);
 // Reads and checks it. Throws lmb::Error "<path> line <n>: <what>" on any malformed, missing or
 // inconsistent line (area ids out of order, more than max_classes landmarks, unsorted or
-// out-of-range landmark ids, a members line that does not match its area's count).
+// out-of-range landmark ids, a members line that does not match its area's count, more areas than
+// the file has lines for: checked before allocating). Without the map the header's values are only
+// checked against each other; check_area_file_map checks them against the map.
 AreaFile read_area_file(const std::filesystem::path& path);
 
 // A 64-bit hash of a landmark id list (FNV-1a over the ids as little-endian int32): the same list
 // gives the same value on every platform.
 uint64_t landmark_list_hash(const std::vector<landmark_t>& landmarks);
 
+// Checks an areas file read from `path` against the map it is used with: its map_fingerprint is
+// fingerprint_map(map) and its map_landmarks the map's landmark count (so that every landmark id,
+// below map_landmarks, is one of the map's). Throws lmb::Error naming the file, field and values.
+void check_area_file_map(const AreaFile& file, const std::filesystem::path& path, const LandmarkMap& map);
+
 // The landmarks of area `id` of the areas file at `path`, for training on `map`. Throws lmb::Error
-// naming the file when it cannot be read, has no area `id`, or was made from another map (its
-// map_fingerprint is not fingerprint_map(map)).
+// naming the file when it cannot be read, has no area `id`, or was made from another map
+// (check_area_file_map).
 std::vector<landmark_t> read_area_landmarks(const std::filesystem::path& path, int32_t id, const LandmarkMap& map);
 
 // "FILE:ID" of `lboost train --area`: splits at the last ':'. Throws lmb::Error naming `what`.

@@ -31,6 +31,7 @@ struct AreasArgs {
 };
 
 void run_areas(const AreasArgs& args) {
+  check_outputs_not_inputs({{args.out, "--out"}}, {{args.map, "--map"}});
   args.options.check();
   for (double noise : args.prior_noise) {
     LMB_CHECK(std::isfinite(noise) && noise >= 0.0, "--prior-noise " << noise << ": must be finite and >= 0");
@@ -106,7 +107,7 @@ void add_areas_command(CLI::App& app) {
   cmd->add_option("--prior-noise", args->prior_noise,
                   "report the query keypoints covered by the areas a position prior this far (metres) from "
                   "the true camera selects; repeatable");
-  cmd->add_option("--seed", args->seed, "seed of the prior directions")->capture_default_str();
+  add_seed_option(cmd, "--seed", &args->seed, "seed of the prior directions");
   cmd->callback([args] { run_areas(*args); });
 }
 

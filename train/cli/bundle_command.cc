@@ -6,6 +6,7 @@
 // split), the bundle's pose calibration is fitted on map frames and written into the index.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -19,11 +20,12 @@
 #include "common/file_container.h"
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
-#include "infer/area_bundle.h"
+#include "infer/bundle_localizer.h"
 #include "infer/model.h"
 #include "infer/pose_confidence.h"
 #include "train/areas/area_file.h"
 #include "train/cli/commands.h"
+#include "train/eval/bundle_calibration_fit.h"
 #include "train/eval/bundle_eval.h"
 #include "train/eval/landmarkboost_matcher.h"
 #include "train/eval/metrics.h"
@@ -44,144 +46,12 @@ struct BundleArgs {
   double target_precision = 0.95;
 };
 
-// The bundle's pose calibration (infer/area_bundle.h, BundleLocalizeResult::evidence), fitted on
-// the frames the areas' training held out (default training options; calibration_holdout_frames), else on
-// map frames (train/eval/pose_calibration_fit.h, calibration_frames: every s-th frame of the map
-// sessions) the way `lboost export` fits a model's, with the support rule and the areas' descriptor
-// fusion without the frames' own exemplars; a pose is right within
-// 0.2 m / 5 deg of the frame's map pose. Each frame twice: localized in every area (no prior: the
-// most areas compete), and "elsewhere", in every area that holds no landmark in its view
-// (landmarks_in_view), i.e. the frame as if taken where the map holds only look-alikes: a map
-// frame's own areas rarely give a wrong pose, the elsewhere variant gives the wrong poses an
-// aliased place gives. Operating point: the higher of the target precision's and the one that
-// lets at most 1% of the frames' elsewhere variants pass. No query frame is read. Returns false
-// (and prints why) when too few right or wrong poses were found to fit one.
-bool fit_bundle_calibration(const BundleArgs& args, const std::filesystem::path& index, const AreaFile& file,
-                            PoseCalibration* out) {
-  const LandmarkMap map = read_map_h5(args.map);
-  LMB_CHECK(fingerprint_map(map) == file.map_fingerprint,
-            "--map " << args.map << " is not the map " << args.areas << " splits (fingerprints differ)");
-  // The frames the areas' training held out (default training options), else every n-th map frame.
-  PoseCalibrationOptions frame_options;
-  frame_options.max_frames = args.calibration_frames;
-  frame_options = with_holdout_frames(frame_options, map, TrainingSetOptions{});
-  const std::vector<frame_t> frames = calibration_frames(map, frame_options);
-  const auto bundle = AreaBundle::open(index);
-  // The areas' descriptor fusion without the frames' own descriptors among its exemplars (else each
-  // keypoint finds itself at distance 0), as `lboost export` fits a model's calibration.
-  const std::vector<int64_t> own = calibration_frame_keypoints(map, frames);
-  const auto rows = [](const Model& m) {
-    return m.data().fusion.enabled() ? m.data().fusion.exemplar_begin.back() : int64_t{0};
-  };
-  std::vector<int64_t> file_rows(bundle->areas().size(), -1);  // per area: its file's exemplars (once loaded)
-  bundle->set_model_transform([&](int32_t id, std::shared_ptr<const Model> model) {
-    file_rows[static_cast<size_t>(id)] = rows(*model);
-    return without_exemplars(model, map, own, /*keep_sole=*/true);
-  });
-  LocalizerOptions lo;
-  lo.classifier.use_inverted_file = args.inverted_file;
-  lo.pose.seed = args.seed;
-  const PoseThresholds thresholds;
-  std::vector<PoseEvidence> evidence;
-  std::vector<char> right, elsewhere;
-  const auto started = std::chrono::steady_clock::now();
-  auto last_line = started;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const MapFrame& frame = map.frames[frames[i]];
-    const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
-                                          map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
-    const std::vector<char> view = landmarks_in_view(map, frames[i]);
-    std::vector<int32_t> all, away;
-    for (const Area& area : file.split.areas) {
-      all.push_back(area.id);
-      const bool sees = std::any_of(area.landmarks.begin(), area.landmarks.end(), [&](landmark_t l) {
-        return l >= 0 && static_cast<size_t>(l) < view.size() && view[static_cast<size_t>(l)] != 0;
-      });
-      if (!sees) away.push_back(area.id);
-    }
-    for (int variant = 0; variant < 2; ++variant) {
-      const std::vector<int32_t>& ids = variant == 0 ? all : away;
-      if (ids.empty()) continue;
-      const BundleLocalizeResult r =
-          localize_in_areas(*bundle, ids, map.cameras[frame.camera], keypoints, map.descriptor(frame.first_keypoint),
-                            frame.gravity_in_cam, lo, AreaWinner::kSupport);
-      LMB_CHECK(r.errors.empty(), "bundle calibration: " << r.errors.front());
-      if (r.area < 0) continue;
-      evidence.push_back(r.evidence);
-      right.push_back(pose_within(r.result.pose.cam_from_world, frame.cam_from_world, thresholds) ? 1 : 0);
-      elsewhere.push_back(static_cast<char>(variant));
-    }
-    const auto now = std::chrono::steady_clock::now();
-    if (now - last_line >= std::chrono::seconds(30) || i + 1 == frames.size()) {
-      last_line = now;
-      const double elapsed = std::chrono::duration<double>(now - started).count();
-      spdlog::info("bundle: calibration frame {} of {}, {:.0f} s, ETA {:.0f} s", i + 1, frames.size(), elapsed,
-                   elapsed * static_cast<double>(frames.size() - i - 1) / static_cast<double>(i + 1));
-    }
-  }
-  // The exemplars the calibration's models left out, counted on the models the bundle scored.
-  int64_t exemplars = 0, left_out = 0;
-  for (size_t id = 0; id < file_rows.size(); ++id) {
-    if (file_rows[id] < 0) continue;
-    exemplars += file_rows[id];
-    left_out += file_rows[id] - rows(*bundle->model(static_cast<int32_t>(id)));
-  }
-  const int64_t num_right = std::count(right.begin(), right.end(), 1);
-  const int64_t num_wrong = static_cast<int64_t>(right.size()) - num_right;
-  if (num_right < 5 || num_wrong < 5) {
-    spdlog::warn(
-        "bundle: no calibration: {} map frames gave {} poses, {} right and {} wrong (at least 5 of each "
-        "are needed); the index is written without one",
-        frames.size(), right.size(), num_right, num_wrong);
-    return false;
-  }
-  PoseCalibration c = fit_pose_calibration(evidence, right);
-  std::vector<double> p;
-  for (const PoseEvidence& e : evidence) p.push_back(c.probability(e));
-  const double for_precision = precision_threshold(p, right, args.target_precision);
-  std::vector<double> p_elsewhere;
-  for (size_t i = 0; i < p.size(); ++i) {
-    if (elsewhere[i]) p_elsewhere.push_back(p[i]);
-  }
-  const double for_elsewhere = pass_share_threshold(p_elsewhere, static_cast<int64_t>(frames.size()), 0.01);
-  c.threshold = std::max(for_precision, for_elsewhere);
-  c.target_precision = args.target_precision;
-  c.check("bundle calibration");
-  int64_t kept = 0, kept_right = 0, kept_elsewhere = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    kept += p[i] >= c.threshold;
-    kept_right += p[i] >= c.threshold && right[i];
-    kept_elsewhere += p[i] >= c.threshold && elsewhere[i];
-  }
-  spdlog::info(
-      "bundle: calibration on {} map frames{}: {} poses ({} of them elsewhere), {} right; the areas' fusion "
-      "without the frames' own {} of {} exemplars; operating point {:.4f} (precision {}: {:.4f}; at most 1% of the "
-      "frames elsewhere: {:.4f}) keeps {} poses, {} right, {} of them elsewhere",
-      frames.size(),
-      frame_options.frames.empty() ? " (the default training options hold none out)"
-                                   : " (the ones the default training options hold out of training)",
-      right.size(), p_elsewhere.size(), num_right, left_out, exemplars, c.threshold, args.target_precision,
-      for_precision, for_elsewhere, kept, kept_right, kept_elsewhere);
-  *out = c;
-  return true;
-}
-
-void run_bundle(const BundleArgs& args) {
-  namespace fs = std::filesystem;
-  const fs::path dir(args.models);
-  const fs::path out = args.out.empty() ? dir / "bundle.txt" : fs::path(args.out);
-  LMB_CHECK(fs::weakly_canonical(out.parent_path()) == fs::weakly_canonical(dir),
-            "--out " << out.string() << ": the index must sit in the --models folder " << dir.string()
-                     << " (its model file names are relative to it)");
-  check_writable_file(out, "--out");
-  const AreaFile file = read_area_file(args.areas);
+// Every area's model read and checked against its area (classes = the area's landmarks, in order).
+std::vector<BundleArea> describe_areas(const AreaFile& file, const std::filesystem::path& dir) {
   std::vector<BundleArea> areas;
-  uint64_t total = 0;
   for (const Area& area : file.split.areas) {
-    BundleArea a;
-    a.id = area.id;
-    a.file = "area-" + std::to_string(area.id) + ".lbm";
-    const fs::path path = dir / a.file;
+    const std::string name = "area-" + std::to_string(area.id) + ".lbm";
+    const std::filesystem::path path = dir / name;
     const std::string what = path.string() + " (area " + std::to_string(area.id) + ")";
     std::string image;
     try {
@@ -198,21 +68,53 @@ void run_bundle(const BundleArgs& args) {
                 what << ": class " << c << " is landmark " << model->class_landmark(c) << ", the area's is "
                      << area.landmarks[static_cast<size_t>(c)] << " (a model of another area or split?)");
     }
-    a.bytes = image.size();
-    a.crc32 = crc32(reinterpret_cast<const uint8_t*>(image.data()), image.size());
-    a.landmarks = static_cast<int64_t>(area.landmarks.size());
+    BundleArea a = describe_area(area.id, name, image, *model);
     a.cell_lo = area.cell.lo;
     a.cell_hi = area.cell.hi;
-    total += a.bytes;
-    areas.push_back(a);
+    areas.push_back(std::move(a));
   }
-  write_bundle_index(out, file.split.options.reach, areas);
-  PoseCalibration calibration;
-  if (!args.map.empty() && args.calibration_frames > 0 && fit_bundle_calibration(args, out, file, &calibration)) {
-    write_bundle_index(out, file.split.options.reach, areas, &calibration);
+  return areas;
+}
+
+// Everything is read and checked (and the calibration fitted) before the index is written, once: a
+// refused bundle leaves the index that was there as it was.
+void run_bundle(const BundleArgs& args) {
+  std::vector<NamedPath> inputs = area_model_paths(args.models, "--models");
+  inputs.push_back({args.areas, "--areas"});
+  inputs.push_back({args.map, "--map"});
+  check_outputs_not_inputs({{args.out.empty() ? args.models + "/bundle.txt" : args.out, "--out"}}, inputs);
+  namespace fs = std::filesystem;
+  const fs::path dir(args.models);
+  const fs::path out = args.out.empty() ? dir / "bundle.txt" : fs::path(args.out);
+  LMB_CHECK(fs::weakly_canonical(out.parent_path()) == fs::weakly_canonical(dir),
+            "--out " << out.string() << ": the index must sit in the --models folder " << dir.string()
+                     << " (its model file names are relative to it)");
+  LMB_CHECK(std::isfinite(args.target_precision) && args.target_precision >= 0.01 && args.target_precision <= 1.0,
+            "--target-precision " << args.target_precision << " must be in 0.01..1");
+  check_writable_file(out, "--out");
+  const AreaFile file = read_area_file(args.areas);
+  BundleIndex index;
+  index.reach = file.split.options.reach;
+  index.map_fingerprint = file.map_fingerprint;
+  index.areas = describe_areas(file, dir);
+  uint64_t total = 0;
+  for (const BundleArea& a : index.areas) total += a.bytes;
+  if (!args.map.empty()) {
+    const LandmarkMap map = read_map_h5(args.map);
+    LMB_CHECK(fingerprint_map(map) == file.map_fingerprint,
+              "--map " << args.map << " is not the map " << args.areas << " splits (fingerprints differ)");
+    check_area_file_map(file, args.areas, map);
+    PoseCalibration calibration;
+    if (args.calibration_frames > 0 &&
+        fit_bundle_calibration({args.calibration_frames, args.inverted_file, args.seed, args.target_precision},
+                               AreaBundle::create(out, index), file, map, &calibration)) {
+      index.calibration = calibration;
+    }
   }
-  std::printf("bundle: %zu areas, %.1f MB of models, reach %.2f m -> %s\n", areas.size(),
-              static_cast<double>(total) / 1048576.0, file.split.options.reach, out.string().c_str());
+  write_bundle_index(out, index);
+  std::printf("bundle: %zu areas, %.1f MB of models, reach %.2f m%s -> %s\n", index.areas.size(),
+              static_cast<double>(total) / 1048576.0, index.reach, index.calibration ? ", calibrated" : "",
+              out.string().c_str());
 }
 
 }  // namespace
@@ -234,7 +136,7 @@ void add_bundle_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--inverted-file", args->inverted_file,
                 "--map: localize the calibration frames with the inverted file (as the bundle will be used)");
-  cmd->add_option("--seed", args->seed, "--map: RANSAC seed of the calibration frames")->capture_default_str();
+  add_seed_option(cmd, "--seed", &args->seed, "--map: RANSAC seed of the calibration frames");
   cmd->add_option("--target-precision", args->target_precision,
                   "--map: the operating point's precision on the calibration poses")
       ->capture_default_str()
@@ -275,8 +177,7 @@ void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
                   "--bundle: areas of a frame localized at once, each on its own thread (the same result; "
                   "cpu_ms then counts the calling thread only: read wall_ms)")
       ->capture_default_str();
-  cmd->add_option("--prior-seed", options->prior_seed, "--bundle: seed of the prior's direction")
-      ->capture_default_str();
+  add_seed_option(cmd, "--prior-seed", &options->prior_seed, "--bundle: seed of the prior's direction");
   cmd->add_option("--cache-areas", options->cache.max_areas,
                   "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
       ->capture_default_str();

@@ -12,10 +12,12 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "train/boost/train_config.h"
 #include "train/cli/commands.h"
 #include "train/eval/bundle_eval.h"
@@ -28,6 +30,14 @@ namespace {
 
 void run_eval(const EvalOptions& options, const std::string& report_path, const std::string& run_dir,
               const std::string& keypoint_ranks) {
+  const auto run_file = [&](const char* name) {
+    return run_dir.empty() ? std::filesystem::path() : std::filesystem::path(run_dir) / name;
+  };
+  check_outputs_not_inputs({{report_path, "--report"}, {keypoint_ranks, "--keypoint-ranks"}},
+                           {{options.model, "--model"},
+                            {options.map, "--map"},
+                            {run_file("config.toml"), "--run"},
+                            {run_file("summary.json"), "--run"}});
   LMB_CHECK(!options.methods.empty(), "eval: --methods is empty");
   EvalOptions o = options;
   if (!run_dir.empty()) {
@@ -48,6 +58,10 @@ void run_eval(const EvalOptions& options, const std::string& report_path, const 
 // --bundle: pose recall of a bundle of area models with each prior mode and, with --model, of the
 // single model, on the same frames and seeds (train/eval/bundle_eval.h).
 void run_bundle_eval(const EvalOptions& o, BundleEvalOptions b, const std::string& report_path) {
+  std::vector<NamedPath> inputs = bundle_input_paths(b.bundle, "--bundle");
+  inputs.push_back({o.model, "--model"});
+  inputs.push_back({o.map, "--map"});
+  check_outputs_not_inputs({{report_path, "--report"}}, inputs);
   b.map = o.map;
   b.model = o.model;
   b.localizer.classifier.min_margin = o.min_margin;
@@ -57,6 +71,7 @@ void run_bundle_eval(const EvalOptions& o, BundleEvalOptions b, const std::strin
   b.thresholds = o.pose_thresholds.at(0);
   const BundleEvalResult r = evaluate_bundle(b);
   write_report(report_path, r.report);
+  warn_area_errors("eval", r.area_errors);
   std::printf("\nBundle %s on %zu query frames, %d RANSAC seeds, correct within %g m / %g deg:\n%s-> %s\n",
               b.bundle.c_str(), r.report.at("frames").get<size_t>(), b.seeds, b.thresholds.max_position_error_m,
               b.thresholds.max_rotation_error_deg, r.table.c_str(), report_path.c_str());
@@ -118,7 +133,7 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--ransac-iterations", o.pose.max_iterations, "RANSAC iterations")->capture_default_str();
   cmd->add_option("--max-error", o.pose.max_reprojection_error_px, "Inlier threshold, pixels")->capture_default_str();
   cmd->add_option("--min-inliers", o.pose.min_inliers, "Inliers for a pose")->capture_default_str();
-  cmd->add_option("--seed", o.pose.seed, "RANSAC seed (the same for every method)")->capture_default_str();
+  add_seed_option(cmd, "--seed", &o.pose.seed, "RANSAC seed (the same for every method)");
   cmd->add_flag("--uniform-sampling{false}", o.pose.progressive_sampling,
                 "Uniform RANSAC sampling instead of PROSAC in each method's match order");
   cmd->add_option("--pose-thresholds", args->pose_thresholds,

@@ -1,6 +1,7 @@
 // lboost import: posed images in other formats -> a collection for `lboost map`.
 //   lboost import tum     a TUM RGB-D sequence (rgb.txt, groundtruth.txt, accelerometer.txt)
 //   lboost import colmap  a COLMAP sparse model (text or binary) + its image folder
+//   lboost import 7scenes video frames with camera-to-world poses (7-Scenes, 12-Scenes layout)
 #include <array>
 #include <cstdio>
 #include <memory>
@@ -10,14 +11,24 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/file_io.h"
 #include "train/cli/commands.h"
 #include "train/import/colmap_import.h"
+#include "train/import/sevenscenes_import.h"
 #include "train/import/tum_import.h"
 #include "train/import/visual_time_offset.h"
 
 namespace lmb::cli {
 
 namespace {
+
+// The list file a --split rule reads (map-list:FILE, query-list:FILE, list:FILE), else "".
+std::string split_list_file(const std::string& split) {
+  const size_t colon = split.find(':');
+  if (colon == std::string::npos) return "";
+  const std::string kind = split.substr(0, colon);
+  return kind == "list" || kind == "map-list" || kind == "query-list" ? split.substr(colon + 1) : "";
+}
 
 void print_gravity_agreement(const GravityAgreement& g, const std::string& world_up) {
   std::printf(
@@ -51,6 +62,10 @@ void run_time_offset_scan(const TumImportOptions& options) {
 }
 
 void run_tum(const TumImportOptions& options, bool scan_offset) {
+  std::vector<NamedPath> inputs = {{split_list_file(options.split), "--split"}};
+  for (const auto& d : options.data_dirs) inputs.push_back({d, "--data", true});
+  for (const auto& d : options.query_dirs) inputs.push_back({d, "--query-data", true});
+  check_outputs_not_inputs({{options.out_dir, "--out", true}}, inputs);
   std::string sources;
   for (const auto& d : options.data_dirs) sources += (sources.empty() ? "" : ", ") + d.string();
   for (const auto& d : options.query_dirs) sources += (sources.empty() ? "" : ", ") + d.string() + " (query)";
@@ -74,6 +89,10 @@ void run_tum(const TumImportOptions& options, bool scan_offset) {
 }
 
 void run_colmap(const ColmapImportOptions& options) {
+  check_outputs_not_inputs({{options.out_dir, "--out", true}}, {{options.sparse_dir, "--sparse", true},
+                                                                {options.image_dir, "--images", true},
+                                                                {options.gravity_file, "--gravity-file"},
+                                                                {split_list_file(options.split), "--split"}});
   spdlog::info("import colmap: {} + {} -> {}", options.sparse_dir.string(), options.image_dir.string(),
                options.out_dir.string());
   const ColmapImportStats s = import_colmap(options);
@@ -106,12 +125,52 @@ void run_colmap(const ColmapImportOptions& options) {
               options.out_dir.string().c_str());
 }
 
-}  // namespace
+void run_sevenscenes(const SevenScenesImportOptions& options) {
+  check_outputs_not_inputs({{options.out_dir, "--out", true}},
+                           {{options.data_dir, "--data", true},
+                            {options.intrinsics_file, "--intrinsics"},
+                            {options.gravity == "none" ? std::string() : options.gravity, "--gravity"}});
+  spdlog::info("import 7scenes: {} -> {}", options.data_dir.string(), options.out_dir.string());
+  const SevenScenesImportStats s = import_sevenscenes(options);
+  std::string skipped;
+  for (size_t i = 0; i < s.skipped_poses.size() && i < 5; ++i) {
+    skipped += (i ? ", " : ": ") + std::filesystem::path(s.skipped_poses[i]).filename().string();
+  }
+  if (s.skipped_poses.size() > 5) skipped += ", ...";
+  std::printf(
+      "import: %s (%s): %d frames selected, %d imported (%d map, %d query), %d skipped for a non-finite pose%s\n",
+      options.data_dir.string().c_str(), s.layout.c_str(), s.selected_frames, s.imported_frames, s.map_frames,
+      s.query_frames, s.skipped_invalid_pose, skipped.c_str());
+  const std::vector<double>& p = s.camera.params;
+  std::printf("import: camera PINHOLE %dx%d, fx %g, fy %g, cx %g, cy %g, from %s\n", s.camera.width, s.camera.height,
+              p[0], p[1], p[2], p[3], s.camera_source.c_str());
+  if (s.gravity_down_world) {
+    const Eigen::Vector3d& g = *s.gravity_down_world;
+    std::printf(
+        "import: gravity: down (%.4f, %.4f, %.4f) in the world, from %s; the cameras' image down axes (camera +y) "
+        "lie a median %.1f deg from it (10%%-90%%: %.1f-%.1f deg)\n",
+        g.x(), g.y(), g.z(), s.gravity_source.c_str(), s.image_down_median_deg, s.image_down_p10_deg,
+        s.image_down_p90_deg);
+    if (s.image_down_median_deg > 90) {
+      std::printf(
+          "import: warning: the cameras' image down axes point away from that gravity vector (median %.1f deg > 90): "
+          "it may point up; check it, or give --gravity-up X Y Z\n",
+          s.image_down_median_deg);
+    }
+  } else {
+    std::printf("import: gravity: %s; lboost map then needs --up AXIS\n", s.gravity_source.c_str());
+  }
+  std::string session_list;
+  for (size_t i = 0; i < s.sessions.size(); ++i) {
+    session_list += (i ? ", " : "") + s.sessions[i].name + " (" + session_kind_name(s.sessions[i].kind) + ", " +
+                    std::to_string(s.session_frames[i]) + " frames)";
+  }
+  std::printf("import: sessions: %s\n", session_list.c_str());
+  std::printf("import: wrote %s (sparse/, sessions.txt, images/ -> %s%s)\n", options.out_dir.string().c_str(),
+              options.data_dir.string().c_str(), s.gravity_down_world ? ", gravity.txt" : "");
+}
 
-void add_import_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("import", "Turn posed images in other formats into a collection");
-  cmd->require_subcommand(1);
-
+void add_import_tum(CLI::App* cmd) {
   auto tum = std::make_shared<TumImportOptions>();
   auto tum_data = std::make_shared<std::vector<std::string>>();
   auto tum_query = std::make_shared<std::vector<std::string>>();
@@ -160,7 +219,9 @@ void add_import_command(CLI::App& app) {
     options.out_dir = *tum_out;
     run_tum(options, *scan_offset);
   });
+}
 
+void add_import_colmap(CLI::App* cmd) {
   auto colmap = std::make_shared<ColmapImportOptions>();
   auto paths = std::make_shared<std::array<std::string, 4>>();
   auto* c = cmd->add_subcommand("colmap", "A COLMAP sparse model (text or binary) and its image folder");
@@ -187,6 +248,62 @@ void add_import_command(CLI::App& app) {
     options.gravity_file = (*paths)[3];
     run_colmap(options);
   });
+}
+
+void add_import_sevenscenes(CLI::App* cmd) {
+  auto scenes = std::make_shared<SevenScenesImportOptions>();
+  auto scene_paths = std::make_shared<std::array<std::string, 4>>();  // data, out, intrinsics, gravity
+  auto camera = std::make_shared<std::array<double, 3>>();            // focal, cx, cy
+  auto up = std::make_shared<std::vector<double>>();
+  auto* v = cmd->add_subcommand(
+      "7scenes",
+      "Video frames with camera-to-world poses in the 7-Scenes / 12-Scenes layout (frame-NNNNNN.color.png or "
+      ".jpg, frame-NNNNNN.pose.txt)");
+  v->add_option("--data", (*scene_paths)[0],
+                "Data folder: rgb/ and pose/ folders, the frames themselves, or sequence folders (seq-01/, ...)")
+      ->required();
+  v->add_option("--out", (*scene_paths)[1], "Collection folder to write (sparse/, images/ with symlinks, gravity.txt)")
+      ->required();
+  v->add_option("--map-frames", scenes->map_frames,
+                "Map frames: frame numbers FIRST-LAST or N, sequence folders NAME or NAME:FIRST-LAST, comma "
+                "separated (e.g. 0-499, or seq-01,seq-02)")
+      ->required();
+  v->add_option("--query-frames", scenes->query_frames, "Query frames, as --map-frames (e.g. 500-999, or seq-03)");
+  v->add_option("--stride", scenes->stride, "Keep every N-th frame of each item (FIRST, FIRST + N, ...)")
+      ->capture_default_str();
+  v->add_option("--intrinsics", (*scene_paths)[2],
+                "Camera matrix file (3 rows: fx 0 cx / 0 fy cy / 0 0 1); default DATA/camera-intrinsics.txt");
+  auto* focal = v->add_option("--focal", (*camera)[0], "Focal length in pixels (fx = fy), instead of a K file");
+  auto* cx = v->add_option("--cx", (*camera)[1], "Principal point x in pixels (with --focal; default: image centre)");
+  auto* cy = v->add_option("--cy", (*camera)[2], "Principal point y in pixels (with --focal; default: image centre)");
+  v->add_option("--gravity", (*scene_paths)[3],
+                "World-frame gravity vector file (3 numbers, pointing down) for gravity.txt, or none; default "
+                "DATA/gravity-direction.txt when present");
+  v->add_option("--gravity-up", *up, "The world's up direction X Y Z instead of a gravity file")->expected(3);
+  v->add_flag("--overwrite", scenes->overwrite,
+              "Replace sparse/, images/, gravity.txt and sessions.txt of an existing output");
+  v->callback([scenes, scene_paths, camera, up, focal, cx, cy] {
+    SevenScenesImportOptions options = *scenes;
+    options.data_dir = (*scene_paths)[0];
+    options.out_dir = (*scene_paths)[1];
+    options.intrinsics_file = (*scene_paths)[2];
+    options.gravity = (*scene_paths)[3];
+    if (focal->count()) options.focal = (*camera)[0];
+    if (cx->count()) options.cx = (*camera)[1];
+    if (cy->count()) options.cy = (*camera)[2];
+    if (!up->empty()) options.gravity_up = Eigen::Vector3d((*up)[0], (*up)[1], (*up)[2]);
+    run_sevenscenes(options);
+  });
+}
+
+}  // namespace
+
+void add_import_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("import", "Turn posed images in other formats into a collection");
+  cmd->require_subcommand(1);
+  add_import_tum(cmd);
+  add_import_colmap(cmd);
+  add_import_sevenscenes(cmd);
 }
 
 }  // namespace lmb::cli

@@ -2,33 +2,23 @@
 // gravity as the mapper detected them) -> poses and matches as JSON, and a summary against the
 // map's ground-truth poses and keypoint landmarks. With --bundle (docs/areas.md): the query frames
 // localized through a bundle of area models, with a noisy ground-truth prior and/or none.
-#include <algorithm>
-#include <atomic>
-#include <cmath>
 #include <cstdio>
-#include <exception>
-#include <limits>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
-#include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
 #include "common/landmark_map.h"
-#include "infer/detail/scoring_index.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
 #include "train/eval/bundle_eval.h"
 #include "train/eval/evaluation.h"
-#include "train/eval/metrics.h"
-#include "train/eval/report.h"
+#include "train/eval/map_localization.h"
 
 namespace lmb::cli {
 
@@ -45,210 +35,6 @@ struct LocalizeArgs {
   BundleEvalOptions bundle;  // --bundle, --prior-noise, --no-prior, --prior-seed, --cache-areas
 };
 
-struct FrameOutcome {
-  LocalizeResult result;
-  // Per keypoint: its accepted match (the best match left after background rejection, or
-  // kInvalidLandmarkId) and its true landmark when that landmark is a model class.
-  std::vector<KeypointMatch> matches;
-};
-
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-std::vector<frame_t> select_frames(const LandmarkMap& map, const std::vector<std::string>& names) {
-  std::vector<frame_t> frames;
-  if (names.empty()) {
-    for (frame_t f = 0; f < map.num_frames(); ++f) {
-      if (map.frames[f].is_query) frames.push_back(f);
-    }
-    LMB_CHECK(!frames.empty(), "localize: the map has no query frames (give --queries)");
-    return frames;
-  }
-  for (const std::string& name : names) {
-    frame_t found = kInvalidFrameId;
-    for (frame_t f = 0; f < map.num_frames(); ++f) {
-      if (map.frames[f].name == name) found = f;
-    }
-    LMB_CHECK(found != kInvalidFrameId, "localize: --queries: no frame named '" << name << "' in the map");
-    frames.push_back(found);
-  }
-  return frames;
-}
-
-FrameOutcome localize_frame(const Localizer& localizer, const LandmarkMap& map, const std::vector<char>& is_class,
-                            frame_t f) {
-  const MapFrame& frame = map.frames[f];
-  const std::vector<Keypoint> keypoints(map.keypoints.begin() + frame.first_keypoint,
-                                        map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
-  FrameOutcome o;
-  o.result = localizer.localize(map.cameras[frame.camera], keypoints, map.descriptor(frame.first_keypoint),
-                                frame.gravity_in_cam);
-  for (int32_t k = 0; k < frame.num_keypoints; ++k) {
-    const landmark_t truth = map.keypoint_landmark[frame.first_keypoint + k];
-    const bool has_match = o.result.matches.count(k) > 0;
-    o.matches.push_back(KeypointMatch{has_match ? o.result.matches.of(k)[0].landmark : kInvalidLandmarkId,
-                                      truth != kInvalidLandmarkId && is_class[truth] ? truth : kInvalidLandmarkId});
-  }
-  return o;
-}
-
-// Every frame, --threads at a time.
-std::vector<FrameOutcome> localize_all(const Localizer& localizer, const LandmarkMap& map,
-                                       const std::vector<char>& is_class, const std::vector<frame_t>& frames,
-                                       int threads) {
-  std::vector<FrameOutcome> outcomes(frames.size());
-  std::atomic<size_t> next{0};
-  std::vector<std::thread> pool;
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  for (int t = 0; t < threads; ++t) {
-    pool.emplace_back([&] {
-      for (size_t i = next++; i < frames.size(); i = next++) {
-        try {
-          outcomes[i] = localize_frame(localizer, map, is_class, frames[i]);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(error_mutex);
-          if (!error) error = std::current_exception();
-        }
-      }
-    });
-  }
-  for (std::thread& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-  return outcomes;
-}
-
-// One frame's entry of the output: pose, errors, timings and matches [keypoint, rank, landmark,
-// score, inlier] (the pose's correspondences, or every ranked match with --all-matches).
-nlohmann::json frame_json(const MapFrame& frame, const FrameOutcome& o, bool all_matches) {
-  const LocalizeResult& r = o.result;
-  nlohmann::json jf;
-  jf["name"] = frame.name;
-  // success: localized (the calibrated rule with a calibrated model, else the inlier rule);
-  // pose_found: the inlier rule alone; confidence: the calibrated probability (-1 uncalibrated).
-  jf["success"] = r.localized;
-  jf["pose_found"] = r.pose.success;
-  jf["confidence"] = r.confidence;
-  const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
-  const Eigen::Vector3d& t = r.pose.cam_from_world.translation;
-  jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
-                          {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
-  jf["num_inliers"] = r.pose.num_inliers;
-  const RansacStats& st = r.pose.stats;
-  jf["ransac"] = {{"iterations", st.iterations},
-                  {"models", st.models},
-                  {"refinements", st.refinements},
-                  {"subset_size", st.subset_size},
-                  {"stop_subset", st.stop_subset},
-                  {"score", st.score},
-                  {"runner_up_inliers", st.runner_up_inliers},
-                  {"runner_up_shared", st.runner_up_shared}};
-  jf["num_correspondences"] = r.correspondence_keypoint.size();
-  jf["num_keypoints"] = frame.num_keypoints;
-  int matched = 0;
-  for (const KeypointMatch& m : o.matches) matched += m.accepted != kInvalidLandmarkId;
-  jf["num_matched_keypoints"] = matched;
-  if (r.pose.success) {  // the pose RANSAC found, whether trusted or not
-    jf["position_error_m"] = position_error(r.pose.cam_from_world, frame.cam_from_world);
-    jf["rotation_error_deg"] = rotation_error_deg(r.pose.cam_from_world, frame.cam_from_world);
-  }
-  jf["timings_ms"] = {{"embedding", r.timings.embedding_ms},
-                      {"classification", r.timings.classification_ms},
-                      {"pose", r.timings.pose_ms},
-                      {"total", r.timings.total_ms}};
-  std::vector<char> inlier(r.matches.matches.size(), 0), used(r.matches.matches.size(), 0);
-  for (size_t c = 0; c < r.correspondence_match.size(); ++c) {
-    used[r.correspondence_match[c]] = 1;
-    if (r.pose.inlier_mask[c]) inlier[r.correspondence_match[c]] = 1;
-  }
-  nlohmann::json jm = nlohmann::json::array();
-  for (int32_t k = 0; k < r.matches.num_keypoints(); ++k) {
-    for (int32_t j = 0; j < r.matches.count(k); ++j) {
-      const int32_t idx = r.matches.begin[k] + j;
-      if (!all_matches && !used[idx]) continue;
-      const ClassMatch& m = r.matches.matches[idx];
-      jm.push_back({k, j, m.landmark, m.score, inlier[idx] != 0});
-    }
-  }
-  jf["matches"] = std::move(jm);
-  return jf;
-}
-
-// The summary over the frames (also printed): pose counts and errors, the accepted matches'
-// metrics (train/eval/metrics.h: match_precision, match_recall, background_rejection_rate, the
-// same definitions as `lboost eval`'s report) and the mean timings.
-nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& frames,
-                            const std::vector<FrameOutcome>& outcomes, bool localizer_calibrated) {
-  std::vector<double> position_errors, rotation_errors;
-  int localized = 0, pose_found = 0, pose_found_right = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
-  double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
-  std::vector<KeypointMatch> matches;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const LocalizeResult& r = outcomes[i].result;
-    matches.insert(matches.end(), outcomes[i].matches.begin(), outcomes[i].matches.end());
-    total_ms += r.timings.total_ms;
-    embedding_ms += r.timings.embedding_ms;
-    classification_ms += r.timings.classification_ms;
-    pose_ms += r.timings.pose_ms;
-    const Rigid3d& truth = map.frames[frames[i]].cam_from_world;
-    pose_found += r.pose.success;
-    pose_found_right += r.pose.success && pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
-    if (!r.localized) continue;
-    ++localized;
-    position_errors.push_back(position_error(r.pose.cam_from_world, truth));
-    rotation_errors.push_back(rotation_error_deg(r.pose.cam_from_world, truth));
-    within_5cm_1deg += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.05, 1.0});
-    within_20cm_5deg += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
-  }
-  const MatchMetrics mm = evaluate_matches(matches);
-  const double nf = static_cast<double>(frames.size());
-  return {{"frames", frames.size()},
-          {"calibrated", localizer_calibrated},
-          {"localized", localized},
-          {"precision_20cm_5deg", localized > 0 ? static_cast<double>(within_20cm_5deg) / localized : 0.0},
-          {"pose_found", pose_found},
-          {"pose_found_within_20cm_5deg", pose_found_right},
-          {"within_5cm_1deg", within_5cm_1deg},
-          {"within_20cm_5deg", within_20cm_5deg},
-          {"median_position_error_m", median(position_errors)},
-          {"median_rotation_error_deg", median(rotation_errors)},
-          {"match_recall", mm.match_recall},
-          {"keypoints_with_class_truth", mm.num_with_truth},
-          {"match_precision", mm.match_precision},
-          {"accepted_matches", mm.num_accepted},
-          {"background_rejection_rate", mm.background_rejection_rate},
-          {"background_keypoints", mm.num_background},
-          {"ms_per_frame",
-           {{"embedding", embedding_ms / nf},
-            {"classification", classification_ms / nf},
-            {"pose", pose_ms / nf},
-            {"total", total_ms / nf}}}};
-}
-
-void print_summary(const nlohmann::json& s, int threads, const std::string& out) {
-  const nlohmann::json& ms = s.at("ms_per_frame");
-  std::printf(
-      "localize: %d/%zu frames localized (%s; precision %.3f at 20 cm/5 deg; %d/%zu with >= min-inliers inliers, %d of "
-      "them right), %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
-      "%.3f m %.2f deg (localized frames); match recall %.3f of %lld keypoints whose true landmark is a "
-      "model class, match precision %.3f of %lld accepted matches, background rejection %.3f of %lld "
-      "background keypoints; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d thread(s)) -> %s\n",
-      s.at("localized").get<int>(), s.at("frames").get<size_t>(),
-      s.at("calibrated").get<bool>() ? "calibrated confidence" : "uncalibrated model: inlier rule",
-      s.at("precision_20cm_5deg").get<double>(), s.at("pose_found").get<int>(), s.at("frames").get<size_t>(),
-      s.at("pose_found_within_20cm_5deg").get<int>(), s.at("within_5cm_1deg").get<int>(),
-      s.at("within_20cm_5deg").get<int>(), s.at("median_position_error_m").get<double>(),
-      s.at("median_rotation_error_deg").get<double>(), s.at("match_recall").get<double>(),
-      s.at("keypoints_with_class_truth").get<long long>(), s.at("match_precision").get<double>(),
-      s.at("accepted_matches").get<long long>(), s.at("background_rejection_rate").get<double>(),
-      s.at("background_keypoints").get<long long>(), ms.at("total").get<double>(), ms.at("embedding").get<double>(),
-      ms.at("classification").get<double>(), ms.at("pose").get<double>(), threads, out.c_str());
-}
-
 // --bundle: every query frame through the bundle in each prior mode (one RANSAC seed, one thread).
 void run_bundle_localize(const LocalizeArgs& a) {
   LMB_CHECK(a.queries.empty(), "localize: --queries is not supported with --bundle (every query frame)");
@@ -260,13 +46,18 @@ void run_bundle_localize(const LocalizeArgs& a) {
   b.seeds = 1;
   b.memory_per_area = false;
   const BundleEvalResult r = evaluate_bundle(b);
-  write_file_atomically(a.out, r.report.dump(1) + "\n");
+  write_file_atomically(a.out, r.report.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  warn_area_errors("localize", r.area_errors);
   std::printf("localize: bundle %s, %zu query frames, seed %llu, correct within 0.2 m / 5 deg:\n%s-> %s\n",
               b.bundle.c_str(), r.report.at("frames").get<size_t>(),
               static_cast<unsigned long long>(a.options.pose.seed), r.table.c_str(), a.out.c_str());
 }
 
 void run_localize(const LocalizeArgs& a) {
+  std::vector<NamedPath> inputs = bundle_input_paths(a.bundle.bundle, "--bundle");
+  inputs.push_back({a.model, "--model"});
+  inputs.push_back({a.map, "--map"});
+  check_outputs_not_inputs({{a.out, "--out"}}, inputs);
   LMB_CHECK(a.threads >= 1 && a.threads <= 256, "localize: --threads = " << a.threads << " must be in 1..256");
   if (!a.bundle.bundle.empty()) {
     run_bundle_localize(a);
@@ -279,40 +70,16 @@ void run_localize(const LocalizeArgs& a) {
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
   const std::vector<char> is_class = check_model_fits_map(*model, a.model, map, a.map);
-  const Localizer localizer(model, a.options);
-  const std::vector<frame_t> frames = select_frames(map, a.queries);
-  spdlog::info("localize: {} frames, model {} classes, {} stumps, {} used dims, {} scoring, {} thread(s)",
-               frames.size(), model->num_classes(), model->data().stumps.size(), model->scoring().used_dims().size(),
-               a.options.classifier.use_inverted_file ? "inverted-file" : "dense", a.threads);
-  const std::vector<FrameOutcome> outcomes = localize_all(localizer, map, is_class, frames, a.threads);
-
-  nlohmann::json out;
+  MapLocalizationOptions o;
+  o.localizer = a.options;
+  o.queries = a.queries;
+  o.threads = a.threads;
+  o.all_matches = a.all_matches;
+  nlohmann::json out = localize_map_frames(model, map, is_class, o);
   out["model"] = a.model;
   out["map"] = a.map;
-  out["options"] = {{"top_k", a.options.classifier.top_k},
-                    {"use_inverted_file", a.options.classifier.use_inverted_file},
-                    {"inverted_file_words", a.options.classifier.inverted_file_words},
-                    {"min_margin", json_number_or_string(a.options.classifier.min_margin)},
-                    {"pose_top_k", a.options.pose_top_k},
-                    {"max_correspondences", a.options.max_correspondences},
-                    {"ransac_iterations", a.options.pose.max_iterations},
-                    {"max_reprojection_error_px", a.options.pose.max_reprojection_error_px},
-                    {"min_inliers", a.options.pose.min_inliers},
-                    {"seed", a.options.pose.seed},
-                    {"prosac", a.options.pose.progressive_sampling}};
-  nlohmann::json jframes = nlohmann::json::array();
-  for (size_t i = 0; i < frames.size(); ++i)
-    jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], a.all_matches));
-  out["frames"] = std::move(jframes);
-  out["summary"] = summary_json(map, frames, outcomes, model->calibrated());
-  out["calibration"] =
-      model->calibrated()
-          ? nlohmann::json{{"threshold", localizer.options().min_confidence >= 0 ? localizer.options().min_confidence
-                                                                                 : model->calibration().threshold},
-                           {"target_precision", model->calibration().target_precision}}
-          : nlohmann::json(nullptr);
-  write_file_atomically(a.out, out.dump(1) + "\n");
-  print_summary(out["summary"], a.threads, a.out);
+  write_file_atomically(a.out, out.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  std::printf("%s -> %s\n", map_localization_summary_line(out.at("summary"), a.threads).c_str(), a.out.c_str());
 }
 
 }  // namespace
@@ -353,7 +120,7 @@ void add_localize_command(CLI::App& app) {
                   "Calibrated probability a pose needs to count as localized (negative: the model's operating "
                   "point; ignored by an uncalibrated model)")
       ->capture_default_str();
-  cmd->add_option("--seed", args->options.pose.seed, "RANSAC seed")->capture_default_str();
+  add_seed_option(cmd, "--seed", &args->options.pose.seed, "RANSAC seed");
   cmd->add_flag("--uniform-sampling{false}", args->options.pose.progressive_sampling,
                 "Uniform RANSAC sampling instead of PROSAC in the order of the match margins");
   cmd->add_option("--threads", args->threads, "Frames localized in parallel")->capture_default_str();

@@ -1,5 +1,6 @@
 // lboost map: one or more collections (COLMAP sparse model + images, optional sessions.txt) -> map.h5.
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -8,6 +9,7 @@
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
+#include "common/io/session_file.h"
 #include "train/cli/commands.h"
 #include "train/mapping/map_gravity.h"
 #include "train/mapping/mapper.h"
@@ -29,6 +31,19 @@ struct MapArgs {
 };
 
 void run_map(const MapArgs& args) {
+  // What mapping reads of each collection: its sparse model, images, sessions.txt and gravity file.
+  std::vector<NamedPath> read;
+  for (const std::string& c : args.collections) {
+    const std::filesystem::path collection(c);
+    read.push_back({collection / "sparse", "--collection", true});
+    read.push_back({collection / "images", "--collection", true});
+    read.push_back({collection / kSessionFileName, "--collection"});
+    read.push_back({collection / "gravity.txt", "--collection"});
+  }
+  for (const std::string& g : args.gravity) {
+    if (g != "none") read.push_back({g, "--gravity"});
+  }
+  check_outputs_not_inputs({{args.out, "--out"}}, read);
   check_writable_file(args.out, "--out");  // before the gravity choice and the mapping run
   MapperOptions options = args.options;
   const size_t n = args.collections.size();

@@ -9,6 +9,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/detector_options.h"
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/random.h"
@@ -55,6 +56,9 @@ std::vector<std::filesystem::path> list_images(const std::vector<std::string>& d
 }
 
 void run_vocab(const VocabArgs& a) {
+  std::vector<NamedPath> inputs;
+  for (const std::string& dir : a.image_dirs) inputs.push_back({dir, "--images", true});
+  check_outputs_not_inputs({{a.out, "--out"}}, inputs);
   VocabularyTrainOptions options;
   options.num_words = a.words;
   options.seed = a.seed;
@@ -72,6 +76,9 @@ void run_vocab(const VocabArgs& a) {
     LMB_FAIL("--detector " << a.detector << ": must be BRISK or ORB");
   }
 
+  // The detectors above have DetectorOptions' defaults (BRISK: 3 octaves): the same smallest image.
+  DetectorOptions sizes;
+  sizes.detector = a.detector;
   const auto images = list_images(a.image_dirs);
   spdlog::info("vocab: {} images, detector {}", images.size(), a.detector);
   const auto start = std::chrono::steady_clock::now();
@@ -81,9 +88,15 @@ void run_vocab(const VocabArgs& a) {
   for (const auto& path : images) {
     const cv::Mat image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
     LMB_CHECK(!image.empty(), path.string() << ": cannot read the image");
+    sizes.check_image_size(image.cols, image.rows, path.string());
     std::vector<cv::KeyPoint> keypoints;
     cv::Mat desc;
-    detector->detectAndCompute(image, cv::noArray(), keypoints, desc);
+    try {
+      detector->detectAndCompute(image, cv::noArray(), keypoints, desc);
+    } catch (const cv::Exception& e) {
+      LMB_FAIL(path.string() << ": OpenCV failed on this " << image.cols << "x" << image.rows << " image: " << e.err
+                             << " (in " << e.func << ")");
+    }
     if (desc.empty()) continue;
     LMB_CHECK(desc.type() == CV_8U, path.string() << ": detector gave non-binary descriptors");
     if (descriptor_bytes == 0) descriptor_bytes = desc.cols;
@@ -142,7 +155,7 @@ void add_vocab_command(CLI::App& app) {
   cmd->add_option("--images", args->image_dirs, "image folder, scanned recursively (repeatable)")->required();
   cmd->add_option("--out", args->out, "output vocabulary file (.lbv)")->required();
   cmd->add_option("--words", args->words, "number of visual words, 4..256")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "k-means++ and subsampling seed")->capture_default_str();
+  add_seed_option(cmd, "--seed", &args->seed, "k-means++ and subsampling seed");
   cmd->add_option("--detector", args->detector, "BRISK (64-byte) or ORB (32-byte); use the map's")
       ->capture_default_str();
   cmd->add_option("--max-descriptors", args->max_descriptors, "random subsample of at most this many descriptors")

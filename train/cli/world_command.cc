@@ -96,7 +96,7 @@ void add_world_command(CLI::App& app) {
       "world",
       "Render a self-similar indoor corridor world (map and query sessions) into a COLMAP collection with depth");
   cmd->add_option("--preset", args->preset, "tiny | default | paper")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "World seed (layout, textures, trajectories, noise)")->capture_default_str();
+  add_seed_option(cmd, "--seed", &args->seed, "World seed (layout, textures, trajectories, noise)");
   cmd->add_option("--out", args->out, "Output folder (replaced atomically)")->required();
   cmd->add_flag("--non-aliased", args->non_aliased,
                 "Control world: every element instance gets a unique texture (same geometry and trajectories)");

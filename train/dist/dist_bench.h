@@ -1,9 +1,8 @@
-// The distributed training benchmark (`mpirun -n R build/train/dist/lmb_dist_bench`): the
-// feature-parallel learner on a synthetic problem (default: the paper's shape, see
-// paper_shape_synthetic_options), per-round wall time, where it goes, bytes communicated per
-// round, and memory per rank. Every rank generates the whole synthetic matrix and keeps its own
-// columns (so the generator's peak is the full matrix; `rss_mb_training` is the footprint while
-// training).
+// The distributed training benchmark (`mpirun -n R lboost-bench dist`): the feature-parallel
+// learner on a synthetic problem (default: the paper's shape, see paper_shape_synthetic_options),
+// per-round wall time, where it goes, bytes communicated per round, and memory per rank. Every rank
+// generates the whole synthetic matrix and keeps its own columns (so the generator's peak is the
+// full matrix; `rss_mb_training` is the footprint while training).
 #pragma once
 
 #include <cstdint>

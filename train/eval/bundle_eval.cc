@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <optional>
@@ -16,10 +17,13 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/feature_space.h"
 #include "common/io/map_h5.h"
 #include "common/landmark_map.h"
+#include "common/stats.h"
 #include "infer/model.h"
 #include "train/areas/area_split.h"
+#include "train/eval/evaluation.h"
 
 namespace lmb {
 
@@ -39,16 +43,10 @@ int64_t resident_bytes() {
   return resident * static_cast<int64_t>(sysconf(_SC_PAGESIZE));
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-double mean(const std::vector<double>& v) {
-  return v.empty() ? std::numeric_limits<double>::quiet_NaN()
-                   : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+std::string hex_text(uint64_t v) {
+  char buf[24];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(v));
+  return buf;
 }
 
 std::string number_text(double metres) {
@@ -149,17 +147,31 @@ std::vector<Mode> make_modes(const BundleEvalOptions& options, bool with_single)
   return modes;
 }
 
+// What the bundle's frame runs of every mode add up to: which areas failed to load, and whether
+// any run scored an area at all.
+struct AreaTally {
+  std::map<std::string, int64_t> errors;  // each error line and how many frame runs gave it
+  int64_t bundle_runs = 0;                // frame runs through the bundle
+  int64_t scored_runs = 0;                // of them with at least one area scored
+  void add(const Outcome& o) {
+    ++bundle_runs;
+    scored_runs += o.scored.empty() ? 0 : 1;
+    for (const std::string& e : o.errors) ++errors[e];
+  }
+};
+
 // Everything one mode's frames share.
 struct ModeContext {
   const BundleEvalOptions& options;
   const LandmarkMap& map;
   const std::shared_ptr<AreaBundle>& bundle;
   const std::shared_ptr<const Model>& single;
+  AreaTally* tally;
 };
 
 // One query frame localized in one mode, timed on this thread.
 Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const LocalizerOptions& lo,
-                       BundleLocalizer* tracker) {
+                       BundleLocalizer* bundle_localizer) {
   const MapFrame& frame = c.map.frames[f];
   const std::vector<Keypoint> keypoints(c.map.keypoints.begin() + frame.first_keypoint,
                                         c.map.keypoints.begin() + frame.first_keypoint + frame.num_keypoints);
@@ -178,17 +190,17 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.confidence = r.confidence;
   } else {
     // The frame's position prior: the mode's, or a tracking mode's relocalization prior.
-    const double noise = tracker != nullptr ? c.options.track_prior_noise : mode.has_prior ? mode.noise : -1.0;
+    const bool tracking = mode.tracking_radius > 0.0;
+    const double noise = tracking ? c.options.track_prior_noise : mode.has_prior ? mode.noise : -1.0;
     PositionPrior prior;
     if (noise >= 0.0) {
       prior.position = frame.cam_from_world.center() + noise * prior_direction(c.options.prior_seed, f);
       prior.radius = noise;
     }
     const PositionPrior* p = noise >= 0.0 ? &prior : nullptr;
-    BundleLocalizeResult r =
-        tracker != nullptr ? tracker->track(camera, keypoints, descriptors, frame.gravity_in_cam, p)
-                           : localize_in_bundle(*c.bundle, camera, keypoints, descriptors, frame.gravity_in_cam, p, lo,
-                                                c.options.search, c.options.winner, c.options.area_threads);
+    BundleLocalizeResult r = tracking
+                                 ? bundle_localizer->track(camera, keypoints, descriptors, frame.gravity_in_cam, p)
+                                 : bundle_localizer->localize(camera, keypoints, descriptors, frame.gravity_in_cam, p);
     o.tracked = r.tracked;
     o.prior_used = r.prior_used;
     o.success = r.area >= 0;
@@ -238,6 +250,20 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
   return jf;
 }
 
+// The bundle's localizer of one seed (none in the single model's mode); a tracking mode follows one
+// camera a seed, from no pose.
+std::optional<BundleLocalizer> seed_localizer(const ModeContext& c, const Mode& mode, const LocalizerOptions& lo) {
+  if (mode.single) return std::nullopt;
+  BundleLocalizerOptions bo;
+  bo.localizer = lo;
+  bo.search = c.options.search;
+  bo.winner = c.options.winner;
+  bo.area_threads = c.options.area_threads;
+  bo.tracking_radius = mode.tracking_radius;
+  bo.tracking_areas = c.options.tracking_areas;
+  return std::optional<BundleLocalizer>(std::in_place, c.bundle, bo);
+}
+
 // One mode over every frame and seed: its report entry, and its line of the table.
 nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::vector<frame_t>& frames,
                              std::string* table) {
@@ -267,20 +293,11 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     LocalizerOptions lo = c.options.localizer;
     lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
     int correct = 0, trusted = 0, trusted_correct = 0, seed_tracked = 0, seed_tracked_correct = 0;
-    std::optional<BundleLocalizer> tracker;  // a tracking mode: one camera a seed, from no pose
-    if (mode.tracking_radius > 0.0) {
-      BundleLocalizerOptions bo;
-      bo.localizer = lo;
-      bo.search = c.options.search;
-      bo.winner = c.options.winner;
-      bo.area_threads = c.options.area_threads;
-      bo.tracking_radius = mode.tracking_radius;
-      bo.tracking_areas = c.options.tracking_areas;
-      tracker.emplace(c.bundle, bo);
-    }
+    std::optional<BundleLocalizer> localizer = seed_localizer(c, mode, lo);
     for (frame_t f : frames) {
       const MapFrame& frame = c.map.frames[f];
-      const Outcome o = localize_frame(c, mode, f, lo, tracker ? &*tracker : nullptr);
+      const Outcome o = localize_frame(c, mode, f, lo, localizer ? &*localizer : nullptr);
+      if (!mode.single) c.tally->add(o);
       if (o.tracked) tracked_cpu.push_back(o.cpu_ms);
       relocalized += mode.tracking_radius > 0.0 && !o.prior_used;
       const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, c.options.thresholds);
@@ -380,8 +397,23 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   std::stable_sort(frames.begin(), frames.end(),
                    [&](frame_t a, frame_t b) { return map.frames[a].name < map.frames[b].name; });
   LMB_CHECK(!frames.empty(), options.map << ": no query frames");
+  // The bundle, its areas and the single model must be of this map: another map's would pose every
+  // frame somewhere else without a word.
+  const uint64_t map_fingerprint = fingerprint_map(map);
+  if (bundle->map_fingerprint() != 0) {
+    LMB_CHECK(bundle->map_fingerprint() == map_fingerprint,
+              options.bundle << ": the bundle was made for another map than " << options.map << " (map fingerprints "
+                             << hex_text(bundle->map_fingerprint()) << " and " << hex_text(map_fingerprint) << ")");
+  }
+  bundle->set_model_transform([&map, &options](int32_t, std::shared_ptr<const Model> model) {
+    check_model_fits_map(*model, "the area's model", map, options.map);
+    return model;
+  });
   std::shared_ptr<const Model> single;
-  if (!options.model.empty()) single = Model::load(options.model);
+  if (!options.model.empty()) {
+    single = Model::load(options.model);
+    check_model_fits_map(*single, options.model, map, options.map);
+  }
 
   nlohmann::json report;
   report["bundle"] = options.bundle;
@@ -408,11 +440,23 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   result.table =
       "mode               recall  (per seed)              posed  localized (all seeds)  med_pos_m  cpu_ms/frame "
       "(mean, median)  areas selected/scored/loaded per frame\n";
-  const ModeContext context{options, map, bundle, single};
+  AreaTally tally;
+  const ModeContext context{options, map, bundle, single, &tally};
   nlohmann::json jmodes = nlohmann::json::array();
   for (const Mode& mode : make_modes(options, single != nullptr)) {
     jmodes.push_back(evaluate_mode(context, mode, frames, &result.table));
   }
+  bundle->set_model_transform({});
+  // Not one frame could be scored because no area loads: an error, not a table of zeros.
+  LMB_CHECK(tally.errors.empty() || tally.scored_runs > 0,
+            options.bundle << ": no area could be loaded (" << tally.errors.size()
+                           << " area error(s); the first: " << tally.errors.begin()->first << ")");
+  nlohmann::json jerrors = nlohmann::json::array();
+  for (const auto& [line, runs] : tally.errors) {
+    result.area_errors.push_back(line);
+    jerrors.push_back({{"error", line}, {"frame_runs", runs}});
+  }
+  report["area_errors"] = std::move(jerrors);
   report["modes"] = std::move(jmodes);
   result.report = std::move(report);
   return result;

@@ -14,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "infer/area_bundle.h"
+#include "infer/bundle_localizer.h"
 #include "infer/localizer.h"
 #include "train/eval/metrics.h"
 
@@ -50,9 +50,12 @@ struct BundleEvalOptions {
 struct BundleEvalResult {
   nlohmann::json report;  // docs/areas.md describes the fields
   std::string table;      // one line per mode
+  // Each distinct error of an area that could not be loaded (the other areas were scored).
+  std::vector<std::string> area_errors;
 };
 
-// Throws lmb::Error on invalid options, an unreadable bundle, map or model, or no query frame.
+// Throws lmb::Error on invalid options, an unreadable bundle, map or model, a bundle or model of
+// another map, no query frame, or when no area of the bundle could be loaded.
 BundleEvalResult evaluate_bundle(const BundleEvalOptions& options);
 
 }  // namespace lmb

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "common/error.h"
+#include "common/stats.h"
 
 namespace lmb {
 
@@ -23,16 +24,6 @@ void check_candidates(const KeypointRanking& r, size_t index) {
                                                                                 << j + 1 << " and " << i + 1 << ")");
     }
   }
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  const double upper = v[mid];
-  if (v.size() % 2 == 1) return upper;
-  const double lower = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid));
-  return 0.5 * (lower + upper);
 }
 
 bool within(double value, double limit) { return value <= limit * (1.0 + 1e-9); }
@@ -224,8 +215,11 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames, const PoseTh
   m.inlier_ratio.assign(n, 0.0);
   m.correct.assign(n, 0);
   std::vector<double> pos_localized, rot_localized;
+  // Every frame's errors, infinite when not localized (the 7-Scenes medians).
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> pos_all(n, inf), rot_all(n, inf);
   double ratio_sum = 0.0, match_sum = 0.0, total_sum = 0.0;
-  int64_t correct_20cm_5deg = 0;
+  int64_t correct_20cm_5deg = 0, correct_5cm_5deg = 0;
   for (size_t i = 0; i < n; ++i) {
     const FrameOutcome& f = frames[i];
     LMB_CHECK(f.num_correspondences >= 0 && f.num_inliers >= 0,
@@ -244,6 +238,8 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames, const PoseTh
     m.rotation_error_deg[i] = re;
     pos_localized.push_back(pe);
     rot_localized.push_back(re);
+    pos_all[i] = pe;
+    rot_all[i] = re;
     if (f.num_correspondences > 0) {
       m.inlier_ratio[i] = static_cast<double>(f.num_inliers) / static_cast<double>(f.num_correspondences);
     }
@@ -253,17 +249,21 @@ PoseMetrics evaluate_poses(const std::vector<FrameOutcome>& frames, const PoseTh
       ++m.num_correct;
     }
     correct_20cm_5deg += within(pe, 0.20) && within(re, 5.0);
+    correct_5cm_5deg += within(pe, 0.05) && within(re, 5.0);
   }
   if (n > 0) {
     const double count = static_cast<double>(n);
     m.recall = static_cast<double>(m.num_correct) / count;
     m.recall_20cm_5deg = static_cast<double>(correct_20cm_5deg) / count;
+    m.recall_5cm_5deg = static_cast<double>(correct_5cm_5deg) / count;
     m.mean_inlier_ratio = ratio_sum / count;
     m.mean_match_ms = match_sum / count;
     m.mean_total_ms = total_sum / count;
   }
   m.median_position_error_m = median(pos_localized);
   m.median_rotation_error_deg = median(rot_localized);
+  m.median_position_error_all_frames_m = median(pos_all);
+  m.median_rotation_error_all_frames_deg = median(rot_all);
 
   // Precision-recall by sweeping the confidence threshold from the top.
   std::vector<size_t> order;

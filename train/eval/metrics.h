@@ -161,6 +161,10 @@ struct PosePrPoint {
 // at most the final recall. No localized frame: empty curve, AUC 0.
 //
 // Medians are over localized frames (NaN when none; the mean of the middle two for an even count).
+// The 7-Scenes convention beside them: recall_5cm_5deg (frames localized within 5 cm and 5 deg /
+// ALL query frames) and the medians over ALL query frames, where a frame without a pose counts as
+// an infinite error (so the median is infinite when half of the frames or more are not localized;
+// NaN when there is no frame).
 // Inlier ratio of a frame: num_inliers / num_correspondences when localized with at least one
 // correspondence, else 0; mean_inlier_ratio is over ALL query frames.
 struct PoseMetrics {
@@ -173,10 +177,13 @@ struct PoseMetrics {
   std::vector<char> correct;               // per frame: 1 when correct
   double recall = 0.0;                     // num_correct / num_frames (0 when no frame)
   double recall_20cm_5deg = 0.0;           // the same at 20 cm / 5 deg, whatever the thresholds
+  double recall_5cm_5deg = 0.0;            // the same at 5 cm / 5 deg (7-Scenes)
   std::vector<PosePrPoint> pr_curve;       // anchor first, then by decreasing threshold
   double auc = 0.0;
   double median_position_error_m = 0.0;
   double median_rotation_error_deg = 0.0;
+  double median_position_error_all_frames_m = 0.0;    // over all frames, not localized = infinite
+  double median_rotation_error_all_frames_deg = 0.0;  // likewise
   double mean_inlier_ratio = 0.0;
   double mean_match_ms = 0.0;  // over all frames (0 when no frame)
   double mean_total_ms = 0.0;

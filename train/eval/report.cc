@@ -72,6 +72,12 @@ nlohmann::json method_report(const MethodResult& r) {
   m["pose_auc"] = number(p.auc);
   m["median_position_error_m"] = number(p.median_position_error_m);
   m["median_rotation_error_deg"] = number(p.median_rotation_error_deg);
+  // The 7-Scenes convention: 5 cm / 5 deg, and medians over all frames, which may be infinite
+  // ("inf"); null without frames.
+  m["pose_recall_5cm_5deg"] = number(p.recall_5cm_5deg);
+  const auto all_frames = [&](double v) { return p.num_frames > 0 ? json_number_or_string(v) : nlohmann::json(); };
+  m["median_position_error_all_frames_m"] = all_frames(p.median_position_error_all_frames_m);
+  m["median_rotation_error_all_frames_deg"] = all_frames(p.median_rotation_error_all_frames_deg);
   m["mean_inlier_ratio"] = number(p.mean_inlier_ratio);
   m["match_ms_per_frame"] = number(p.mean_match_ms);
   m["total_ms_per_frame"] = number(p.mean_total_ms);
@@ -197,7 +203,7 @@ nlohmann::json generalization_gap(const nlohmann::json& report) {
 }
 
 void write_report(const std::filesystem::path& path, const nlohmann::json& report) {
-  const std::string text = report.dump(2) + "\n";
+  const std::string text = report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
   write_file_atomically(path, text.data(), text.size());
 }
 
@@ -239,6 +245,38 @@ std::string format_sweep_table(const nlohmann::json& methods) {
       out += line;
     }
     out += "\n";
+  }
+  return out;
+}
+
+// The 7-Scenes convention, one row per method: pose recall at 5 cm / 5 deg and the median errors
+// over all query frames ("inf" when half of them or more have no pose); empty when no method has
+// them.
+std::string format_all_frames_table(const nlohmann::json& methods) {
+  std::string out;
+  char line[512];
+  // A median over all frames: a number, "inf" / "nan" as written, "-" when missing.
+  const auto median_text = [](const nlohmann::json& m, const char* key) -> std::string {
+    const auto it = m.find(key);
+    if (it == m.end() || it->is_null()) return "-";
+    if (it->is_string()) return it->get<std::string>();
+    char t[64];
+    std::snprintf(t, sizeof(t), "%.3f", it->get<double>());
+    return t;
+  };
+  for (const auto& [name, m] : methods.items()) {
+    if (!m.contains("pose_recall_5cm_5deg")) continue;
+    if (out.empty()) {
+      out =
+          "\npose over all query frames, the 7-Scenes convention (a frame without a pose counts as an infinite "
+          "error):\n";
+      std::snprintf(line, sizeof(line), "%-24s %8s %13s %13s\n", "method", "rec5/5", "med_pos_m_all", "med_rot_d_all");
+      out += line;
+    }
+    std::snprintf(line, sizeof(line), "%-24s %8.4f %13s %13s\n", name.c_str(), scalar(m, "pose_recall_5cm_5deg"),
+                  median_text(m, "median_position_error_all_frames_m").c_str(),
+                  median_text(m, "median_rotation_error_all_frames_deg").c_str());
+    out += line;
   }
   return out;
 }
@@ -306,7 +344,7 @@ std::string format_results_table(const nlohmann::json& report) {
                   scalar(m, "mean_inlier_ratio"), scalar(m, "match_ms_per_frame"), scalar(m, "total_ms_per_frame"));
     out += line;
   }
-  return out + format_thresholds_table(*methods) + format_sweep_table(*methods);
+  return out + format_all_frames_table(*methods) + format_thresholds_table(*methods) + format_sweep_table(*methods);
 }
 
 std::string format_generalization_gap(const nlohmann::json& report) {

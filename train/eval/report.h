@@ -1,7 +1,8 @@
 // The results report of `lboost eval` (report.json, every field documented in docs/report.md),
 // assembled from per-method metrics, plus the plain-text results tables the CLI prints. Non-finite
-// numbers (e.g. medians with no localized frame) are written as null; non-finite settings as
-// strings (json_number_or_string).
+// numbers (e.g. medians with no localized frame) are written as null; non-finite settings and the
+// medians over all query frames (infinite when half of the frames have no pose) as strings
+// (json_number_or_string).
 #pragma once
 
 #include <cstdint>
@@ -70,7 +71,8 @@ void write_report(const std::filesystem::path& path, const nlohmann::json& repor
 
 // A fixed-width table, one row per method: P@1, MRR, MR@FPPI=1, match precision and recall,
 // background rejection, pose recall, AUC, median errors, inlier ratio, match and total ms per
-// frame; then, when --pose-thresholds is not just the default pair, the pose recall at each pair;
+// frame; then the 7-Scenes convention (pose recall at 5 cm / 5 deg, median errors over all query
+// frames); then, when --pose-thresholds is not just the default pair, the pose recall at each pair;
 // then, when the report has pose_recall_sweep, the pose recall over the seeds (mean [min, max]) at
 // each RANSAC budget. docs/report.md explains every column.
 std::string format_results_table(const nlohmann::json& report);

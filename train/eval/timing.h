@@ -1,6 +1,6 @@
-// Timers of the evaluation and of the `lboost` commands that report figures: wall milliseconds
-// since a steady-clock point, and the calling thread's CPU milliseconds (the cross-check on a busy
-// machine, where wall time includes waiting for a core).
+// Timers of the evaluation and of the benchmarks (`lboost-bench`): wall milliseconds since a
+// steady-clock point, and the calling thread's CPU milliseconds (the cross-check on a busy machine,
+// where wall time includes waiting for a core).
 #pragma once
 
 #include <chrono>

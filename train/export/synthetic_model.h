@@ -1,5 +1,5 @@
 // A random but structurally realistic inference model, for timing inference at the paper's scale
-// without training one (`lboost bench infer --synthetic-paper`).
+// without training one (`lboost-bench infer --synthetic-paper`).
 //
 // Shape (defaults = the paper's configuration): C landmark classes, R regions x W words of context
 // plus 8 * descriptor_bytes descriptor bits, M stumps of which a share reads context dims (the

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <exception>
 #include <mutex>
+#include <new>
 #include <numeric>
 #include <string>
 #include <thread>
@@ -82,6 +83,12 @@ EmbeddingLayout embedding_layout(const LandmarkMap& map, const ContextRegions& r
   EmbeddingLayout layout{regions.size(), vocabulary.num_words(), map.descriptor_bytes};
   layout.check();
   return layout;
+}
+
+int64_t training_feature_bytes(int64_t num_samples, int64_t stored_dims, int num_threads, bool all_dims) {
+  const int64_t threads = std::max(1, num_threads);
+  // The matrix; per thread a row block; a plan keeps about 10 bytes a dim (its dims, words, offsets).
+  return num_samples * stored_dims + threads * kRowBlock * stored_dims + (all_dims ? 0 : 10 * stored_dims);
 }
 
 std::vector<frame_t> keypoint_frames(const LandmarkMap& map) {
@@ -166,7 +173,12 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
   m.num_samples = num_samples;
   m.num_dims = layout.num_dims();
   m.dims = options.dims;
-  m.data.resize(static_cast<size_t>(num_samples) * stored);
+  try {
+    m.data.resize(static_cast<size_t>(num_samples) * stored);
+  } catch (const std::bad_alloc&) {
+    LMB_FAIL("features: out of memory for the feature matrix of " << num_samples << " samples x " << stored << " dims ("
+                                                                  << num_samples * stored << " bytes)");
+  }
 
   // Samples grouped by (frame, copy): order[] sorted by (frame, copy, sample index); one task per group.
   std::vector<int64_t> order(static_cast<size_t>(num_samples));
@@ -187,12 +199,18 @@ FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegio
     std::vector<int32_t> index_in_copy;
   };
   std::vector<ThreadState> states;
-  states.reserve(static_cast<size_t>(threads));
-  for (int t = 0; t < threads; ++t) {
-    states.push_back(
-        {FrameContext(regions, layout.num_words), std::vector<uint8_t>(static_cast<size_t>(kRowBlock) * stored), {}});
+  DimPlan plan;
+  try {
+    states.reserve(static_cast<size_t>(threads));
+    for (int t = 0; t < threads; ++t) {
+      states.push_back(
+          {FrameContext(regions, layout.num_words), std::vector<uint8_t>(static_cast<size_t>(kRowBlock) * stored), {}});
+    }
+    if (!all_dims) plan = DimPlan(regions, layout, options.dims);
+  } catch (const std::bad_alloc&) {
+    LMB_FAIL("features: out of memory for the row blocks of " << threads << " threads x " << kRowBlock << " samples x "
+                                                              << stored << " dims");
   }
-  const DimPlan plan = all_dims ? DimPlan() : DimPlan(regions, layout, options.dims);
   const int32_t context_dims = layout.num_context_dims();
   const int32_t bytes = layout.descriptor_bytes;
 

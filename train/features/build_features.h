@@ -48,10 +48,17 @@ FrameKeypoints map_frame_keypoints(const LandmarkMap& map, frame_t frame, const 
 // Samples are grouped by (frame, copy) so that each frame's index is built once a copy; threads take whole frames and
 // write disjoint bytes, so the result is identical for any num_threads. Memory: num_samples * (stored dims) bytes, plus
 // per thread one frame index and a row block of at most 256 samples. Throws lmb::Error for an index out of range, a
-// descriptor length mismatch, or a frame with invalid geometry (the message names the frame).
+// descriptor length mismatch, or a frame with invalid geometry (the message names the frame), and
+// when its buffers cannot be allocated (naming their size instead of a bare std::bad_alloc).
 FeatureMatrix build_training_features(const LandmarkMap& map, const ContextRegions& regions,
                                       const Vocabulary& vocabulary, const std::vector<int64_t>& sample_keypoints,
                                       const FeatureBuildOptions& options);
+
+// The bytes build_training_features allocates for `num_samples` samples of `stored_dims` stored
+// dims (all of the layout's, or options.dims.size()) on `num_threads` threads: the matrix, each
+// thread's row block and, for a share of the dims, the dim plan. Check it against the memory before
+// building: the matrix is the run's largest allocation (regions x words context dims per sample).
+int64_t training_feature_bytes(int64_t num_samples, int64_t stored_dims, int num_threads, bool all_dims = true);
 
 // The frame of every keypoint (map.keypoints.size() entries). Throws lmb::Error when the frames'
 // keypoint ranges are inconsistent with the keypoint array.

@@ -43,13 +43,23 @@ void write_collection(const fs::path& out_dir, const std::map<int, Camera>& came
     fs::remove(out_dir / "gravity.txt");
     fs::remove(out_dir / kSessionFileName);
   }
-  // A failed write (a full disk) leaves no half collection: what this call created is removed.
+  // A failed write (a full disk) leaves no half collection: what this call created is removed, OUT
+  // and the folders above it included when this call created them (innermost first; each only
+  // when empty).
+  std::vector<fs::path> created_folders;
+  for (fs::path p = fs::absolute(out_dir).lexically_normal(); p != p.parent_path(); p = p.parent_path()) {
+    if (p.filename().empty()) continue;  // a trailing separator
+    std::error_code ec;
+    if (fs::exists(p, ec) || ec) break;
+    created_folders.push_back(p);
+  }
   auto remove_outputs = [&] {
     std::error_code ec;
     fs::remove_all(out_dir / "sparse", ec);
     fs::remove_all(out_dir / "images", ec);
     fs::remove(out_dir / "gravity.txt", ec);
     fs::remove(out_dir / kSessionFileName, ec);
+    for (const fs::path& p : created_folders) fs::remove(p, ec);
   };
   try {
     std::error_code ec;

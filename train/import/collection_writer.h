@@ -29,7 +29,8 @@ struct CollectionImage {
 // then start with a session's folder). An existing non-empty OUT is refused unless `overwrite`,
 // which removes only OUT/sparse, OUT/images, OUT/gravity.txt and OUT/sessions.txt. Throws
 // lmb::Error when a source file is missing, a name is used twice, gravity is given for some images
-// only, an image is in no session, or a write fails.
+// only, an image is in no session, or a write fails; a failed write leaves nothing this call
+// created (OUT itself included when it did not exist).
 void write_collection(const std::filesystem::path& out_dir, const std::map<int, Camera>& cameras,
                       const std::vector<CollectionImage>& images, bool overwrite,
                       const std::vector<MapSession>& sessions = {});

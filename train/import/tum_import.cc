@@ -12,6 +12,7 @@
 #include "common/error.h"
 #include "common/io/colmap_model.h"
 #include "common/io/session_file.h"
+#include "common/stats.h"
 #include "common/text_lines.h"
 #include "common/text_parse.h"
 #include "train/import/collection_writer.h"
@@ -33,19 +34,6 @@ void for_each_data_line(const fs::path& path, Fn fn) {
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * kRadToDeg;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(std::floor(q * static_cast<double>(v.size() - 1) + 0.5)))];
 }
 
 const char* const kAxisNames[6] = {"+x", "-x", "+y", "-y", "+z", "-z"};
@@ -234,12 +222,12 @@ std::optional<GravityAgreement> gravity_agreement(const std::vector<Kept>& kept,
   }
   if (angles.empty()) return std::nullopt;
   g.frames = static_cast<int>(angles.size());
-  g.median_deg = median(angles);
-  g.p90_deg = quantile(angles, 0.9);
+  g.median_deg = median(angles, 0.0);
+  g.p90_deg = quantile(angles, 0.9, 0.0);
   double sum = 0;
   for (double a : angles) sum += a;
   g.mean_deg = sum / static_cast<double>(angles.size());
-  for (int a = 0; a < 6; ++a) g.median_deg_by_world_axis[a] = median(by_axis[a]);
+  for (int a = 0; a < 6; ++a) g.median_deg_by_world_axis[a] = median(by_axis[a], 0.0);
   // Time offset scan.
   g.best_time_offset_median_deg = 1e9;
   for (int step = -12; step <= 12; ++step) {
@@ -251,7 +239,7 @@ std::optional<GravityAgreement> gravity_agreement(const std::vector<Kept>& kept,
       if (!pose) continue;
       scan.push_back(angle_deg(options.cam_from_accel * (-*k.accel).normalized(), pose->rotation.conjugate() * (-up)));
     }
-    const double m = median(scan);
+    const double m = median(scan, 0.0);
     if (!scan.empty() && m < g.best_time_offset_median_deg) {
       g.best_time_offset_median_deg = m;
       g.best_time_offset_s = offset;
@@ -267,7 +255,7 @@ std::optional<GravityAgreement> gravity_agreement(const std::vector<Kept>& kept,
   std::vector<double> fitted;
   for (const auto& [down_accel, truth] : pairs)
     fitted.push_back(angle_deg(g.fitted_cam_from_accel * down_accel, truth));
-  g.fitted_median_deg = median(fitted);
+  g.fitted_median_deg = median(fitted, 0.0);
   return g;
 }
 

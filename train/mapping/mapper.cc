@@ -412,6 +412,7 @@ LandmarkMap map_collections(const std::vector<CollectionInput>& collections, con
       LMB_CHECK(image.cols == camera.width && image.rows == camera.height,
                 path.string() << ": image is " << image.cols << "x" << image.rows << " but its camera is "
                               << camera.width << "x" << camera.height);
+      options.detector.check_image_size(image.cols, image.rows, path.string());
       ImageFeatures features = detect_keypoints(image, options.detector);
       f.keypoints = std::move(features.keypoints);
       f.descriptors = std::move(features.descriptors);

@@ -347,7 +347,7 @@ TEST_F(ColmapBinaryTest, BadValuesFailWithOneClearLine) {
   expect_error("images.bin: image record 4 (id 99): 2D point x is not finite");
 
   m = sample_model();
-  m.images[2].name = "seq/../../../escape.jpg";  // issue 16: names must stay inside the image folder
+  m.images[2].name = "seq/../../../escape.jpg";  // names must stay inside the image folder
   write_colmap_binary(m, dir_);
   expect_error("images.bin: image record 2 (id 97): image name 'seq/../../../escape.jpg' leaves the image folder");
 

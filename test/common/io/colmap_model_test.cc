@@ -96,8 +96,8 @@ TEST_F(ColmapTextTest, MalformedFilesFailWithFileAndLine) {
   expect_error("images.txt: cannot open file: No such file or directory");
 }
 
-// Issue 16: an image name must stay inside the image folder (`import colmap` links images at these
-// names); ids are never negative; a NUL byte is an error naming file and line (it cut messages).
+// An image name must stay inside the image folder (`import colmap` links images at these names);
+// ids are never negative; a NUL byte is an error naming file and line (it would cut messages).
 TEST_F(ColmapTextTest, NamesIdsAndBytesThatCannotBeUsed) {
   write("cameras.txt", "3 PINHOLE 640 480 500 500 320 240\n");
   write("images.txt", "1 1 0 0 0 0 0 0 3 ../../outside.png\n\n");

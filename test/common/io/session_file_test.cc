@@ -12,6 +12,7 @@ namespace lmb {
 namespace {
 
 namespace fs = std::filesystem;
+using namespace std::string_literals;
 
 class SessionFileTest : public ::testing::Test {
  protected:
@@ -56,7 +57,7 @@ TEST_F(SessionFileTest, BadLinesNameFileLineAndReason) {
   const std::string at = (dir_ / "sessions.txt").string() + " line 2: ";
   EXPECT_EQ(error_of("map map\nquery\n"), at + "expected 2 fields (NAME KIND), got 1");
   EXPECT_EQ(error_of("map map\nquery later\n"), at + "session kind 'later' (expected map, query or outside)");
-  EXPECT_EQ(error_of("map map\nmap query\n"), at + "duplicate session name map");
+  EXPECT_EQ(error_of("map map\nmap query\n"), at + "duplicate session name map (first on line 1)");
   EXPECT_NE(error_of("map map\nq/x query\n").find(at + "session name 'q/x'"), std::string::npos);
   EXPECT_NE(error_of("map map\n.. query\n").find(at + "session name '..'"), std::string::npos);
   EXPECT_EQ(error_of("# nothing\n"), (dir_ / "sessions.txt").string() + ": no session listed");
@@ -64,6 +65,52 @@ TEST_F(SessionFileTest, BadLinesNameFileLineAndReason) {
   EXPECT_THROW(read_session_file(dir_ / "missing.txt"), Error);
   EXPECT_THROW(write_session_file({{"a b", SessionKind::kMap}}, dir_ / "w.txt"), Error);
   EXPECT_THROW(write_session_file({{"a", SessionKind::kMap}, {"a", SessionKind::kQuery}}, dir_ / "w.txt"), Error);
+}
+
+TEST_F(SessionFileTest, ManySessionsParseAndADuplicateNamesBothLines) {
+  const int n = 100000;
+  std::string text = "# NAME KIND\n";
+  for (int i = 0; i < n; ++i) {
+    text += 's';
+    text += std::to_string(i);
+    text += i % 3 == 0 ? " map\n" : " query\n";
+  }
+  const fs::path path = dir_ / "sessions.txt";
+  std::ofstream(path) << text;
+  const std::vector<MapSession> read = read_session_file(path);
+  ASSERT_EQ(read.size(), static_cast<size_t>(n));
+  EXPECT_EQ(read[0].name, "s0");
+  EXPECT_EQ(read[n - 1].name, std::string("s") + std::to_string(n - 1));
+  EXPECT_EQ(read[n - 1].kind, (n - 1) % 3 == 0 ? SessionKind::kMap : SessionKind::kQuery);
+  // The duplicate of the session on line 6 (s4), listed last.
+  EXPECT_EQ(error_of(text + "s4 outside\n"),
+            path.string() + " line " + std::to_string(n + 2) + ": duplicate session name s4 (first on line 6)");
+}
+
+TEST_F(SessionFileTest, ANulByteIsQuotedEscapedInTheMessage) {
+  const std::string at = (dir_ / "sessions.txt").string() + " line 2: ";
+  const std::string error = error_of("map map\nqu\0ery-tail query\n"s);
+  EXPECT_EQ(error, at + "session name 'qu\\0ery-tail' (expected letters, digits, '-', '_' or '.': the image folder "
+                        "of the session)");
+  EXPECT_EQ(error.find('\0'), std::string::npos);
+  EXPECT_EQ(error_of("map ma\0p\n"s), (dir_ / "sessions.txt").string() +
+                                          " line 1: session kind 'ma\\0p' (expected map, query or "
+                                          "outside)");
+}
+
+TEST_F(SessionFileTest, ALeadingByteOrderMarkIsSkippedLikeInEveryTextReader) {
+  const fs::path path = dir_ / "sessions.txt";
+  std::ofstream(path) << "\xEF\xBB\xBF# NAME KIND\r\nmap map\r\nquery query\r\n";
+  std::vector<MapSession> read = read_session_file(path);
+  ASSERT_EQ(read.size(), 2u);
+  EXPECT_EQ(read[0].name, "map");
+  std::ofstream(path) << "\xEF\xBB\xBFmap map\n";
+  read = read_session_file(path);
+  ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0].name, "map");
+  // Only at the start of the file: elsewhere it is part of a name, which is refused.
+  EXPECT_NE(error_of("map map\n\xEF\xBB\xBFquery query\n").find("line 2: session name '\xEF\xBB\xBFquery'"),
+            std::string::npos);
 }
 
 TEST_F(SessionFileTest, ImagesBelongToTheSessionOfTheirFirstFolder) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "common/error.h"
+#include "common/feature_space.h"
 #include "common/file_io.h"
 #include "test/train/areas/area_test_map.h"
 
@@ -112,17 +113,77 @@ TEST(AreaFile, RejectsMalformedFilesNamingTheLine) {
 }
 
 TEST(AreaFile, RejectsTruncatedAndMissingFiles) {
-  std::string text = area_file_text(corridor_areas(), "");
-  text.resize(text.rfind("members"));
+  const std::string full = area_file_text(corridor_areas(), "");
   const fs::path path = temp_dir() / "short_areas.txt";
-  write_file_atomically(path, text);
-  try {
-    read_area_file(path);
-    ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("ends before the members of area"), std::string::npos) << e.what();
-  }
+  auto error = [&](const std::string& text) -> std::string {
+    write_file_atomically(path, text);
+    try {
+      read_area_file(path);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  // The last line cut: fewer lines than the areas need, found at the header.
+  const std::string cut = full.substr(0, full.rfind("members"));
+  EXPECT_NE(error(cut).find("but the file has only"), std::string::npos) << error(cut);
+  // The last members line a comment: as many lines, one members line short.
+  const std::string commented = cut + "# members\n";
+  EXPECT_NE(error(commented).find("ends before the members of area"), std::string::npos) << error(commented);
   EXPECT_THROW(read_area_file(path.parent_path() / "missing.txt"), Error);
+  fs::remove_all(path.parent_path());
+}
+
+// A count in the header is checked against the lines the file has before anything is allocated
+// for it.
+TEST(AreaFile, AreaCountBeyondTheFileIsRefusedBeforeAllocating) {
+  const AreaFile file = corridor_areas();
+  const size_t areas = file.split.areas.size();
+  ASSERT_GE(areas, 2u);
+  expect_rejected("\nareas " + std::to_string(areas) + "\n", "\nareas 1000000\n",
+                  "areas 1000000, but the file has only " + std::to_string(2 * areas) +
+                      " line(s) left (each area needs an area and a members line)",
+                  true);
+  expect_rejected("\nareas " + std::to_string(areas) + "\n", "\nareas " + std::to_string(areas + 1) + "\n",
+                  "areas " + std::to_string(areas + 1) + ", but the file has only", true);
+  expect_rejected("\nareas " + std::to_string(areas) + "\n", "\nareas 1000001\n", "areas 1000001 is outside", true);
+}
+
+// Against the map it is used with (train --area, bundle --map): a header the map contradicts is
+// refused, even when the file itself is consistent.
+TEST(AreaFile, HeaderValuesAreCheckedAgainstTheMap) {
+  const LandmarkMap map = test::corridor_map();
+  AreaFile file = corridor_areas();
+  file.map_fingerprint = fingerprint_map(map);
+  const fs::path path = temp_dir() / "map_areas.txt";
+  write_area_file(path, file, "");
+  EXPECT_NO_THROW(check_area_file_map(read_area_file(path), path, map));
+  EXPECT_EQ(read_area_landmarks(path, 0, map), file.split.areas[0].landmarks);
+
+  file.map_landmarks = 2147483647;  // read alone, still a valid file
+  write_area_file(path, file, "");
+  ASSERT_NO_THROW(read_area_file(path));
+  const std::string expected = path.string() + ": map_landmarks 2147483647, but its map has " +
+                               std::to_string(map.landmarks.size()) +
+                               " landmarks (an edited or damaged file); run lboost areas on this map";
+  for (int via = 0; via < 2; ++via) {
+    try {
+      if (via == 0) check_area_file_map(read_area_file(path), path, map);
+      if (via == 1) read_area_landmarks(path, 0, map);
+      ADD_FAILURE() << "accepted map_landmarks 2147483647";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()), expected);
+    }
+  }
+  file.map_landmarks = static_cast<int64_t>(map.landmarks.size());
+  file.map_fingerprint ^= 1;
+  write_area_file(path, file, "");
+  try {
+    check_area_file_map(read_area_file(path), path, map);
+    ADD_FAILURE() << "accepted another map's fingerprint";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(": made from another map"), std::string::npos) << e.what();
+  }
   fs::remove_all(path.parent_path());
 }
 

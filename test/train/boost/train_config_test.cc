@@ -207,8 +207,8 @@ TEST(TrainConfig, EveryRangeIsCheckedAtItsEnds) {
   EXPECT_GE(checked, 20);
 }
 
-// Issue 16: `--seed -1` (2^64 - 1) passed check() but the config.toml written for it could not be
-// read back. Every config that passes check() now round-trips; larger seeds are refused.
+// Every config that passes check() round-trips through the config.toml written for it; seeds
+// above TOML's largest integer (`--seed -1` is 2^64 - 1) are refused.
 TEST(TrainConfig, EveryCheckedConfigRoundTripsAndHugeSeedsAreRefused) {
   TrainConfig c;
   c.boost.seed = c.training_set.seed = c.regions.seed = 9223372036854775807ull;
@@ -226,7 +226,7 @@ TEST(TrainConfig, EveryCheckedConfigRoundTripsAndHugeSeedsAreRefused) {
   }
 }
 
-// Issue 16: a value error of a config file named the key but not the file.
+// A value error of a config file names the file as well as the key.
 TEST(TrainConfig, ValueErrorsOfAFileNameTheFile) {
   const std::filesystem::path path =
       std::filesystem::temp_directory_path() / ("lmb_train_config_" + std::to_string(::getpid()) + ".toml");

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -21,9 +22,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/file_container.h"
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
-#include "infer/area_bundle.h"
+#include "common/text_parse.h"
+#include "infer/bundle_localizer.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "test/support/lboost_run.h"
@@ -205,8 +208,8 @@ TEST_F(AreasCliTest, ABundleOfOneAreaLocalizesAsItsModel) {
     const PositionPrior* no_prior = nullptr;
     const PositionPrior* with_prior = &prior;
     for (const PositionPrior* p : {no_prior, with_prior}) {
-      const BundleLocalizeResult got = localize_in_bundle(*bundle, map.cameras[f.camera], keypoints,
-                                                          map.descriptor(f.first_keypoint), f.gravity_in_cam, p);
+      const BundleLocalizeResult got = BundleLocalizer(bundle).localize(
+          map.cameras[f.camera], keypoints, map.descriptor(f.first_keypoint), f.gravity_in_cam, p);
       EXPECT_EQ(got.scored, std::vector<int32_t>{0});
       ASSERT_EQ(got.area, want.pose.success ? 0 : -1);
       if (want.pose.success) {
@@ -503,25 +506,26 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     at_truth.position = first->cam_from_world.center();
     EXPECT_EQ(g0["areas_selected"].get<size_t>(), AreaBundle::open(models / "bundle.txt")->select(&at_truth).size());
     EXPECT_LE(g0["areas_scored"].get<int>(), g0["areas_selected"].get<int>());
-    // `bench bundle` times the same tracking mode (GPS-like relocalization, an app's steady state)
+    // `lboost-bench bundle` times the same tracking mode (GPS-like relocalization, an app's steady state)
     // against the single model and names how it relocalizes; its JSON is the localize report's.
     const fs::path bj = dir_ / "bench_bundle.json";
-    const RunResult bench_run = run("bench bundle --bundle " + (models / "bundle.txt").string() + " --map " +
-                                        map_.string() + " --model " + (models / "area-0.lbm").string() +
-                                        " --repeats 1 --track 1000 --track-prior-noise 0 --json " + bj.string(),
-                                    dir_);
+    const RunResult bench_run = test::run_lboost_bench(
+        "bundle --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() + " --model " +
+            (models / "area-0.lbm").string() + " --repeats 1 --track 1000 --track-prior-noise 0 --json " + bj.string(),
+        dir_);
     ASSERT_EQ(bench_run.exit_code, 0) << bench_run.err;
     EXPECT_NE(bench_run.out.find("relocalized with a 0 m prior"), std::string::npos) << bench_run.out;
     const nlohmann::json bench = nlohmann::json::parse(slurp(bj));
     EXPECT_EQ(bench["modes"][2]["mode"], "tracking 1000 m, relocalizing with a 0 m prior");
     EXPECT_EQ(bench["modes"][2]["relocalization_prior_noise_m"], 0.0);
-    const RunResult bad = run("bench bundle --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() +
-                                  " --model " + (models / "area-0.lbm").string() + " --repeats 1 --track-prior-noise 5",
-                              dir_);
-    expect_one_error(bad, "bench bundle", "--track-prior-noise 5: must be finite and needs --track");
+    const RunResult bad = test::run_lboost_bench("bundle --bundle " + (models / "bundle.txt").string() + " --map " +
+                                                     map_.string() + " --model " + (models / "area-0.lbm").string() +
+                                                     " --repeats 1 --track-prior-noise 5",
+                                                 dir_);
+    expect_one_error(bad, "bundle", "--track-prior-noise 5: must be finite and needs --track", "lboost-bench");
   }
   // The bundle's calibration (lboost bundle --map): fitted on the map frames and their "elsewhere"
-  // variants, written as an index of version 2 that opens calibrated; a localization reports each
+  // variants, written into an index that opens calibrated; a localization reports each
   // frame's confidence, localized exactly when it reaches the operating point. A map the areas file
   // was not made from is refused.
   {
@@ -602,10 +606,79 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     LandmarkMap moved = read_map_h5(map_);
     moved.landmarks.front().position.x() += 1.0;
     write_map_h5(moved, other_map);
+    // A refused bundle changes nothing: the calibrated index stays byte for byte.
+    const std::string index_before = slurp(cal / "bundle.txt");
     expect_one_error(
         run("bundle --areas " + short_reach.string() + " --models " + cal.string() + " --map " + other_map.string(),
             dir_),
         "bundle", "is not the map");
+    expect_one_error(run("bundle --areas " + short_reach.string() + " --models " + cal.string() + " --map " +
+                             map_.string() + " --target-precision nan",
+                         dir_),
+                     "bundle", "--target-precision");
+    EXPECT_EQ(slurp(cal / "bundle.txt"), index_before);
+    // The bundle knows its map: another map, or a single model of another map beside the bundle,
+    // is refused before any frame is posed.
+    expect_one_error(run("localize --bundle " + (cal / "bundle.txt").string() + " --map " + other_map.string() +
+                             " --no-prior --out " + cal_out.string(),
+                         dir_),
+                     "localize", "the bundle was made for another map than " + other_map.string());
+    expect_one_error(run("eval --bundle " + (cal / "bundle.txt").string() + " --map " + other_map.string() +
+                             " --no-prior --report " + cal_out.string(),
+                         dir_),
+                     "eval", "the bundle was made for another map");
+    ModelData shifted = Model::load(cal / "area-0.lbm")->data();
+    for (Eigen::Vector3d& p : shifted.class_position) p.x() += 13.0;
+    Model(shifted).save(dir_ / "shifted.lbm");
+    expect_one_error(run("localize --bundle " + (cal / "bundle.txt").string() + " --map " + map_.string() +
+                             " --model " + (dir_ / "shifted.lbm").string() + " --no-prior --out " + cal_out.string(),
+                         dir_),
+                     "localize", "(the model was trained on another map)");
+    // An area file swapped for another area's model (its size and CRC-32 copied into the index) is
+    // refused when it loads, and so is a model of another map under an old index that records no
+    // map: the areas are checked against --map as they load.
+    if (num_areas >= 2) {
+      const fs::path swap = dir_ / "swap_bundle";
+      fs::create_directories(swap);
+      for (int id = 0; id < num_areas; ++id) {
+        const std::string name = "area-" + std::to_string(id) + ".lbm";
+        fs::copy_file(cal / name, swap / name, fs::copy_options::overwrite_existing);
+      }
+      ASSERT_EQ(run("bundle --areas " + short_reach.string() + " --models " + swap.string(), dir_).exit_code, 0);
+      BundleIndex index = read_bundle_index(swap / "bundle.txt");
+      Model(shifted).save(swap / "area-0.lbm");
+      const std::string bytes = slurp(swap / "area-0.lbm");
+      index.areas[0].bytes = bytes.size();
+      index.areas[0].crc32 = crc32(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+      write_bundle_index(swap / "bundle.txt", index);
+      const RunResult r = run("localize --bundle " + (swap / "bundle.txt").string() + " --map " + map_.string() +
+                                  " --no-prior --out " + cal_out.string(),
+                              dir_);
+      EXPECT_EQ(r.exit_code, 0) << r.err;
+      EXPECT_NE(r.err.find("lboost localize: warning: "), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("area 0 (area-0.lbm): its classes (landmark ids and positions) differ"), std::string::npos)
+          << r.err;
+      // Version 1 (no map, no classes): the same model is refused by the map check.
+      char crc[16];
+      std::snprintf(crc, sizeof(crc), "%08x", index.areas[0].crc32);
+      std::string v1 = "lmb-bundle 1\nreach " + exact_number_text(index.reach) + "\nareas " +
+                       std::to_string(index.areas.size()) + "\n";
+      for (const BundleArea& a : index.areas) {
+        std::snprintf(crc, sizeof(crc), "%08x", a.crc32);
+        v1 += "area " + std::to_string(a.id) + " file " + a.file + " bytes " + std::to_string(a.bytes) + " crc32 " +
+              crc + " landmarks " + std::to_string(a.landmarks) + " cell";
+        for (int k = 0; k < 3; ++k) v1 += " " + exact_number_text(a.cell_lo[k]);
+        for (int k = 0; k < 3; ++k) v1 += " " + exact_number_text(a.cell_hi[k]);
+        v1 += "\n";
+      }
+      write_file_atomically(swap / "bundle.txt", v1);
+      const RunResult r1 = run("localize --bundle " + (swap / "bundle.txt").string() + " --map " + map_.string() +
+                                   " --no-prior --out " + cal_out.string(),
+                               dir_);
+      EXPECT_EQ(r1.exit_code, 0) << r1.err;
+      EXPECT_NE(r1.err.find("area 0 (area-0.lbm): the area's model: class 0"), std::string::npos) << r1.err;
+      EXPECT_NE(r1.err.find("(the model was trained on another map)"), std::string::npos) << r1.err;
+    }
   }
   // A damaged area: the run goes on without it, naming it once per frame that selects it.
   std::string image = slurp(models / "area-1.lbm");
@@ -613,6 +686,10 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
   write_file_atomically(models / "area-1.lbm", image);
   const RunResult d = run(localize, dir_);
   ASSERT_EQ(d.exit_code, 0) << d.err;
+  // Said on stderr once, in one line.
+  EXPECT_EQ(std::count(d.err.begin(), d.err.end(), '\n'), 1) << d.err;
+  EXPECT_EQ(d.err.rfind("lboost localize: warning: ", 0), 0u) << d.err;
+  EXPECT_NE(d.err.find("area 1 (area-1.lbm): CRC-32 mismatch"), std::string::npos) << d.err;
   const nlohmann::json dj = nlohmann::json::parse(slurp(out));
   const nlohmann::json& nf = dj["modes"][2]["frames"];
   for (size_t i = 0; i < nf.size(); ++i) {
@@ -621,6 +698,25 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     const std::string e = nf[i]["errors"][0];
     EXPECT_NE(e.find("area 1 (area-1.lbm): CRC-32 mismatch"), std::string::npos) << e;
     EXPECT_NE(nf[i]["area"], 1);
+  }
+  // No area loads: exit 1 and one line, not a table of zeros.
+  {
+    const fs::path broken = dir_ / "broken_bundle";
+    fs::create_directories(broken);
+    for (int id = 0; id < num_areas; ++id) {
+      const std::string name = "area-" + std::to_string(id) + ".lbm";
+      fs::copy_file(models / name, broken / name, fs::copy_options::overwrite_existing);
+    }
+    fs::copy_file(models / "bundle.txt", broken / "bundle.txt", fs::copy_options::overwrite_existing);
+    for (int id = 0; id < num_areas; ++id) fs::remove(broken / ("area-" + std::to_string(id) + ".lbm"));
+    for (const std::string command : {"localize", "eval"}) {
+      const RunResult r = run(command + " --bundle " + (broken / "bundle.txt").string() + " --map " + map_.string() +
+                                  " --no-prior --prior-noise 0.5 " + (command == "eval" ? "--report " : "--out ") +
+                                  (dir_ / "broken.json").string(),
+                              dir_);
+      expect_one_error(r, command, "no area could be loaded");
+      EXPECT_FALSE(fs::exists(dir_ / "broken.json"));
+    }
   }
   // Bad flags: one line.
   expect_one_error(run("localize --bundle " + (models / "bundle.txt").string() + " --map " + map_.string() + " --out " +

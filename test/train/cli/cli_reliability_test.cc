@@ -113,7 +113,8 @@ fs::path CliReliabilityTest::dir_;
 fs::path CliReliabilityTest::map_;
 bool CliReliabilityTest::ok_ = false;
 
-// Item 1: `--region-seed 2` on a seed-1 run built a model whose P@1 halved, with exit 0.
+// Export refuses regions other than the run's: `--region-seed 2` on a seed-1 run would build a model
+// whose P@1 is halved.
 TEST_F(CliReliabilityTest, ExportRefusesOtherRegions) {
   const fs::path out = dir_ / "other_regions.lbm";
   expect_one_error(run(export_args() + " --region-seed 2 --out " + out.string(), dir_), "export",
@@ -139,7 +140,7 @@ TEST_F(CliReliabilityTest, ExportRefusesAnotherVocabularyOrMap) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// Item 1: a resume refused for another config rewrote config.toml, which export then read.
+// A resume refused for another config leaves config.toml (which export reads) as it was.
 TEST_F(CliReliabilityTest, RefusedResumeLeavesTheRunFolderExactlyAsItWas) {
   const fs::path run_dir = dir_ / "run";
   const auto before = snapshot(run_dir);
@@ -158,7 +159,7 @@ TEST_F(CliReliabilityTest, RefusedResumeLeavesTheRunFolderExactlyAsItWas) {
   EXPECT_EQ(slurp(out), slurp(dir_ / "model.lbm"));
 }
 
-// Issue 17: context augmentation (docs/matching.md) is deterministic for its seed and gives the
+// Context augmentation (docs/matching.md) is deterministic for its seed and gives the
 // same model on 1, 2 and 3 ranks; its noise is measured on the map and recorded.
 TEST_F(CliReliabilityTest, AugmentedTrainingIsTheSameModelOnOneTwoAndThreeRanks) {
   const std::string args = train_args() + " --augment-copies 2 --checkpoint-minutes 0 --out ";
@@ -195,7 +196,7 @@ TEST_F(CliReliabilityTest, AugmentedTrainingIsTheSameModelOnOneTwoAndThreeRanks)
   EXPECT_NE(slurp(other / "model.bin"), model);
 }
 
-// Item 12: a failed train left config.toml and an empty log.txt behind.
+// A failed train leaves no config.toml and no empty log.txt behind.
 TEST_F(CliReliabilityTest, FailedTrainLeavesNothingBehind) {
   write_file_atomically(dir_ / "not_a_map.h5", "plain text\n");
   const fs::path run_dir = dir_ / "failed_run";
@@ -214,7 +215,32 @@ TEST_F(CliReliabilityTest, FailedTrainLeavesNothingBehind) {
   EXPECT_TRUE(fs::is_empty(run_dir));
 }
 
-// Item 12: two trainers on one --out both ran.
+// A region count within its range (1..1048576) can ask for more memory than the machine has: refused
+// before allocating, naming the key, its value, the bytes needed and the machine's memory; with
+// MPI ranks the same single line.
+TEST_F(CliReliabilityTest, RegionCountsBeyondTheMachinesMemoryAreRefused) {
+  write_file_atomically(dir_ / "huge_regions.toml", "[regions]\nnum_regions = 1048576\n");
+  const fs::path run_dir = dir_ / "huge_regions_run";
+  const std::string args =
+      train_args() + " --config " + (dir_ / "huge_regions.toml").string() + " --out " + run_dir.string();
+  const std::string needle =
+      (dir_ / "huge_regions.toml").string() + ": regions.num_regions = 1048576: the training features would need ";
+  for (const std::string& prefix : {std::string(), std::string(LMB_MPIEXEC) + " -n 2 "}) {
+    SCOPED_TRACE(prefix);
+    const RunResult r = run(args, dir_, prefix);
+    const auto lines = lboost_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << r.err;
+    EXPECT_NE(r.exit_code, 0) << r.err;
+    EXPECT_NE(lines[0].find("lboost train: error: " + needle), std::string::npos) << r.err;
+    EXPECT_NE(lines[0].find(" regions x 16 words + 512 descriptor bits"), std::string::npos) << r.err;
+    EXPECT_NE(lines[0].find("), more than the memory of this machine ("), std::string::npos) << r.err;
+    EXPECT_NE(lines[0].find(" bytes available, "), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("bad_alloc"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(run_dir));
+  }
+}
+
+// A second trainer on the same --out fails at once.
 TEST_F(CliReliabilityTest, SecondTrainerFailsAtOnce) {
   const fs::path run_dir = dir_ / "locked_run";
   fs::create_directories(run_dir);
@@ -248,10 +274,10 @@ TEST_F(CliReliabilityTest, SecondTrainerFailsAtOnce) {
   expect_one_error(second, "train", "another lboost train is using this run folder");
 }
 
-// Items 8 and 12: option errors are one line with status 1.
+// Option errors are one line with status 1.
 TEST_F(CliReliabilityTest, BadOptionsFailWithOneLine) {
   expect_one_error(run(train_args() + " --seed -1 --out " + (dir_ / "seed_run").string(), dir_), "train",
-                   "--seed -1: must be in 0..9223372036854775807");
+                   "--seed: '-1' must be an integer in 0..9223372036854775807");
   EXPECT_FALSE(fs::exists(dir_ / "seed_run"));
   expect_one_error(run("train --rounds abc --out x", dir_), "train", "--rounds");
   expect_one_error(run("train --synthetic small --no-such-option 3 --out x", dir_), "train", "--no-such-option");
@@ -267,7 +293,7 @@ TEST_F(CliReliabilityTest, BadOptionsFailWithOneLine) {
   EXPECT_NE(help.out.find("--out"), std::string::npos);
 }
 
-// Item 12: `map` reported an unwritable --out only after the whole mapping run.
+// `map` reports an unwritable --out before the mapping run, not after it.
 TEST_F(CliReliabilityTest, UnwritableOutputsFailBeforeTheWork) {
   write_file_atomically(dir_ / "a_file", "x");
   const std::string bad = (dir_ / "a_file" / "out").string();
@@ -282,7 +308,7 @@ TEST_F(CliReliabilityTest, UnwritableOutputsFailBeforeTheWork) {
   expect_one_error(run("train --synthetic small --out " + bad, dir_), "train", bad);
 }
 
-// Items 6 and 10: a folder as the model, and a model of another map.
+// A folder as the model, and a model of another map.
 TEST_F(CliReliabilityTest, LocalizeRefusesAFolderOrAnotherMapsModel) {
   const fs::path out = dir_ / "poses.json";
   expect_one_error(

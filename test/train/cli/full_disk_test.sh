@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Every command that writes files, on a full disk: `lboost import colmap`, `map`, `vocab`, `train`,
 # `export` and `localize` must fail with one line naming the file and the system's reason (exit 1),
-# and leave no 0-byte or partial file at the final path and no temporary beside it.
+# and leave no 0-byte or partial file at the final path and no temporary beside it; a folder the
+# command created for its output (import's --out and the missing folder above it, train's run
+# folder) is removed again.
 #   full_disk_test.sh LBOOST TINY_DIR WORK
 # TINY_DIR: the tiny rendered world (collection/ and map.h5, the lmb_tiny_world fixture).
 # Two ways to fill the disk:
@@ -33,7 +35,7 @@ collection=$tiny/collection
 # The commands, each writing into $out (a folder on the full disk): "name|command|final path".
 commands() {
   local out=$1
-  echo "import colmap|import colmap --sparse $collection/sparse --images $collection/images --out $out/collection|$out/collection/sparse/cameras.txt"
+  echo "import colmap|import colmap --sparse $collection/sparse --images $collection/images --out $out/imported/collection|$out/imported/collection/sparse/cameras.txt"
   echo "map|map --collection $collection --out $out/map.h5 --threads 1|$out/map.h5"
   echo "vocab|vocab --images $collection/images --words 8 --max-descriptors 2000 --out $out/vocab.lbv|$out/vocab.lbv"
   echo "train|train --map $tiny/map.h5 --vocab $in/vocab.lbv --rounds 2 --dims-per-round 64 --out $out/run|$out/run/config.toml"
@@ -53,6 +55,8 @@ check() {
   left=$(find "$out" \( -name '*.tmp-*' -o -type f -size 0 \) | head -n 3)
   [ -z "$left" ] || fail "$name: left behind: $left"
   [ ! -e "$out/run" ] || fail "$name: the refused run left its folder $out/run"
+  # import creates its --out folder and the missing one above it: a failed import removes both.
+  [ ! -e "$out/imported" ] || fail "$name: the failed import left $(find "$out/imported" | head -n 3)"
   echo "full_disk_test: $name: $(cat "$err")"
 }
 

@@ -6,7 +6,7 @@
 set -euo pipefail
 lboost=$1
 mpiexec=$2
-work=$(mktemp -d /tmp/lmb_kill_rank.XXXXXX)
+work=$(mktemp -d -t lmb_kill_rank.XXXXXX)
 trap 'rm -rf "$work"' EXIT
 args=(train --synthetic small --rounds 2000 --dims-per-round 64 --checkpoint-interval 20 --checkpoint-keep 2)
 

@@ -239,6 +239,39 @@ TEST(EvaluatePoses, EvenCountMedianAndInvalidInput) {
   EXPECT_THROW(evaluate_poses(frames), Error);
 }
 
+// The 7-Scenes convention: recall at 5 cm / 5 deg over all frames, and medians over ALL frames in
+// which a frame without a pose is an infinite error.
+TEST(EvaluatePoses, SevenScenesRecallAndMediansOverAllFrames) {
+  const PoseMetrics m = evaluate_poses(pose_case());
+  // Within 5 cm and 5 deg (inclusive): frame 0 (5 cm, 1 deg) and frame 2 (0 cm, 5 deg); frame 4 is
+  // 5.001 deg off, frames 1 and 3 20 cm.
+  EXPECT_DOUBLE_EQ(m.recall_5cm_5deg, 2.0 / 6.0);
+  // Positions {0.05, 0.2, 0, 0.2000001, 0, inf}: the middle two are 0.05 and 0.2; rotations
+  // {1, 0, 5, 0, 5.001, inf}: 1 and 5.
+  EXPECT_NEAR(m.median_position_error_all_frames_m, 0.125, 1e-9);
+  EXPECT_NEAR(m.median_rotation_error_all_frames_deg, 3.0, 1e-9);
+  // The medians of the localized frames stay as they were.
+  EXPECT_NEAR(m.median_position_error_m, 0.05, 1e-9);
+
+  // Half of the frames without a pose: the middle pair holds an infinite error, the median is inf.
+  std::vector<FrameOutcome> half = {frame(true, perturbed(2.0, {0.01, 0, 0}), 10, 10, 10),
+                                    frame(true, perturbed(1.0, {0, 0.03, 0}), 10, 10, 10),
+                                    frame(false, Rigid3d(), 0, 0, 0), frame(false, Rigid3d(), 0, 0, 0)};
+  PoseMetrics h = evaluate_poses(half);
+  EXPECT_DOUBLE_EQ(h.recall_5cm_5deg, 0.5);
+  EXPECT_TRUE(std::isinf(h.median_position_error_all_frames_m) && h.median_position_error_all_frames_m > 0);
+  EXPECT_TRUE(std::isinf(h.median_rotation_error_all_frames_deg));
+  EXPECT_NEAR(h.median_position_error_m, 0.02, 1e-9);
+  // One more localized frame: the middle of {0.01, 0.03, 0.3, inf, inf} is 0.3 m (at 4 deg).
+  half.push_back(frame(true, perturbed(4.0, {0.3, 0, 0}), 10, 10, 10));
+  h = evaluate_poses(half);
+  EXPECT_NEAR(h.median_position_error_all_frames_m, 0.3, 1e-9);
+  EXPECT_NEAR(h.median_rotation_error_all_frames_deg, 4.0, 1e-9);
+  EXPECT_DOUBLE_EQ(h.recall_5cm_5deg, 0.4);
+  // No frame: NaN.
+  EXPECT_TRUE(std::isnan(evaluate_poses({}).median_position_error_all_frames_m));
+}
+
 TEST(PoseSweepTest, RecallAndSeedRange) {
   PoseSweep sweep;
   sweep.iterations = {50, 500};

@@ -97,6 +97,39 @@ TEST(BuildReport, TableShowsRecallAtEachThresholdPair) {
       << table;
 }
 
+// The 7-Scenes fields: recall at 5 cm / 5 deg, and medians over all query frames, written as the
+// string "inf" when half of the frames or more have no pose (JSON has no infinity) and null without
+// frames; the table shows them in a section of their own.
+TEST(BuildReport, SevenScenesFieldsOverAllFrames) {
+  MethodResult r = sample_method("landmarkboost");  // one frame at the truth, one not localized
+  nlohmann::json m = build_report(DatasetCounts{}, {r})["methods"]["landmarkboost"];
+  EXPECT_DOUBLE_EQ(m["pose_recall_5cm_5deg"].get<double>(), 0.5);
+  EXPECT_EQ(m["median_position_error_all_frames_m"], "inf");
+  EXPECT_EQ(m["median_rotation_error_all_frames_deg"], "inf");
+  std::string table = format_results_table(build_report(DatasetCounts{}, {r}));
+  const size_t section = table.find("pose over all query frames, the 7-Scenes convention");
+  ASSERT_NE(section, std::string::npos) << table;
+  EXPECT_NE(table.find("landmarkboost              0.5000           inf           inf", section), std::string::npos)
+      << table;
+
+  // Three frames, two of them at the truth: the median is the localized frames' 0.
+  r.frames.push_back(r.frames.front());
+  r.pose = evaluate_poses(r.frames);
+  m = build_report(DatasetCounts{}, {r})["methods"]["landmarkboost"];
+  EXPECT_DOUBLE_EQ(m["median_position_error_all_frames_m"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(m["median_rotation_error_all_frames_deg"].get<double>(), 0.0);
+  table = format_results_table(build_report(DatasetCounts{}, {r}));
+  EXPECT_NE(table.find("landmarkboost              0.6667         0.000         0.000"), std::string::npos) << table;
+
+  // No query frame: null, "-" in the table.
+  r.frames.clear();
+  r.pose = evaluate_poses({});
+  m = build_report(DatasetCounts{}, {r})["methods"]["landmarkboost"];
+  EXPECT_TRUE(m["median_position_error_all_frames_m"].is_null());
+  table = format_results_table(build_report(DatasetCounts{}, {r}));
+  EXPECT_NE(table.find("landmarkboost              0.0000             -             -"), std::string::npos) << table;
+}
+
 // The generalization gap puts each method's held-out P@1 beside its P@1 and pose recall on each
 // query session, from the report's own fields; without held-out observations the column is null
 // and the table shows "-".

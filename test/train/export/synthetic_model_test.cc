@@ -1,4 +1,4 @@
-// The synthetic paper-shaped model of `lboost bench infer --synthetic-paper`: the requested shape,
+// The synthetic paper-shaped model of `lboost-bench infer --synthetic-paper`: the requested shape,
 // valid, deterministic, sharing sets shrinking over the rounds, an inverted file covering every
 // class; and a smoke run of the benchmark command at a small scale.
 #include "train/export/synthetic_model.h"
@@ -61,8 +61,8 @@ TEST(SyntheticModelTest, HasThePaperShape) {
 TEST(SyntheticModelTest, BenchInferRunsOnIt) {
   const std::filesystem::path json =
       std::filesystem::temp_directory_path() / ("lmb_bench_infer_" + std::to_string(::getpid()) + ".json");
-  const std::string command = std::string(LMB_LBOOST) +
-                              " bench infer --synthetic-paper --classes 200 --stumps 100 --frames 2 "
+  const std::string command = std::string(LMB_LBOOST_BENCH) +
+                              " infer --synthetic-paper --classes 200 --stumps 100 --frames 2 "
                               "--keypoints 150 --train-descriptors 2000 --repeats 1 --json " +
                               json.string();
   ASSERT_EQ(std::system(command.c_str()), 0) << command;

@@ -283,7 +283,7 @@ TEST_F(ColmapImportTest, DepthsOfTheModelsPointsAreReported) {
   EXPECT_EQ(s.depths->observations, 20);
 }
 
-// Issue 16: a name with ".." made `import colmap` create folders and links outside --out.
+// A name with ".." cannot make `import colmap` create folders and links outside --out.
 TEST_F(ColmapImportTest, ImageNamesCannotLeaveTheFolders) {
   model_.images[1].name = "../../../../escapee/x.jpg";
   write_colmap_text(model_, root_ / "sparse");
@@ -294,8 +294,8 @@ TEST_F(ColmapImportTest, ImageNamesCannotLeaveTheFolders) {
   EXPECT_FALSE(fs::exists(root_ / "collection"));
 }
 
-// Issue 16: a camera of 2147483647 x 2147483647 pixels for 8 x 6 images was accepted (map refused
-// it only later).
+// A camera of 2147483647 x 2147483647 pixels for 8 x 6 images is refused by the import, not only
+// later by map.
 TEST_F(ColmapImportTest, CameraSizeMustMatchItsImages) {
   model_.cameras.at(2).width = 2147483647;
   model_.cameras.at(2).height = 2147483647;
@@ -307,7 +307,7 @@ TEST_F(ColmapImportTest, CameraSizeMustMatchItsImages) {
   EXPECT_FALSE(fs::exists(root_ / "collection"));
 }
 
-// Issue 16: on a full disk the import printed "wrote" with 0-byte sparse/*.txt. A file-size limit
+// On a full disk the import must not print "wrote" with 0-byte sparse/*.txt. A file-size limit
 // (RLIMIT_FSIZE) fails write(2) like a full disk, at any byte: the import fails naming the file and
 // leaves no half collection.
 TEST_F(ColmapImportTest, FullDiskFailsAndLeavesNoHalfCollection) {
@@ -341,9 +341,28 @@ TEST_F(ColmapImportTest, FullDiskFailsAndLeavesNoHalfCollection) {
     EXPECT_NE(message.find(": write failed: File too large"), std::string::npos)
         << "limit " << limit << ": " << message;
     EXPECT_TRUE(message.rfind((root_ / "collection").string(), 0) == 0) << message;
-    ASSERT_TRUE(fs::exists(o.out_dir));
-    EXPECT_TRUE(fs::is_empty(o.out_dir)) << "limit " << limit;
+    // The --out folder the import created is removed too.
+    EXPECT_FALSE(fs::exists(o.out_dir)) << "limit " << limit;
   }
+  // An --out folder that existed (empty) stays, empty; the missing folders above a nested --out that
+  // the import created are removed with it.
+  for (const fs::path& out : {o.out_dir, root_ / "new" / "deeper" / "collection"}) {
+    if (out == o.out_dir) fs::create_directories(out);
+    ColmapImportOptions nested = o;
+    nested.out_dir = out;
+    rlimit saved{};
+    ::getrlimit(RLIMIT_FSIZE, &saved);
+    const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
+    rlimit l = saved;
+    l.rlim_cur = 0;
+    ::setrlimit(RLIMIT_FSIZE, &l);
+    const std::string message = error(nested);
+    ::setrlimit(RLIMIT_FSIZE, &saved);
+    ::signal(SIGXFSZ, old_handler);
+    EXPECT_NE(message.find(": write failed: File too large"), std::string::npos) << message;
+  }
+  EXPECT_TRUE(fs::is_directory(o.out_dir) && fs::is_empty(o.out_dir));
+  EXPECT_FALSE(fs::exists(root_ / "new"));
   import_colmap(o);  // room again
   EXPECT_EQ(read_colmap_text(o.out_dir / "sparse").images.size(), 5u);
 }

@@ -344,6 +344,18 @@ TEST_F(MapCollectionTest, ImageOfWrongSize) {
   EXPECT_NE(msg.find("100x100"), std::string::npos) << msg;
 }
 
+TEST_F(MapCollectionTest, ImagesSmallerThanTheDetectorTakes) {
+  replace_in(dir_ / "sparse" / "cameras.txt", "160 120", "5 5");
+  for (const char* name : {"map/0.png", "map/1.png", "map/2.png", "query/3.png"}) {
+    cv::imwrite((dir_ / "images" / name).string(), cv::Mat(5, 5, CV_8UC1, cv::Scalar(90)));
+  }
+  const std::string msg = error();
+  EXPECT_NE(msg.find((dir_ / "images").string()), std::string::npos) << msg;
+  EXPECT_NE(msg.find(".png: image is 5x5 pixels, smaller than the 6x6 that BRISK with 3 octaves takes"),
+            std::string::npos)
+      << msg;
+}
+
 TEST_F(MapCollectionTest, UnknownCameraModel) {
   replace_in(dir_ / "sparse" / "cameras.txt", "SIMPLE_RADIAL", "FOV");
   const std::string msg = error();

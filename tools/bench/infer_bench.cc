@@ -1,4 +1,4 @@
-// `lboost bench infer`: single-thread inference timings (context embedding, classification dense
+// `lboost-bench infer`: single-thread inference timings (context embedding, classification dense
 // and with the inverted file, pose) against OpenCV's BFMatcher (Hamming 1-NN and 2-NN over every
 // training descriptor) and a plain popcount 1-NN loop, all measured in the same run.
 //
@@ -36,11 +36,12 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "infer/pose_estimator.h"
-#include "train/cli/commands.h"
+#include "tools/bench/bench_commands.h"
+#include "train/cli/cli_util.h"
 #include "train/eval/timing.h"
 #include "train/export/synthetic_model.h"
 
-namespace lmb::cli {
+namespace lmb::bench {
 
 namespace {
 
@@ -149,7 +150,7 @@ BenchData load_bench_data(const BenchInferArgs& a, int bytes) {
   if (!a.map.empty()) {
     d = map_bench_data(a, bytes);
   } else {
-    LMB_CHECK(a.frames >= 1 && a.train_descriptors >= 1, "bench infer: --frames and --train-descriptors must be >= 1");
+    LMB_CHECK(a.frames >= 1 && a.train_descriptors >= 1, "--frames and --train-descriptors must be >= 1");
     d.frames = synthetic_frames(a.max_frames > 0 ? std::min(a.frames, a.max_frames) : a.frames, a.keypoints, bytes,
                                 a.synthetic.seed + 1);
     Rng rng(a.synthetic.seed + 2);
@@ -157,7 +158,7 @@ BenchData load_bench_data(const BenchInferArgs& a, int bytes) {
     for (uint8_t& b : d.train) b = static_cast<uint8_t>(rng.below(256));
   }
   d.num_train = static_cast<int>(d.train.size() / bytes);
-  LMB_CHECK(d.num_train > 0, "bench infer: no training descriptors");
+  LMB_CHECK(d.num_train > 0, "no training descriptors");
   return d;
 }
 
@@ -445,8 +446,9 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
 }
 
 void run_bench_infer(const BenchInferArgs& a) {
-  LMB_CHECK(a.keypoints >= 1 && a.repeats >= 1, "bench infer: --keypoints and --repeats must be >= 1");
-  LMB_CHECK(a.synthetic_paper != !a.model.empty(), "bench infer: give exactly one of --model and --synthetic-paper");
+  check_outputs_not_inputs({{a.json, "--json"}}, {{a.model, "--model"}, {a.map, "--map"}});
+  LMB_CHECK(a.keypoints >= 1 && a.repeats >= 1, "--keypoints and --repeats must be >= 1");
+  LMB_CHECK(a.synthetic_paper != !a.model.empty(), "give exactly one of --model and --synthetic-paper");
   BenchFigures b;
   const std::shared_ptr<const Model> model = load_bench_model(a, &b.load_ms);
   const int bytes = model->descriptor_bytes();
@@ -471,17 +473,16 @@ void run_bench_infer(const BenchInferArgs& a) {
 
 }  // namespace
 
-void add_bench_infer_command(CLI::App& app) {
-  CLI::App* bench = app.get_subcommand("bench");
+void add_infer_bench(CLI::App& app) {
   auto args = std::make_shared<BenchInferArgs>();
-  auto* cmd = bench->add_subcommand(
+  auto* cmd = app.add_subcommand(
       "infer", "Inference timings (embedding, classification dense / inverted file, pose) vs OpenCV BFMatcher");
   cmd->add_option("--model", args->model, "Inference model (model.lbm)");
   cmd->add_flag("--synthetic-paper", args->synthetic_paper,
                 "Instead of --model: a random model of the paper's shape (7,500 classes, 2,000 stumps)");
   cmd->add_option("--classes", args->synthetic.num_classes, "Synthetic model: classes")->capture_default_str();
   cmd->add_option("--stumps", args->synthetic.num_stumps, "Synthetic model: stumps")->capture_default_str();
-  cmd->add_option("--seed", args->synthetic.seed, "Synthetic model and frames: seed")->capture_default_str();
+  cli::add_seed_option(cmd, "--seed", &args->synthetic.seed, "Synthetic model and frames: seed");
   cmd->add_option("--map", args->map,
                   "Map whose query frames and training observations are used (map.h5); "
                   "default: synthetic frames and descriptors");
@@ -501,4 +502,4 @@ void add_bench_infer_command(CLI::App& app) {
   cmd->callback([args] { run_bench_infer(*args); });
 }
 
-}  // namespace lmb::cli
+}  // namespace lmb::bench

@@ -1,5 +1,6 @@
-// lboost bench: benchmarks that report figures (never pass/fail). A group: `bench context`, and
-// more subcommands added by other modules.
+// `lboost-bench context`: the time to build every training feature vector (landmark keypoints and
+// background samples) and to compute only a model's used dims, each against the naive regions x
+// keypoints loop on the same samples (docs/inference.md).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,10 +20,11 @@
 #include "common/machine_info.h"
 #include "common/random.h"
 #include "common/vocabulary.h"
-#include "train/cli/commands.h"
+#include "tools/bench/bench_commands.h"
+#include "train/cli/cli_util.h"
 #include "train/features/build_features.h"
 
-namespace lmb::cli {
+namespace lmb::bench {
 
 namespace {
 
@@ -128,7 +130,7 @@ NaiveTimes time_naive_and_fast(const LandmarkMap& map, const ContextRegions& reg
     for (uint8_t v : row) checksum_fast = checksum_fast * 31 + v;
   }
   const double fast_subset_per_sample = (cpu_seconds() - cpu) / subset.size();
-  LMB_CHECK(checksum_naive == checksum_fast, "bench context: fast and naive embeddings differ");
+  LMB_CHECK(checksum_naive == checksum_fast, "context: fast and naive embeddings differ");
   return NaiveTimes{naive_per_sample, fast_subset_per_sample, subset.size()};
 }
 
@@ -210,8 +212,9 @@ UsedDimsTimes time_used_dims(const LandmarkMap& map, const ContextRegions& regio
 }
 
 void run_context_bench(const ContextBenchArgs& a) {
-  LMB_CHECK(!a.map_path.empty() || a.synthetic_frames > 0, "bench context: give --map map.h5 or --synthetic N");
-  LMB_CHECK(a.map_path.empty() || a.synthetic_frames == 0, "bench context: --map and --synthetic exclude each other");
+  check_outputs_not_inputs({{a.json_path, "--json"}}, {{a.map_path, "--map"}, {a.vocab_path, "--vocab"}});
+  LMB_CHECK(!a.map_path.empty() || a.synthetic_frames > 0, "give --map map.h5 or --synthetic N");
+  LMB_CHECK(a.map_path.empty() || a.synthetic_frames == 0, "--map and --synthetic exclude each other");
   LMB_CHECK(a.threads >= 1 && a.threads <= 256, "--threads " << a.threads << " must be in 1..256");
   LMB_CHECK(a.background_ratio >= 0, "--background-ratio must be >= 0");
   LMB_CHECK(a.naive_samples >= 1, "--naive-samples must be >= 1");
@@ -231,7 +234,7 @@ void run_context_bench(const ContextBenchArgs& a) {
   if (!a.vocab_path.empty()) {
     vocabulary = Vocabulary::load(a.vocab_path);
   } else {
-    LMB_CHECK(a.synthetic_frames > 0, "bench context: --vocab is required with --map");
+    LMB_CHECK(a.synthetic_frames > 0, "--vocab is required with --map");
     // Synthetic only: 16 words trained on 20,000 of the map's random descriptors.
     const int64_t n = std::min<int64_t>(20000, static_cast<int64_t>(map.keypoints.size()));
     vocabulary = train_vocabulary(map.descriptors.data(), n, map.descriptor_bytes, VocabularyTrainOptions{});
@@ -260,7 +263,7 @@ void run_context_bench(const ContextBenchArgs& a) {
       std::min<int64_t>(static_cast<int64_t>(background.size()), std::llround(a.background_ratio * positives));
   samples.insert(samples.end(), background.begin(), background.begin() + num_background);
   std::sort(samples.begin(), samples.end());
-  LMB_CHECK(!samples.empty(), "bench context: the map has no map-frame keypoints");
+  LMB_CHECK(!samples.empty(), "the map has no map-frame keypoints");
 
   // 1. All training feature vectors.
   FeatureBuildOptions build_options;
@@ -323,15 +326,11 @@ void run_context_bench(const ContextBenchArgs& a) {
 
 }  // namespace
 
-void add_bench_command(CLI::App& app) {
-  auto* bench = app.add_subcommand("bench", "Benchmarks that report figures (see subcommands)");
-  bench->require_subcommand(1);
-
+void add_context_bench(CLI::App& app) {
   auto args = std::make_shared<ContextBenchArgs>();
-  auto* ctx =
-      bench->add_subcommand("context",
-                            "Time to build all training feature vectors (landmark keypoints + background) and to "
-                            "compute only a model's used dims, each against the naive regions x keypoints loop");
+  auto* ctx = app.add_subcommand("context",
+                                 "Time to build all training feature vectors (landmark keypoints + background) and to "
+                                 "compute only a model's used dims, each against the naive regions x keypoints loop");
   ctx->add_option("--map", args->map_path, "map.h5");
   ctx->add_option("--vocab", args->vocab_path, "vocabulary (.lbv); optional with --synthetic");
   ctx->add_option("--synthetic", args->synthetic_frames, "instead of --map: this many random frames");
@@ -342,16 +341,16 @@ void add_bench_command(CLI::App& app) {
       ->capture_default_str();
   ctx->add_option("--threads", args->threads, "threads for the full build")->capture_default_str();
   ctx->add_option("--regions", args->regions, "context regions")->capture_default_str();
-  ctx->add_option("--region-seed", args->region_seed, "region set seed")->capture_default_str();
+  cli::add_seed_option(ctx, "--region-seed", &args->region_seed, "region set seed");
   ctx->add_option("--background-ratio", args->background_ratio, "background samples per landmark sample")
       ->capture_default_str();
   ctx->add_option("--used-dims", args->used_dims, "random dims a model would use")->capture_default_str();
   ctx->add_option("--naive-samples", args->naive_samples, "samples for the naive comparison")->capture_default_str();
   ctx->add_option("--used-dims-frames", args->used_dims_frames, "frames for the used-dims timing")
       ->capture_default_str();
-  ctx->add_option("--seed", args->seed, "sampling seed")->capture_default_str();
+  cli::add_seed_option(ctx, "--seed", &args->seed, "sampling seed");
   ctx->add_option("--json", args->json_path, "also write the figures as JSON");
   ctx->callback([args] { run_context_bench(*args); });
 }
 
-}  // namespace lmb::cli
+}  // namespace lmb::bench

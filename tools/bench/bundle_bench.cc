@@ -1,10 +1,11 @@
-// `lboost bench bundle`: per-frame time of localization through a bundle of area models with a
+// `lboost-bench bundle`: per-frame time of localization through a bundle of area models with a
 // position prior, without a prior, tracking (--track), and of the single model, single thread, in the same run
 // (train/eval/bundle_eval.h; docs/areas.md). Prints one line with the ratios.
 #include <cstdio>
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -12,10 +13,11 @@
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/machine_info.h"
-#include "train/cli/commands.h"
+#include "tools/bench/bench_commands.h"
+#include "train/cli/cli_util.h"
 #include "train/eval/bundle_eval.h"
 
-namespace lmb::cli {
+namespace lmb::bench {
 
 namespace {
 
@@ -27,12 +29,17 @@ struct BenchBundleArgs {
 };
 
 void run_bench_bundle(BenchBundleArgs a) {
-  LMB_CHECK(!a.options.model.empty(), "bench bundle: --model (the single model to compare) is required");
+  std::vector<NamedPath> inputs = cli::bundle_input_paths(a.options.bundle, "--bundle");
+  inputs.push_back({a.options.model, "--model"});
+  inputs.push_back({a.options.map, "--map"});
+  check_outputs_not_inputs({{a.json, "--json"}}, inputs);
+  LMB_CHECK(!a.options.model.empty(), "--model (the single model to compare) is required");
   a.options.prior_noise = {a.prior_noise};
   a.options.no_prior = true;
   if (a.track > 0.0) a.options.track = {a.track};
   a.options.memory_per_area = false;
   const BundleEvalResult r = evaluate_bundle(a.options);
+  cli::warn_area_errors("lboost-bench", "bundle", r.area_errors);
   const nlohmann::json& modes = r.report.at("modes");
   const auto ms = [&](size_t i) { return modes.at(i).at("cpu_ms_per_frame").at("mean").get<double>(); };
   const size_t single_mode = a.track > 0.0 ? 3 : 2;  // prior, no prior, [tracking,] single
@@ -63,17 +70,17 @@ void run_bench_bundle(BenchBundleArgs a) {
         t.at("tracked_per_frame").get<double>(), t.at("relocalized_per_frame").get<double>(), relocalized_in.c_str(),
         t.at("areas_scored_per_frame").get<double>());
   }
-  if (!a.json.empty()) write_file_atomically(a.json, r.report.dump(1) + "\n");
+  if (!a.json.empty())
+    write_file_atomically(a.json, r.report.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
 }  // namespace
 
-void add_bench_bundle_command(CLI::App& app) {
-  CLI::App* bench = app.get_subcommand("bench");
+void add_bundle_bench(CLI::App& app) {
   auto args = std::make_shared<BenchBundleArgs>();
   BundleEvalOptions& o = args->options;
   o.seeds = 3;
-  auto* cmd = bench->add_subcommand(
+  auto* cmd = app.add_subcommand(
       "bundle", "Per-frame time through a bundle of area models with a prior, without one, and the single model");
   cmd->add_option("--bundle", o.bundle, "bundle.txt of `lboost bundle`")->required()->check(CLI::ExistingFile);
   cmd->add_option("--map", o.map, "Map whose query frames are localized (map.h5)")
@@ -100,9 +107,9 @@ void add_bench_bundle_command(CLI::App& app) {
       "With a prior: nearest area first, then the areas that see most of the current winning pose's view");
   cmd->add_option("--repeats", o.seeds, "Passes over the frames (RANSAC seeds --seed, --seed + 1, ...)")
       ->capture_default_str();
-  cmd->add_option("--seed", o.localizer.pose.seed, "First RANSAC seed")->capture_default_str();
+  cli::add_seed_option(cmd, "--seed", &o.localizer.pose.seed, "First RANSAC seed");
   cmd->add_option("--json", args->json, "Also write the figures as JSON");
   cmd->callback([args] { run_bench_bundle(*args); });
 }
 
-}  // namespace lmb::cli
+}  // namespace lmb::bench

@@ -1,0 +1,149 @@
+#include "train/eval/run_export.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "common/context_regions.h"
+#include "common/error.h"
+#include "common/feature_space.h"
+#include "infer/localizer.h"
+#include "train/areas/area_training.h"
+#include "train/boost/boost_model.h"
+#include "train/eval/landmarkboost_matcher.h"
+#include "train/features/build_features.h"
+
+namespace lmb {
+
+namespace {
+
+// The regions of training, from the model's record. --regions / --region-seed, when given, must
+// describe the same regions.
+ContextRegions training_regions(const RunExport& a, const FeatureSpace& trained, const std::string& model_name) {
+  const ContextRegions& recorded = trained.regions;
+  if (!a.regions && !a.region_seed) return recorded;
+  ContextRegionOptions ro = recorded.options();
+  if (a.regions) ro.num_regions = *a.regions;
+  if (a.region_seed) ro.seed = *a.region_seed;
+  ro.check();
+  const ContextRegions given(ro);
+  LMB_CHECK(given == recorded, model_name << " was trained with " << recorded.size() << " regions of seed "
+                                          << recorded.options().seed << ", not " << given.size() << " of seed "
+                                          << ro.seed
+                                          << " (--regions and --region-seed are optional: the model records them)");
+  return recorded;
+}
+
+}  // namespace
+
+// Fits the pose calibration of `data` with the Localizer's default options (see the file comment)
+// on the frames its training held out (`training`: the run's training-set options, or the
+// defaults), else on options.max_frames map frames. The fusion's exemplars leave those frames'
+// own descriptors out (else each keypoint finds itself at distance 0).
+void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptions& training, const LandmarkMap& map,
+                          ModelData& data) {
+  options = with_holdout_frames(std::move(options), map, training);
+  const std::vector<int64_t> own = calibration_frame_keypoints(map, calibration_frames(map, options));
+  const auto model = without_exemplars(std::make_shared<const Model>(data), map, own, /*keep_sole=*/true);
+  const LocalizerOptions localizer;  // what `lboost localize` and the library use by default
+  LMB_CHECK(localizer.pose_top_k == 1,
+            "export: the pose calibration assumes the Localizer's default of one match per keypoint");
+  const LandmarkBoostMatcher matcher(model, localizer.classifier, /*rank=*/false);
+  const CalibrationFit fit =
+      fit_method_calibration(matcher, map, localizer.pose, localizer.max_correspondences, PoseThresholds{}, options);
+  if (!fit.fitted) {
+    spdlog::warn(
+        "export: pose calibration: only {} poses from {} map frames (at least {} needed): the model is written "
+        "uncalibrated (a pose is trusted by its inlier count alone)",
+        fit.num_poses, fit.num_frames, options.min_poses);
+    return;
+  }
+  data.calibration = fit.calibration;
+  spdlog::info(
+      "export: pose calibration on {} map frames{}: {} poses ({} of them with no landmark of the frame's view in the "
+      "map), {} right; operating point {:.4f} (precision {}: {:.4f}; at most {} of the frames elsewhere: {:.4f}) "
+      "keeps {} poses, {} right, {} of them elsewhere",
+      fit.num_frames, options.frames.empty() ? " (the model trained on them)" : " held out of training", fit.num_poses,
+      fit.num_elsewhere, fit.num_right, fit.calibration.threshold, fit.calibration.target_precision,
+      fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold, fit.passed, fit.passed_right,
+      fit.elsewhere_passed);
+}
+
+// The config of a training run dir (RUN/config.toml, read_run_train_config); nullopt without one.
+std::optional<TrainConfig> run_config_of(const std::string& run_dir) {
+  if (run_dir.empty()) return std::nullopt;
+  return read_run_train_config(std::filesystem::path(run_dir) / "config.toml");
+}
+
+// The training-set options a model was trained with: its run's, or the defaults without a run.
+TrainingSetOptions training_set_of(const std::optional<TrainConfig>& run_config) {
+  return run_config ? run_config->training_set : TrainingSetOptions{};
+}
+
+// The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
+// --boost-model names one.
+std::filesystem::path boost_model_path(const std::string& run_dir, const std::string& boost_model) {
+  LMB_CHECK(run_dir.empty() || boost_model.empty(), "give --run RUN_DIR or --boost-model FILE, not both");
+  if (!boost_model.empty()) return boost_model;
+  LMB_CHECK(!run_dir.empty(), "give --run RUN_DIR or --boost-model FILE");
+  const std::filesystem::path p = std::filesystem::path(run_dir) / "model.bin";
+  LMB_CHECK(std::filesystem::exists(p), p.string() << ": no trained model in the run dir (has the training finished?)");
+  return p;
+}
+
+ModelData export_run(const RunExport& a, const LandmarkMap& map, const Vocabulary& vocabulary, ExportStats* stats) {
+  const std::filesystem::path boost_path = boost_model_path(a.run_dir, a.boost_model);
+  const std::string model_name = boost_path.string();
+  const TrainedModel trained = load_trained_model(boost_path);
+  LMB_CHECK(!trained.feature_space.is_synthetic(),
+            model_name << ": trained on " << trained.feature_space.synthetic << ", not on a map: nothing to export");
+  const ContextRegions regions = training_regions(a, trained.feature_space, model_name);
+  const FeatureSpace given = map_feature_space(regions, vocabulary, map);
+  if (trained.feature_space.vocabulary_fingerprint != given.vocabulary_fingerprint ||
+      trained.feature_space.num_words != given.num_words) {
+    LMB_FAIL(model_name << " was not trained with the vocabulary " << a.vocab_name << ": "
+                        << feature_space_difference(trained.feature_space, given));
+  }
+  if (trained.feature_space.map_fingerprint != given.map_fingerprint ||
+      trained.feature_space.descriptor_bytes != given.descriptor_bytes) {
+    LMB_FAIL(model_name << " was not trained on the map " << a.map_name << ": "
+                        << feature_space_difference(trained.feature_space, given));
+  }
+  const std::string diff = feature_space_difference(trained.feature_space, given);
+  LMB_CHECK(diff.empty(), model_name << ": " << diff);
+  ModelData data = export_model_data(trained.model, map, vocabulary, regions, a.options, stats);
+  // The run's training set (its config.toml), or the defaults with --boost-model.
+  const std::optional<TrainConfig> run_config = run_config_of(a.run_dir);
+  if (a.fusion) {
+    // The held-out observations are those of the run's training set: rebuilt from its config.
+    LMB_CHECK(run_config.has_value(),
+              "export: --fusion on needs --run (the training set of its config.toml); "
+              "give --fusion off with --boost-model");
+    const TrainConfig& config = *run_config;
+    const std::vector<uint8_t> words8 = keypoint_words(map, vocabulary);
+    TrainingSetOptions set_options = config.training_set;
+    if (config.area.set()) set_options.class_landmarks = area_class_landmarks(config.area, map);
+    const TrainingSet set = build_training_set(map, std::vector<int32_t>(words8.begin(), words8.end()), set_options);
+    const Model plain(data);
+    DescriptorFusionStats fs;
+    data.fusion = fit_descriptor_fusion(plain, map, set, a.fusion_options, &fs);
+    std::string curve;
+    for (size_t i = 0; i < fs.weight_p1.size(); ++i) {
+      curve += fmt::format("{}{}:{:.3f}", i ? " " : "", a.fusion_options.weights[i], fs.weight_p1[i]);
+    }
+    spdlog::info(
+        "export: descriptor fusion weight {} ({} exemplars; g from {} training observations); held-out "
+        "P@1 {:.4f} with it, {:.4f} stump sums alone, {:.4f} nearest exemplar alone ({} samples)",
+        fs.weight, fs.exemplars, fs.distance_samples, fs.fit_p1_with, fs.fit_p1_without, fs.fit_p1_hamming,
+        fs.fit_samples);
+    spdlog::info("export: held-out P@1 by weight: {}", curve);
+  }
+  if (a.calibration) {
+    add_pose_calibration(a.calibration_options, training_set_of(run_config), map, data);
+  }
+  return data;
+}
+
+}  // namespace lmb
