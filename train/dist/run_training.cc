@@ -27,7 +27,6 @@
 #include "common/error.h"
 #include "common/feature_space.h"
 #include "common/file_io.h"
-#include "common/hamming.h"
 #include "common/io/map_h5.h"
 #include "common/machine_info.h"
 #include "common/vocabulary.h"
@@ -40,6 +39,7 @@
 #include "train/dist/dist_bench.h"
 #include "train/dist/feature_parallel_learner.h"
 #include "train/dist/training_job.h"
+#include "train/eval/baselines.h"
 #include "train/features/augmentation.h"
 #include "train/features/build_features.h"
 
@@ -47,63 +47,13 @@ namespace lmb {
 
 namespace {
 
-// Precision@1 of exact Hamming nearest-neighbour matching (descriptor only) of the held-out
-// observations against the training samples' descriptors: the baselines the classifier must beat.
-// `all`: against every training sample, background included (compare with validation_p1, where
-// the background class competes too); `landmarks`: against the landmark classes' samples only
-// (compare with validation_p1_landmarks).
-struct HammingBaseline {
-  double all = -1.0;
-  double landmarks = -1.0;
-};
-HammingBaseline hamming_nn_validation_p1(const LandmarkMap& map, const TrainingSet& set) {
-  std::vector<int64_t> train, validation;
-  for (int64_t s = 0; s < set.num_samples(); ++s) {
-    if (!set.sample_copy.empty() && set.sample_copy[s] > 0) continue;  // an augmented copy: same descriptor
-    (set.sample_is_validation[s] ? validation : train).push_back(s);
-  }
-  HammingBaseline out;
-  if (validation.empty()) return out;
-  const int bytes = map.descriptor_bytes;
-  std::vector<uint8_t> rows(train.size() * static_cast<size_t>(bytes));
-  for (size_t i = 0; i < train.size(); ++i) {
-    std::memcpy(rows.data() + i * bytes, map.descriptor(set.sample_keypoint[train[i]]), static_cast<size_t>(bytes));
-  }
-  std::vector<uint16_t> dist(train.size());
-  int64_t correct_all = 0, correct_landmarks = 0;
-  for (int64_t v : validation) {
-    hamming_rows(map.descriptor(set.sample_keypoint[v]), rows.data(), static_cast<int64_t>(train.size()), bytes,
-                 dist.data());
-    int best_all = 1 << 30, best_landmark = 1 << 30;
-    int32_t class_all = -1, class_landmark = -1;
-    for (size_t i = 0; i < train.size(); ++i) {
-      const int d = dist[i];
-      const int32_t c = set.sample_class[train[i]];
-      if (d < best_all) {
-        best_all = d;
-        class_all = c;
-      }
-      if (c != set.background_class() && d < best_landmark) {
-        best_landmark = d;
-        class_landmark = c;
-      }
-    }
-    correct_all += class_all == set.sample_class[v];
-    correct_landmarks += class_landmark == set.sample_class[v];
-  }
-  const double n = static_cast<double>(validation.size());
-  out.all = static_cast<double>(correct_all) / n;
-  out.landmarks = static_cast<double>(correct_landmarks) / n;
-  return out;
-}
-
 // The training data of this rank: the set (replicated) and the feature columns it owns.
 struct RankData {
   TrainingSet set;
   FeatureMatrix features;
   std::string source;          // checked on resume
   FeatureSpace feature_space;  // rank 0 (the map's fingerprint is computed there only)
-  HammingBaseline hamming;
+  HammingValidationP1 hamming;
   AugmentNoise augment;  // the noise of the augmented copies (when config.augment.copies > 0)
 };
 
@@ -240,7 +190,7 @@ RankData load_rank_data(const TrainRunInputs& a, const TrainConfig& config, Comm
     d.features = build_training_features(map, regions, vocabulary, d.set.sample_keypoint, feature_options);
     *step = "computing the Hamming baseline";
     if (comm.rank() == 0) {
-      d.hamming = hamming_nn_validation_p1(map, d.set);
+      d.hamming = hamming_validation_p1(map, d.set);
       d.feature_space = map_feature_space(regions, vocabulary, map);
     }
     d.source = std::filesystem::absolute(a.map).lexically_normal().string();

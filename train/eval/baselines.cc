@@ -350,4 +350,39 @@ std::vector<RankedCandidate> ProjectedKdTree::query(const uint8_t* descriptor, i
   return neighbors_to_candidates(knn(descriptor, k), obs_.landmark);
 }
 
+HammingValidationP1 hamming_validation_p1(const LandmarkMap& map, const TrainingSet& set) {
+  std::vector<int64_t> validation;
+  TrainingObservations all, landmarks;  // "landmark": the sample's class
+  all.descriptor_bytes = landmarks.descriptor_bytes = map.descriptor_bytes;
+  const size_t bytes = static_cast<size_t>(map.descriptor_bytes);
+  for (int64_t s = 0; s < set.num_samples(); ++s) {
+    if (!set.sample_copy.empty() && set.sample_copy[s] > 0) continue;  // an augmented copy: same descriptor
+    if (set.sample_is_validation[s]) {
+      validation.push_back(s);
+      continue;
+    }
+    const uint8_t* d = map.descriptor(set.sample_keypoint[s]);
+    for (TrainingObservations* o : {&all, &landmarks}) {
+      if (o == &landmarks && set.sample_class[s] == set.background_class()) continue;
+      o->descriptors.insert(o->descriptors.end(), d, d + bytes);
+      o->landmark.push_back(set.sample_class[s]);
+    }
+  }
+  HammingValidationP1 out;
+  if (validation.empty()) return out;
+  const auto p1 = [&](TrainingObservations observations) {
+    if (observations.size() == 0) return 0.0;
+    const BruteforceHamming index(std::move(observations));
+    int64_t correct = 0;
+    for (int64_t v : validation) {
+      const std::vector<Neighbor> nn = index.knn(map.descriptor(set.sample_keypoint[v]), 1);
+      correct += index.observations().landmark[static_cast<size_t>(nn[0].index)] == set.sample_class[v];
+    }
+    return static_cast<double>(correct) / static_cast<double>(validation.size());
+  };
+  out.all = p1(std::move(all));
+  out.landmarks = p1(std::move(landmarks));
+  return out;
+}
+
 }  // namespace lmb

@@ -22,6 +22,7 @@
 
 #include "common/landmark_map.h"
 #include "common/types.h"
+#include "train/boost/training_set.h"
 #include "train/eval/metrics.h"
 
 namespace lmb {
@@ -126,5 +127,17 @@ class ProjectedKdTree {
   std::vector<float> tree_points_;  // points_ permuted by order_
   std::vector<Node> nodes_;
 };
+
+// Precision@1 of exact Hamming nearest-neighbour matching (BruteforceHamming, descriptor only) of a
+// training set's held-out samples against its training samples' descriptors: the baselines the
+// classifier must beat in training. `all`: against every training sample, background included
+// (compare with the learner's validation P@1, where the background class competes too);
+// `landmarks`: against the landmark classes' samples only. Augmented copies are left out (the same
+// descriptor). -1 without held-out samples.
+struct HammingValidationP1 {
+  double all = -1.0;
+  double landmarks = -1.0;
+};
+HammingValidationP1 hamming_validation_p1(const LandmarkMap& map, const TrainingSet& set);
 
 }  // namespace lmb
