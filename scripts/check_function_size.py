@@ -81,7 +81,7 @@ def main():
     args = parser.parse_args()
     if args.self_test:
         return self_test()
-    files = subprocess.run(["git", "-C", args.root, "ls-files", "*.cc", "*.c", "*.h"], check=True,
+    files = subprocess.run(["git", "-C", args.root, "ls-files", "--cached", "--others", "--exclude-standard", "*.cc", "*.c", "*.h"], check=True,
                            capture_output=True, text=True).stdout.split()
     found = []
     for rel in files:

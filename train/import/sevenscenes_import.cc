@@ -134,6 +134,13 @@ double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * kRadToDeg;
 }
 
+// A selected frame with a pose.
+struct Kept {
+  const Selected* frame;
+  const FrameFile* file;
+  Rigid3d world_from_cam;
+};
+
 }  // namespace
 
 std::vector<FrameItem> parse_frame_items(const std::string& text, const std::string& option) {
@@ -251,6 +258,168 @@ void SevenScenesImportOptions::check() const {
             "--gravity-up: expected a finite, non-zero vector X Y Z");
 }
 
+namespace {
+
+// The selected frames' poses; a non-finite one skips its frame (counted in `stats`). Throws when a
+// pose file is missing or malformed, or when every frame of a kind is skipped.
+std::vector<Kept> read_poses(const std::vector<Selected>& selected, const SevenScenesImportOptions& options,
+                             SevenScenesImportStats* out) {
+  SevenScenesImportStats& stats = *out;
+  std::vector<Kept> kept;
+  int selected_map = 0, selected_query = 0;
+  for (const Selected& s : selected) {
+    (s.map ? selected_map : selected_query) += 1;
+    const FrameFile& file = s.recording->frames.at(s.number);
+    const fs::path pose_path = s.recording->pose_dir / ("frame-" + file.digits + ".pose.txt");
+    LMB_CHECK(fs::exists(pose_path), pose_path.string() << ": missing (the pose of " << file.image.string() << ")");
+    const std::optional<Rigid3d> pose = read_sevenscenes_pose(pose_path);
+    if (!pose) {
+      ++stats.skipped_invalid_pose;
+      stats.skipped_poses.push_back(pose_path.string());
+      continue;
+    }
+    kept.push_back(Kept{&s, &file, *pose});
+  }
+  int kept_map = 0, kept_query = 0;
+  for (const Kept& k : kept) (k.frame->map ? kept_map : kept_query) += 1;
+  LMB_CHECK(kept_map > 0, "--map-frames '" << options.map_frames << "': all " << selected_map
+                                           << " selected frames have a non-finite pose (skipped)");
+  LMB_CHECK(selected_query == 0 || kept_query > 0, "--query-frames '" << options.query_frames << "': all "
+                                                                      << selected_query
+                                                                      << " selected frames have a non-finite pose "
+                                                                         "(skipped)");
+
+  return kept;
+}
+
+// The camera: its size from the first kept image of each recording (all must agree), its matrix
+// from --intrinsics, --focal or DATA/camera-intrinsics.txt (`source` says which).
+Camera camera_of(const std::vector<Kept>& kept, const SevenScenesImportOptions& options, std::string* source) {
+  const fs::path& dir = options.data_dir;
+  int width = 0, height = 0;
+  fs::path first_image;
+  std::set<const Recording*> sized;
+  for (const Kept& k : kept) {
+    if (!sized.insert(k.frame->recording).second) continue;
+    const cv::Mat image = cv::imread(k.file->image.string(), cv::IMREAD_GRAYSCALE);
+    LMB_CHECK(!image.empty(), k.file->image.string() << ": cannot decode the image");
+    if (first_image.empty()) {
+      width = image.cols;
+      height = image.rows;
+      first_image = k.file->image;
+    }
+    LMB_CHECK(image.cols == width && image.rows == height,
+              k.file->image.string() << " is " << image.cols << "x" << image.rows << " pixels, but "
+                                     << first_image.string() << " is " << width << "x" << height
+                                     << " (one camera for all frames)");
+  }
+  Eigen::Matrix3d k = Eigen::Matrix3d::Identity();
+  const fs::path default_intrinsics = dir / "camera-intrinsics.txt";
+  if (!options.intrinsics_file.empty()) {
+    k = read_intrinsics_matrix(options.intrinsics_file);
+    *source = options.intrinsics_file.string();
+  } else if (options.focal) {
+    k(0, 0) = k(1, 1) = *options.focal;
+    k(0, 2) = options.cx ? *options.cx : 0.5 * width;
+    k(1, 2) = options.cy ? *options.cy : 0.5 * height;
+    *source = "--focal";
+    std::string centred;  // the coordinates of the principal point taken from the image centre
+    if (options.cx) *source += ", --cx";
+    if (options.cy) *source += ", --cy";
+    if (!options.cx) centred = "cx";
+    if (!options.cy) centred += centred.empty() ? "cy" : ", cy";
+    if (!centred.empty()) *source += " (" + centred + ": the image centre)";
+    if (fs::exists(default_intrinsics)) *source += " (instead of " + default_intrinsics.string() + ")";
+  } else {
+    LMB_CHECK(fs::exists(default_intrinsics),
+              dir.string() << ": no camera intrinsics (" << default_intrinsics.string()
+                           << " is missing); give --intrinsics FILE (a 3x3 K) or --focal F [--cx CX --cy CY]");
+    k = read_intrinsics_matrix(default_intrinsics);
+    *source = default_intrinsics.string();
+  }
+  Camera camera;
+  camera.model = CameraModel::kPinhole;
+  camera.width = width;
+  camera.height = height;
+  camera.params = {k(0, 0), k(1, 1), k(0, 2), k(1, 2)};
+  camera.check(*source);
+  return camera;
+}
+
+// The world's down direction: --gravity-up, --gravity FILE|none, or DATA/gravity-direction.txt.
+void gravity_of(const SevenScenesImportOptions& options, SevenScenesImportStats* out) {
+  SevenScenesImportStats& stats = *out;
+  const fs::path& dir = options.data_dir;
+  const fs::path default_gravity = dir / "gravity-direction.txt";
+  if (options.gravity_up) {
+    stats.gravity_down_world = Eigen::Vector3d::Zero() - options.gravity_up->normalized();  // no -0
+    stats.gravity_source = "--gravity-up";
+  } else if (options.gravity == "none") {
+    stats.gravity_source = "none (--gravity none)";
+  } else if (!options.gravity.empty()) {
+    stats.gravity_down_world = read_world_vector(options.gravity);
+    stats.gravity_source = options.gravity;
+  } else if (fs::exists(default_gravity)) {
+    stats.gravity_down_world = read_world_vector(default_gravity);
+    stats.gravity_source = default_gravity.string();
+  } else {
+    stats.gravity_source = "none (no " + default_gravity.string() + ")";
+  }
+}
+
+// The collection's images of the kept frames and their sessions: map and query for one recording;
+// one a sequence folder (NAME-query for the query frames of a sequence that also has map frames)
+// otherwise.
+std::vector<CollectionImage> collection_images(const std::vector<Kept>& kept, bool single, const fs::path& dir,
+                                               SevenScenesImportStats* stats_out) {
+  SevenScenesImportStats& stats = *stats_out;
+  std::set<std::string> map_sequences;
+  for (const Kept& kf : kept) {
+    if (kf.frame->map) map_sequences.insert(kf.frame->recording->name);
+  }
+  const auto session_of = [&](const Selected& s) -> std::string {
+    if (single) return s.map ? "map" : "query";
+    const std::string& name = s.recording->name;
+    return s.map || !map_sequences.count(name) ? name : name + "-query";
+  };
+  std::vector<CollectionImage> images;
+  std::vector<double> down_angles;
+  for (const Kept& kf : kept) {
+    const std::string session = session_of(*kf.frame);
+    size_t index = 0;
+    while (index < stats.sessions.size() && stats.sessions[index].name != session) ++index;
+    if (index == stats.sessions.size()) {
+      check_session_name(session, (dir / kf.frame->recording->name).string() + ": session name (the folder's name)");
+      stats.sessions.push_back(MapSession{session, kf.frame->map ? SessionKind::kMap : SessionKind::kQuery});
+      stats.session_frames.push_back(0);
+    }
+    ++stats.session_frames[index];
+    CollectionImage out;
+    out.image.image_id = static_cast<int>(images.size()) + 1;
+    out.image.camera_id = 1;
+    out.image.name = session + "/" + kf.file->image.filename().string();
+    out.image.cam_from_world = kf.world_from_cam.inverse();
+    out.source = kf.file->image;
+    if (stats.gravity_down_world) {
+      out.gravity_in_cam = (out.image.cam_from_world.rotation * *stats.gravity_down_world).normalized();
+      down_angles.push_back(
+          angle_deg(kf.world_from_cam.rotation * Eigen::Vector3d::UnitY(), *stats.gravity_down_world));
+    }
+    (kf.frame->map ? stats.map_frames : stats.query_frames) += 1;
+    images.push_back(std::move(out));
+  }
+  stats.imported_frames = static_cast<int>(images.size());
+  if (!down_angles.empty()) {
+    stats.image_down_median_deg = median(down_angles);
+    stats.image_down_p10_deg = quantile(down_angles, 0.1);
+    stats.image_down_p90_deg = quantile(down_angles, 0.9);
+  }
+
+  return images;
+}
+
+}  // namespace
+
 SevenScenesImportStats import_sevenscenes(const SevenScenesImportOptions& options) {
   options.check();
   const fs::path& dir = options.data_dir;
@@ -331,144 +500,13 @@ SevenScenesImportStats import_sevenscenes(const SevenScenesImportOptions& option
   stats.selected_frames = static_cast<int>(selected.size());
 
   // Poses: a non-finite one skips its frame.
-  struct Kept {
-    const Selected* frame;
-    const FrameFile* file;
-    Rigid3d world_from_cam;
-  };
-  std::vector<Kept> kept;
-  int selected_map = 0, selected_query = 0;
-  for (const Selected& s : selected) {
-    (s.map ? selected_map : selected_query) += 1;
-    const FrameFile& file = s.recording->frames.at(s.number);
-    const fs::path pose_path = s.recording->pose_dir / ("frame-" + file.digits + ".pose.txt");
-    LMB_CHECK(fs::exists(pose_path), pose_path.string() << ": missing (the pose of " << file.image.string() << ")");
-    const std::optional<Rigid3d> pose = read_sevenscenes_pose(pose_path);
-    if (!pose) {
-      ++stats.skipped_invalid_pose;
-      stats.skipped_poses.push_back(pose_path.string());
-      continue;
-    }
-    kept.push_back(Kept{&s, &file, *pose});
-  }
-  int kept_map = 0, kept_query = 0;
-  for (const Kept& k : kept) (k.frame->map ? kept_map : kept_query) += 1;
-  LMB_CHECK(kept_map > 0, "--map-frames '" << options.map_frames << "': all " << selected_map
-                                           << " selected frames have a non-finite pose (skipped)");
-  LMB_CHECK(selected_query == 0 || kept_query > 0, "--query-frames '" << options.query_frames << "': all "
-                                                                      << selected_query
-                                                                      << " selected frames have a non-finite pose "
-                                                                         "(skipped)");
-
+  const std::vector<Kept> kept = read_poses(selected, options, &stats);
   // The camera: its size from the first kept image of each recording (all must agree).
-  int width = 0, height = 0;
-  fs::path first_image;
-  std::set<const Recording*> sized;
-  for (const Kept& k : kept) {
-    if (!sized.insert(k.frame->recording).second) continue;
-    const cv::Mat image = cv::imread(k.file->image.string(), cv::IMREAD_GRAYSCALE);
-    LMB_CHECK(!image.empty(), k.file->image.string() << ": cannot decode the image");
-    if (first_image.empty()) {
-      width = image.cols;
-      height = image.rows;
-      first_image = k.file->image;
-    }
-    LMB_CHECK(image.cols == width && image.rows == height,
-              k.file->image.string() << " is " << image.cols << "x" << image.rows << " pixels, but "
-                                     << first_image.string() << " is " << width << "x" << height
-                                     << " (one camera for all frames)");
-  }
-  Eigen::Matrix3d k = Eigen::Matrix3d::Identity();
-  const fs::path default_intrinsics = dir / "camera-intrinsics.txt";
-  if (!options.intrinsics_file.empty()) {
-    k = read_intrinsics_matrix(options.intrinsics_file);
-    stats.camera_source = options.intrinsics_file.string();
-  } else if (options.focal) {
-    k(0, 0) = k(1, 1) = *options.focal;
-    k(0, 2) = options.cx ? *options.cx : 0.5 * width;
-    k(1, 2) = options.cy ? *options.cy : 0.5 * height;
-    stats.camera_source = "--focal";
-    std::string centred;  // the coordinates of the principal point taken from the image centre
-    if (options.cx) stats.camera_source += ", --cx";
-    if (options.cy) stats.camera_source += ", --cy";
-    if (!options.cx) centred = "cx";
-    if (!options.cy) centred += centred.empty() ? "cy" : ", cy";
-    if (!centred.empty()) stats.camera_source += " (" + centred + ": the image centre)";
-    if (fs::exists(default_intrinsics)) stats.camera_source += " (instead of " + default_intrinsics.string() + ")";
-  } else {
-    LMB_CHECK(fs::exists(default_intrinsics),
-              dir.string() << ": no camera intrinsics (" << default_intrinsics.string()
-                           << " is missing); give --intrinsics FILE (a 3x3 K) or --focal F [--cx CX --cy CY]");
-    k = read_intrinsics_matrix(default_intrinsics);
-    stats.camera_source = default_intrinsics.string();
-  }
-  stats.camera.model = CameraModel::kPinhole;
-  stats.camera.width = width;
-  stats.camera.height = height;
-  stats.camera.params = {k(0, 0), k(1, 1), k(0, 2), k(1, 2)};
-  stats.camera.check(stats.camera_source);
-
+  stats.camera = camera_of(kept, options, &stats.camera_source);
   // Gravity: the world's down direction.
-  const fs::path default_gravity = dir / "gravity-direction.txt";
-  if (options.gravity_up) {
-    stats.gravity_down_world = Eigen::Vector3d::Zero() - options.gravity_up->normalized();  // no -0
-    stats.gravity_source = "--gravity-up";
-  } else if (options.gravity == "none") {
-    stats.gravity_source = "none (--gravity none)";
-  } else if (!options.gravity.empty()) {
-    stats.gravity_down_world = read_world_vector(options.gravity);
-    stats.gravity_source = options.gravity;
-  } else if (fs::exists(default_gravity)) {
-    stats.gravity_down_world = read_world_vector(default_gravity);
-    stats.gravity_source = default_gravity.string();
-  } else {
-    stats.gravity_source = "none (no " + default_gravity.string() + ")";
-  }
-
-  // Sessions: map and query for one recording; one a sequence folder (NAME-query for the query
-  // frames of a sequence that also has map frames) otherwise.
-  std::set<std::string> map_sequences;
-  for (const Kept& kf : kept) {
-    if (kf.frame->map) map_sequences.insert(kf.frame->recording->name);
-  }
-  const auto session_of = [&](const Selected& s) -> std::string {
-    if (single) return s.map ? "map" : "query";
-    const std::string& name = s.recording->name;
-    return s.map || !map_sequences.count(name) ? name : name + "-query";
-  };
-  std::vector<CollectionImage> images;
-  std::vector<double> down_angles;
-  for (const Kept& kf : kept) {
-    const std::string session = session_of(*kf.frame);
-    size_t index = 0;
-    while (index < stats.sessions.size() && stats.sessions[index].name != session) ++index;
-    if (index == stats.sessions.size()) {
-      check_session_name(session, (dir / kf.frame->recording->name).string() + ": session name (the folder's name)");
-      stats.sessions.push_back(MapSession{session, kf.frame->map ? SessionKind::kMap : SessionKind::kQuery});
-      stats.session_frames.push_back(0);
-    }
-    ++stats.session_frames[index];
-    CollectionImage out;
-    out.image.image_id = static_cast<int>(images.size()) + 1;
-    out.image.camera_id = 1;
-    out.image.name = session + "/" + kf.file->image.filename().string();
-    out.image.cam_from_world = kf.world_from_cam.inverse();
-    out.source = kf.file->image;
-    if (stats.gravity_down_world) {
-      out.gravity_in_cam = (out.image.cam_from_world.rotation * *stats.gravity_down_world).normalized();
-      down_angles.push_back(
-          angle_deg(kf.world_from_cam.rotation * Eigen::Vector3d::UnitY(), *stats.gravity_down_world));
-    }
-    (kf.frame->map ? stats.map_frames : stats.query_frames) += 1;
-    images.push_back(std::move(out));
-  }
-  stats.imported_frames = static_cast<int>(images.size());
-  if (!down_angles.empty()) {
-    stats.image_down_median_deg = median(down_angles);
-    stats.image_down_p10_deg = quantile(down_angles, 0.1);
-    stats.image_down_p90_deg = quantile(down_angles, 0.9);
-  }
-
+  gravity_of(options, &stats);
+  // Sessions and the collection's images.
+  const std::vector<CollectionImage> images = collection_images(kept, single, dir, &stats);
   std::map<int, Camera> cameras;
   cameras[1] = stats.camera;
   write_collection(options.out_dir, cameras, images, options.overwrite, stats.sessions);
