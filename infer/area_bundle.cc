@@ -17,15 +17,7 @@ std::shared_ptr<AreaBundle> AreaBundle::open(const std::filesystem::path& index)
 }
 
 std::shared_ptr<AreaBundle> AreaBundle::create(const std::filesystem::path& index_path, BundleIndex index) {
-  // The checks of the writer, on the text it would write.
-  LMB_CHECK(std::isfinite(index.reach) && index.reach >= 0.0,
-            index_path.string() << ": reach " << index.reach << " must be finite and >= 0");
-  LMB_CHECK(!index.areas.empty(), index_path.string() << ": a bundle needs at least one area");
-  for (size_t i = 0; i < index.areas.size(); ++i) {
-    LMB_CHECK(index.areas[i].id == static_cast<int32_t>(i), index_path.string()
-                                                                << ": area " << i << " has id " << index.areas[i].id);
-  }
-  if (index.calibration) index.calibration->check(index_path.string() + ": calibration");
+  check_bundle_index(index, index_path.string());
   auto bundle = std::shared_ptr<AreaBundle>(new AreaBundle());
   bundle->index_ = index_path;
   bundle->reach_ = index.reach;

@@ -144,13 +144,25 @@ void check_area_model(const BundleArea& area, const Model& model, const std::str
                                                  "the bundle index records (a model of another area or map)");
 }
 
-void write_bundle_index(const std::filesystem::path& path, const BundleIndex& index) {
-  const std::string where = path.string();
+void check_bundle_index(const BundleIndex& index, const std::string& where) {
   LMB_CHECK(std::isfinite(index.reach) && index.reach >= 0.0,
             where << ": reach " << index.reach << " must be finite and >= 0");
-  LMB_CHECK(index.map_fingerprint != 0, where << ": the map fingerprint is not set");
   LMB_CHECK(!index.areas.empty(), where << ": a bundle needs at least one area");
   if (index.calibration) index.calibration->check(where + ": calibration");
+  std::set<std::string> files;
+  for (size_t i = 0; i < index.areas.size(); ++i) {
+    const BundleArea& a = index.areas[i];
+    LMB_CHECK(a.id == static_cast<int32_t>(i), where << ": area " << i << " has id " << a.id);
+    LMB_CHECK(plain_file_name(a.file),
+              where << ": area " << i << ": file '" << a.file << "' is not a plain file name in the bundle folder");
+    LMB_CHECK(files.insert(a.file).second, where << ": area " << i << ": file '" << a.file << "' is used twice");
+  }
+}
+
+void write_bundle_index(const std::filesystem::path& path, const BundleIndex& index) {
+  const std::string where = path.string();
+  check_bundle_index(index, where);
+  LMB_CHECK(index.map_fingerprint != 0, where << ": the map fingerprint is not set");
   std::ostringstream os;
   os << "lmb-bundle " << BundleIndex::kVersion << "\n";
   os << "# area ID file FILE bytes N crc32 HEX landmarks N first_landmark ID last_landmark ID classes HEX cell LO_X "
@@ -167,15 +179,9 @@ void write_bundle_index(const std::filesystem::path& path, const BundleIndex& in
        << c.num_positive << " " << exact_number_text(c.target_precision) << "\n";
   }
   os << "areas " << index.areas.size() << "\n";
-  std::set<std::string> files;
-  for (size_t i = 0; i < index.areas.size(); ++i) {
-    const BundleArea& a = index.areas[i];
-    LMB_CHECK(a.id == static_cast<int32_t>(i), where << ": area " << i << " has id " << a.id);
-    LMB_CHECK(plain_file_name(a.file),
-              where << ": area " << i << ": file '" << a.file << "' is not a plain file name in the bundle folder");
-    LMB_CHECK(files.insert(a.file).second, where << ": area " << i << ": file '" << a.file << "' is used twice");
+  for (const BundleArea& a : index.areas) {
     LMB_CHECK(a.classes != 0 && a.landmarks >= 1 && a.first_landmark >= 0 && a.first_landmark <= a.last_landmark,
-              where << ": area " << i << ": its model is not described (describe_area)");
+              where << ": area " << a.id << ": its model is not described (describe_area)");
     char crc[16];
     std::snprintf(crc, sizeof(crc), "%08x", a.crc32);
     os << "area " << a.id << " file " << a.file << " bytes " << a.bytes << " crc32 " << crc << " landmarks "

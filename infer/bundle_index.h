@@ -77,6 +77,11 @@ LMB_INFER_EXPORT BundleArea describe_area(int32_t id, const std::string& file, c
 // entries that record them, landmark range and classes fingerprint).
 LMB_INFER_EXPORT void check_area_model(const BundleArea& area, const Model& model, const std::string& what);
 
+// Throws lmb::Error "<where>: ..." for an index no bundle can have: a reach that is not finite
+// and >= 0, no area, an area whose id is not its position, a file name that is not a plain name in
+// the folder or is used twice, a calibration out of range.
+LMB_INFER_EXPORT void check_bundle_index(const BundleIndex& index, const std::string& where);
+
 // Writes the index atomically at `path` (version 3). Throws lmb::Error naming the path: an entry
 // whose id is not its position, a file name that is not a plain name in the folder or is used
 // twice, a zero map fingerprint, a reach or calibration out of range.

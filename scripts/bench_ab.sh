@@ -6,8 +6,8 @@
 #   scripts/bench_ab.sh OLD_BENCH NEW_BENCH OUT_DIR [ROUNDS] [-- infer arguments]
 # Default arguments: --synthetic-paper --frames 10 --repeats 3 --no-popcount --train-descriptors 2000.
 # Example, the code before a commit against after it:
-#   git worktree add /tmp/old <commit>^ && (cd /tmp/old && ./scripts/build.sh)
-#   scripts/bench_ab.sh /tmp/old/build/tools/bench/lboost-bench build/tools/bench/lboost-bench bench_ab 3
+#   git worktree add ../old <commit>^ && (cd ../old && ./scripts/build.sh)
+#   scripts/bench_ab.sh ../old/build/tools/bench/lboost-bench build/tools/bench/lboost-bench bench_ab 3
 set -euo pipefail
 if [ $# -lt 3 ]; then
   sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//' >&2
