@@ -1,11 +1,15 @@
 #include "common/camera.h"
 
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <sstream>
 
 #include <Eigen/LU>
 
 #include "common/error.h"
+#include "common/text_parse.h"
 
 namespace lmb {
 
@@ -58,6 +62,49 @@ int camera_model_num_params(CameraModel model) {
     case CameraModel::kFullOpenCV: return 12;
   }
   return 0;
+}
+
+namespace {
+
+// A whole token as an int in [0, INT_MAX]; false for anything else.
+bool parse_size(const std::string& token, int* value) {
+  if (token.empty() || token[0] < '0' || token[0] > '9') return false;
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(token.c_str(), &end, 10);
+  if (end != token.c_str() + token.size() || errno == ERANGE || v > std::numeric_limits<int>::max()) return false;
+  *value = static_cast<int>(v);
+  return true;
+}
+
+}  // namespace
+
+Camera camera_from_text(const std::string& text, const std::string& where) {
+  std::istringstream in(text);
+  std::vector<std::string> tokens;
+  for (std::string token; in >> token;) tokens.push_back(token);
+  int id = 0;
+  if (!tokens.empty() && parse_size(tokens[0], &id)) tokens.erase(tokens.begin());  // a CAMERA_ID
+  LMB_CHECK(tokens.size() >= 3, where << ": expected \"MODEL WIDTH HEIGHT PARAMS...\" (COLMAP cameras.txt, e.g. "
+                                         "\"PINHOLE 640 480 fx fy cx cy\"), got '"
+                                      << text << "'");
+  Camera camera;
+  camera.model = camera_model_from_name(tokens[0], where);
+  LMB_CHECK(parse_size(tokens[1], &camera.width) && parse_size(tokens[2], &camera.height),
+            where << ": WIDTH and HEIGHT must be whole numbers of pixels, got '" << tokens[1] << "' and '" << tokens[2]
+                  << "'");
+  for (size_t i = 3; i < tokens.size(); ++i) {
+    camera.params.push_back(parse_finite_number(tokens[i], where, "camera parameter " + std::to_string(i - 3)));
+  }
+  camera.check(where);
+  return camera;
+}
+
+std::string camera_to_text(const Camera& camera) {
+  std::ostringstream out;
+  out << camera_model_name(camera.model) << ' ' << camera.width << ' ' << camera.height;
+  for (double p : camera.params) out << ' ' << exact_number_text(p);
+  return out.str();
 }
 
 namespace {

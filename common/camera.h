@@ -53,4 +53,14 @@ struct Camera {
   Eigen::Vector2d distortion(const Eigen::Vector2d& normalized) const;
 };
 
+// A camera from the text of a COLMAP cameras.txt line without its id: "MODEL WIDTH HEIGHT
+// PARAMS..." separated by white space, e.g. "PINHOLE 640 480 525 525 319.5 239.5" (a leading
+// integer CAMERA_ID, as in a line copied from cameras.txt, is skipped). Throws lmb::Error "<where>:
+// <reason>": an unsupported model, a width or height that is not a positive integer, a parameter
+// that is not a finite number, the wrong parameter count (Camera::check).
+Camera camera_from_text(const std::string& text, const std::string& where);
+// The inverse: "MODEL WIDTH HEIGHT PARAMS..." with every parameter as the text that parses back to
+// the same double ("%.17g").
+std::string camera_to_text(const Camera& camera);
+
 }  // namespace lmb

@@ -16,9 +16,15 @@
 #include "infer/localizer.h"
 #include "infer/model.h"
 #include "infer/version.h"
+#include "infer/walk_confidence.h"
 
 struct lmb_model {
   std::shared_ptr<const lmb::Model> model;
+};
+
+struct lmb_walk {
+  std::shared_ptr<const lmb::Model> model;
+  lmb::WalkTracker tracker;
 };
 
 struct lmb_bundle {
@@ -173,11 +179,15 @@ lmb_status lmb_localize(const lmb_model* model, const lmb_camera* camera, const 
                                       options, out_pose, nullptr, out_matches, max_matches, num_matches);
 }
 
-lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints,
-                                        int n, const uint8_t* descriptors, int descriptor_bytes,
-                                        const double gravity_in_cam[3], const lmb_localize_options* options,
-                                        lmb_pose* out_pose, lmb_pose_confidence* out_confidence, lmb_match* out_matches,
-                                        int max_matches, int* num_matches) {
+namespace {
+
+// lmb_localize_with_confidence, and with a walk the frame judged in it (*continued: the walk rule
+// judged it).
+lmb_status localize_frame(const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
+                          const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                          const lmb_localize_options* options, lmb_pose* out_pose, lmb_pose_confidence* out_confidence,
+                          lmb_match* out_matches, int max_matches, int* num_matches, lmb::WalkTracker* walk,
+                          int* continued) {
   const char* fn = "lmb_localize";
   if (num_matches != nullptr) *num_matches = 0;
   if (out_pose != nullptr) *out_pose = lmb_pose{};
@@ -206,7 +216,15 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
     const std::vector<lmb::Keypoint> kps = to_keypoints(keypoints, n);
     const Eigen::Vector3d gravity(gravity_in_cam[0], gravity_in_cam[1], gravity_in_cam[2]);
     const lmb::Localizer localizer(model->model, lo);
-    const lmb::LocalizeResult r = localizer.localize(cam, kps, descriptors, gravity);
+    lmb::LocalizeResult r = localizer.localize(cam, kps, descriptors, gravity);
+    if (walk != nullptr) {
+      const lmb::WalkVerdict v = walk->update(r.pose.success, r.pose.cam_from_world, r.evidence);
+      r.localized = v.localized;
+      r.confidence = v.continues ? v.walk_confidence : v.frame_confidence;
+      const auto& wc = model->model->walk_calibration();
+      r.confidence_threshold = v.continues && wc ? wc->threshold : model->model->calibration().threshold;
+      if (continued != nullptr) *continued = v.continues ? 1 : 0;
+    }
 
     out_pose->success = r.localized ? 1 : 0;
     if (out_confidence != nullptr) {
@@ -254,6 +272,54 @@ lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera
     }
     return LMB_OK;
   });
+}
+
+}  // namespace
+
+lmb_status lmb_localize_with_confidence(const lmb_model* model, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                                        int n, const uint8_t* descriptors, int descriptor_bytes,
+                                        const double gravity_in_cam[3], const lmb_localize_options* options,
+                                        lmb_pose* out_pose, lmb_pose_confidence* out_confidence, lmb_match* out_matches,
+                                        int max_matches, int* num_matches) {
+  return localize_frame(model, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam, options, out_pose,
+                        out_confidence, out_matches, max_matches, num_matches, nullptr, nullptr);
+}
+
+lmb_status lmb_walk_create(const lmb_model* model, lmb_walk** out) {
+  if (out == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_walk_create: out must not be NULL");
+  *out = nullptr;
+  if (model == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_walk_create: model must not be NULL");
+  if (!model->model->calibrated()) {
+    return fail(LMB_ERROR_INVALID_ARGUMENT,
+                "lmb_walk_create: the model has no pose calibration (export it with `lboost export`, or run "
+                "`lboost calibrate`)");
+  }
+  return guarded(LMB_ERROR_INVALID_ARGUMENT, "lmb_walk_create", [&] {
+    *out = new lmb_walk{model->model, lmb::WalkTracker(model->model->calibration(), model->model->walk_calibration())};
+    return LMB_OK;
+  });
+}
+
+void lmb_walk_free(lmb_walk* walk) { delete walk; }
+
+int lmb_walk_is_calibrated(const lmb_walk* walk) {
+  if (walk == nullptr) return -1;
+  return walk->model->walk_calibration().has_value() ? 1 : 0;
+}
+
+void lmb_walk_reset(lmb_walk* walk) {
+  if (walk != nullptr) walk->tracker.reset();
+}
+
+lmb_status lmb_walk_localize(lmb_walk* walk, const lmb_camera* camera, const lmb_keypoint* keypoints, int n,
+                             const uint8_t* descriptors, int descriptor_bytes, const double gravity_in_cam[3],
+                             const lmb_localize_options* options, lmb_pose* out_pose,
+                             lmb_pose_confidence* out_confidence, int* continued) {
+  if (continued != nullptr) *continued = 0;
+  if (walk == nullptr) return fail(LMB_ERROR_INVALID_ARGUMENT, "lmb_walk_localize: walk must not be NULL");
+  const lmb_model model{walk->model};
+  return localize_frame(&model, camera, keypoints, n, descriptors, descriptor_bytes, gravity_in_cam, options, out_pose,
+                        out_confidence, nullptr, 0, nullptr, &walk->tracker, continued);
 }
 
 }  // extern "C"

@@ -157,6 +157,39 @@ LMB_INFER_EXPORT lmb_status lmb_localize_with_confidence(
     int descriptor_bytes, const double gravity_in_cam[3], const lmb_localize_options* options, lmb_pose* out_pose,
     lmb_pose_confidence* out_confidence, lmb_match* out_matches, int max_matches, int* num_matches);
 
+/* Walks: a camera localized frame after frame (infer/walk_confidence.h). A walk keeps the last
+ * trusted pose; a frame's pose is reported (lmb_pose.success) when the model's pose calibration
+ * reports it, or when it continues the walk by the model's walk calibration (model format 4). With
+ * a model without a walk calibration every frame is judged as lmb_localize_with_confidence judges it.
+ *
+ *   lmb_walk* walk = NULL;
+ *   lmb_walk_create(model, &walk);
+ *   for each frame: lmb_walk_localize(walk, &camera, keypoints, n, descriptors, 64, gravity, NULL,
+ *                                     &pose, &confidence);
+ *   lmb_walk_free(walk);
+ *
+ * Threading: one walk follows one camera from one thread at a time; walks of one model may run on
+ * different threads at once. */
+typedef struct lmb_walk lmb_walk;
+/* A walk on a calibrated model (lmb_model_is_calibrated); the model is shared, not copied, and
+ * must outlive nothing: the walk keeps its own reference. *out is NULL on failure. */
+LMB_INFER_EXPORT lmb_status lmb_walk_create(const lmb_model* model, lmb_walk** out);
+/* Frees a walk (NULL is allowed). */
+LMB_INFER_EXPORT void lmb_walk_free(lmb_walk* walk);
+/* 1 when the walk's model holds a walk calibration, 0 when not, -1 for a NULL walk. */
+LMB_INFER_EXPORT int lmb_walk_is_calibrated(const lmb_walk* walk);
+/* Forgets the last trusted pose (the next frame is judged on its own). */
+LMB_INFER_EXPORT void lmb_walk_reset(lmb_walk* walk);
+/* Localizes the walk's next frame as lmb_localize_with_confidence does (no matches written) and
+ * judges it in the walk: out_pose->success and out_confidence->localized are the walk's verdict;
+ * out_confidence->probability is the walk rule's probability when the walk continued (a trusted
+ * pose at most a few frames back) and the pose calibration's otherwise; *continued (may be NULL)
+ * is 1 when the walk rule judged the frame. */
+LMB_INFER_EXPORT lmb_status lmb_walk_localize(lmb_walk* walk, const lmb_camera* camera, const lmb_keypoint* keypoints,
+                                              int n, const uint8_t* descriptors, int descriptor_bytes,
+                                              const double gravity_in_cam[3], const lmb_localize_options* options,
+                                              lmb_pose* out_pose, lmb_pose_confidence* out_confidence, int* continued);
+
 /* Bundles of area models (docs/areas.md): a map split into areas, one model each, with an index
  * (bundle.txt). Opening reads the index only; an area's model is read on first use and freed again
  * under the cache limits (least recently used first).

@@ -78,6 +78,24 @@ void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inc
   }
 }
 
+WalkCalibration read_walk_calibration(BoundedReader& r, const std::string& what) {
+  WalkCalibration c;
+  uint32_t features = 0;
+  r.value(features);
+  LMB_CHECK(features == static_cast<uint32_t>(WalkEvidence::kNumFeatures),
+            what << ": walk calibration: " << features << " features, expected " << WalkEvidence::kNumFeatures);
+  for (double& w : c.weights) r.value(w);
+  r.value(c.bias);
+  r.value(c.threshold);
+  r.value(c.translation_scale_m);
+  r.value(c.rotation_scale_deg);
+  r.value(c.max_gap);
+  r.value(c.num_samples);
+  r.value(c.num_positive);
+  r.value(c.target_precision);
+  return c;
+}
+
 }  // namespace
 
 void ModelData::check(const std::string& where) const {
@@ -140,9 +158,14 @@ void ModelData::check(const std::string& where) const {
     }
   }
   if (calibration) calibration->check(where + ": pose calibration");
+  if (walk_calibration) {
+    LMB_CHECK(calibration.has_value(), where << ": a walk calibration needs a pose calibration");
+    walk_calibration->check(where + ": walk calibration");
+  }
 }
 
 uint32_t model_file_version(const ModelData& data) {
+  if (data.walk_calibration) return kModelVersionWithWalk;
   if (data.calibration) return kModelVersion;
   return data.fusion.enabled() ? kModelVersionWithFusion : kModelVersionWithoutFusion;
 }
@@ -174,7 +197,7 @@ std::string serialize_model_data(const ModelData& data) {
       write_byte_string(ar, detail::encode_ascending_ids(list));
     }
     const uint32_t version = model_file_version(data);
-    if (version == kModelVersion) ar(static_cast<uint8_t>(data.fusion.enabled() ? 1 : 0));
+    if (version >= kModelVersion) ar(static_cast<uint8_t>(data.fusion.enabled() ? 1 : 0));
     if (data.fusion.enabled()) {
       const DescriptorFusion& f = data.fusion;
       ar(static_cast<uint64_t>(f.exemplar_begin.size()));
@@ -190,12 +213,20 @@ std::string serialize_model_data(const ModelData& data) {
       for (double w : c.weights) ar(w);
       ar(c.bias, c.threshold, c.num_samples, c.num_positive, c.target_precision);
     }
+    if (data.walk_calibration) {
+      const WalkCalibration& c = *data.walk_calibration;
+      ar(static_cast<uint32_t>(WalkEvidence::kNumFeatures));
+      for (double w : c.weights) ar(w);
+      ar(c.bias, c.threshold, c.translation_scale_m, c.rotation_scale_deg, c.max_gap, c.num_samples, c.num_positive,
+         c.target_precision);
+    }
   }
   return os.str();
 }
 
 ModelData parse_model_data(const std::string& payload, const std::string& what, uint32_t version) {
-  LMB_CHECK(version == kModelVersion || version == kModelVersionWithFusion || version == kModelVersionWithoutFusion,
+  LMB_CHECK(version == kModelVersionWithWalk || version == kModelVersion || version == kModelVersionWithFusion ||
+                version == kModelVersionWithoutFusion,
             what << ": model format version " << version << " is not supported");
   ModelData d;
   try {
@@ -245,7 +276,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
                                                         what + ": inverted file word " + std::to_string(w));
     }
     bool has_fusion = version == kModelVersionWithFusion;
-    if (version == kModelVersion) {
+    if (version >= kModelVersion) {
       uint8_t flag = 0;
       r.value(flag);
       LMB_CHECK(flag <= 1, what << ": has_fusion = " << static_cast<int>(flag) << " is not 0 or 1");
@@ -263,7 +294,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
       f.distance_score.resize(r.count(sizeof(double), "fusion distance scores"));
       for (double& v : f.distance_score) r.value(v);
     }
-    if (version == kModelVersion) {
+    if (version >= kModelVersion) {
       PoseCalibration c;
       uint32_t features = 0;
       r.value(features);
@@ -277,6 +308,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
       r.value(c.target_precision);
       d.calibration = c;
     }
+    if (version == kModelVersionWithWalk) d.walk_calibration = read_walk_calibration(r, what);
     LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left() << " unexpected bytes after the model");
   } catch (const cereal::Exception& e) {
     LMB_FAIL(what << ": truncated or corrupt model payload (" << e.what() << ")");
@@ -293,7 +325,7 @@ Model::Model(ModelData data) : data_(std::move(data)) {
 std::shared_ptr<const Model> Model::load(const std::filesystem::path& path) {
   uint32_t version = 0;
   const std::string payload =
-      read_container_file(path, kModelMagic, kModelVersionWithoutFusion, kModelVersion, &version);
+      read_container_file(path, kModelMagic, kModelVersionWithoutFusion, kModelVersionWithWalk, &version);
   return std::make_shared<const Model>(parse_model_data(payload, path.string(), version));
 }
 
@@ -301,7 +333,7 @@ std::shared_ptr<const Model> Model::from_bytes(const uint8_t* data, size_t size,
   LMB_CHECK(data != nullptr || size == 0, what << ": null buffer");
   uint32_t version = 0;
   const std::string payload =
-      open_container(data, size, kModelMagic, kModelVersionWithoutFusion, kModelVersion, what, &version);
+      open_container(data, size, kModelMagic, kModelVersionWithoutFusion, kModelVersionWithWalk, what, &version);
   return std::make_shared<const Model>(parse_model_data(payload, what, version));
 }
 

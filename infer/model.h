@@ -24,7 +24,11 @@
 //   version 3 only: uint8 has_fusion (0 or 1), then the fusion as in version 2 when 1; then the
 //     pose calibration (infer/pose_confidence.h): uint32 F = PoseEvidence::kNumFeatures, F x
 //     double weights, double bias, double threshold, int64 num_samples, int64 num_positive,
-//     double target_precision.
+//     double target_precision;
+//   version 4 only: version 3's contents, then the walk calibration (infer/walk_confidence.h):
+//     uint32 F = WalkEvidence::kNumFeatures, F x double weights, double bias, double threshold,
+//     double translation_scale_m, double rotation_scale_deg, int32 max_gap, int64 num_samples,
+//     int64 num_positive, double target_precision.
 // Every count is checked against the bytes left in the payload before anything is allocated.
 //
 // Threading: a Model is immutable after construction; all methods are const and may be called
@@ -46,6 +50,7 @@
 #include "common/vocabulary.h"
 #include "infer/export.h"
 #include "infer/pose_confidence.h"
+#include "infer/walk_confidence.h"
 
 namespace lmb {
 
@@ -89,6 +94,10 @@ struct ModelData {
   // The pose confidence's calibration (version 3 files; fitted by `lboost export`). Absent = an
   // uncalibrated model: a pose counts as localized by its inlier count alone.
   std::optional<PoseCalibration> calibration;
+  // The walk calibration (version 4 files; fitted by `lboost export` beside the pose calibration,
+  // which it needs): how a tracked pose's consistency with the walk counts. Absent = every frame
+  // of a walk is judged by the pose calibration alone.
+  std::optional<WalkCalibration> walk_calibration;
 
   // Throws lmb::Error (prefixed by `where`) naming the field: sizes, ranges, ordering, finiteness.
   LMB_INFER_EXPORT void check(const std::string& where = "model") const;
@@ -125,6 +134,8 @@ class LMB_INFER_EXPORT Model {
   // exported without one), and it (only when calibrated()).
   bool calibrated() const { return data_.calibration.has_value(); }
   const PoseCalibration& calibration() const { return *data_.calibration; }
+  // The walk calibration, if the model has one (WalkTracker reads it).
+  const std::optional<WalkCalibration>& walk_calibration() const { return data_.walk_calibration; }
 
   // The scoring indices the classifier reads (infer/detail/scoring_index.h in the source tree;
   // internal, not installed).

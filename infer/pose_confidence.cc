@@ -2,12 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Dense>
-
 #include "common/error.h"
+#include "infer/detail/logistic_fit.h"
 
 namespace lmb {
 
@@ -82,10 +81,15 @@ PoseEvidence pose_evidence(const Camera& camera, const std::vector<Eigen::Vector
 
 double PoseCalibration::probability(const PoseEvidence& evidence) const {
   if (evidence.num_inliers <= 0) return 0.0;
+  return 1.0 / (1.0 + std::exp(-logit(evidence)));
+}
+
+double PoseCalibration::logit(const PoseEvidence& evidence) const {
+  if (evidence.num_inliers <= 0) return -std::numeric_limits<double>::infinity();
   const auto f = evidence.features();
   double z = bias;
   for (int k = 0; k < kF; ++k) z += weights[k] * f[k];
-  return 1.0 / (1.0 + std::exp(-z));
+  return z;
 }
 
 void PoseCalibration::check(const std::string& where) const {
@@ -119,50 +123,9 @@ PoseCalibration fit_pose_calibration(const std::vector<PoseEvidence>& evidence, 
     y.push_back(right[i] ? 1.0 : 0.0);
   }
   LMB_CHECK(!x.empty(), "fit_pose_calibration: no pose with inliers among " << evidence.size() << " samples");
-  const size_t m = x.size();
-
-  // Standardization (a constant feature keeps scale 1).
-  std::array<double, kF> mean{}, scale{};
-  for (int k = 0; k < kF; ++k) {
-    double s = 0, s2 = 0;
-    for (const auto& f : x) s += f[k];
-    mean[k] = s / m;
-    for (const auto& f : x) s2 += (f[k] - mean[k]) * (f[k] - mean[k]);
-    const double sd = std::sqrt(s2 / m);
-    scale[k] = sd > 1e-12 ? sd : 1.0;
-  }
-  constexpr int D = kF + 1;  // weights, then the bias
-  Eigen::Matrix<double, D, 1> w = Eigen::Matrix<double, D, 1>::Zero();
-  for (int it = 0; it < options.max_iterations; ++it) {
-    Eigen::Matrix<double, D, D> H = Eigen::Matrix<double, D, D>::Zero();
-    Eigen::Matrix<double, D, 1> g = Eigen::Matrix<double, D, 1>::Zero();
-    for (size_t i = 0; i < m; ++i) {
-      Eigen::Matrix<double, D, 1> z;
-      for (int k = 0; k < kF; ++k) z[k] = (x[i][k] - mean[k]) / scale[k];
-      z[kF] = 1.0;
-      const double p = 1.0 / (1.0 + std::exp(-w.dot(z)));
-      g.noalias() += (p - y[i]) * z;
-      H.noalias() += std::max(p * (1.0 - p), 1e-12) * z * z.transpose();
-    }
-    // Penalty l2 * m / 2 * |weights|^2 (the bias is free), scaled with the sample count so that
-    // its strength does not depend on how many poses were fitted.
-    for (int k = 0; k < kF; ++k) {
-      g[k] += options.l2 * m * w[k];
-      H(k, k) += options.l2 * m;
-    }
-    const Eigen::Matrix<double, D, 1> step = H.ldlt().solve(g);
-    if (!step.allFinite()) break;
-    w -= step;
-    if (step.norm() < 1e-10) break;
-  }
-
   PoseCalibration c;
-  c.bias = w[kF];
-  for (int k = 0; k < kF; ++k) {
-    c.weights[k] = w[k] / scale[k];
-    c.bias -= w[k] * mean[k] / scale[k];
-  }
-  c.num_samples = static_cast<int64_t>(m);
+  detail::fit_logistic<kF>(x, y, options.l2, options.max_iterations, &c.weights, &c.bias);
+  c.num_samples = static_cast<int64_t>(x.size());
   c.num_positive = static_cast<int64_t>(std::count(y.begin(), y.end(), 1.0));
   c.check("fit_pose_calibration");
   return c;

@@ -81,6 +81,9 @@ struct LMB_INFER_EXPORT PoseCalibration {
 
   // sigma(bias + weights . features), in (0, 1); 0 when the evidence has no inlier.
   double probability(const PoseEvidence& evidence) const;
+  // bias + weights . features: the log-odds of probability(); -infinity when the evidence has no
+  // inlier.
+  double logit(const PoseEvidence& evidence) const;
   // Throws lmb::Error (prefixed by `where`) naming the field: non-finite weights or bias,
   // threshold outside [0, 1], negative or inconsistent counts.
   void check(const std::string& where = "pose calibration") const;

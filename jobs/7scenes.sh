@@ -13,7 +13,10 @@
 # world (seed 1001), as in jobs/pipeline.sh, so no image of the recording shapes the visual words.
 # Stages whose output exists are kept; delete OUT_DIR to start over. LBOOST points at the lboost
 # binary (default: build/train/lboost); LMB_TRAIN_ARGS (default --rounds 600 --top-k 1000),
-# LMB_LOCALIZE_ARGS, LMB_EVAL_ARGS as in jobs/pipeline.sh. report.json carries the 7-Scenes
+# LMB_LOCALIZE_ARGS, LMB_EVAL_ARGS as in jobs/pipeline.sh; LMB_MAP_ARGS adds `lboost map` flags,
+# e.g. "--refine-focal on" (the shipped 585 px focal length fits these frames badly: the map's
+# focal check says so and refines it, docs/real_data.md "Wrong intrinsics"). The map stage also writes
+# OUT_DIR/map_report.json. report.json carries the 7-Scenes
 # figures beside the 20 cm / 5 deg ones: pose_recall_5cm_5deg and the median errors over all query
 # frames (docs/report.md).
 set -euo pipefail
@@ -47,8 +50,9 @@ if [ ! -f "$out/map.h5" ]; then
   }
   # A room: depths beyond 6 m are outside it; the poses are in metres.
   stage "map: detection, guided matching, triangulation (gravity.txt per image)"
+  # shellcheck disable=SC2086
   "$lboost" map --collection "$out/collection" --out "$out/map.h5" --gravity "$out/collection/gravity.txt" \
-    --max-depth 6 --threads "$threads"
+    --max-depth 6 --threads "$threads" --report "$out/map_report.json" ${LMB_MAP_ARGS:-}
 fi
 default_train_args="--rounds 600 --top-k 1000"
 # shellcheck source=jobs/model_stages.sh

@@ -10,7 +10,8 @@
 # world (seed 1001), as in jobs/pipeline.sh, so no image of the sequence shapes the visual words.
 # Stages whose output exists are kept; delete OUT_DIR to start over. LBOOST points at the lboost
 # binary (default: build/train/lboost); LMB_TRAIN_ARGS (default --rounds 600 --top-k 1000, about
-# 3 min of training here), LMB_LOCALIZE_ARGS, LMB_EVAL_ARGS as in jobs/pipeline.sh.
+# 3 min of training here), LMB_LOCALIZE_ARGS, LMB_EVAL_ARGS as in jobs/pipeline.sh; LMB_MAP_ARGS
+# adds `lboost map` flags (e.g. "--refine-focal off"). The map stage also writes OUT_DIR/map_report.json.
 set -euo pipefail
 data=${1:?usage: jobs/tum.sh DATA_DIR OUT_DIR}
 out=${2:?usage: jobs/tum.sh DATA_DIR OUT_DIR}
@@ -43,8 +44,9 @@ fi
 if [ ! -f "$out/map.h5" ]; then
   # Depths beyond 6 m are outside this office; the mocap world is in metres.
   stage "map: detection, guided matching, triangulation (gravity.txt per image)"
+  # shellcheck disable=SC2086
   "$lboost" map --collection "$out/collection" --out "$out/map.h5" --gravity "$out/collection/gravity.txt" \
-    --max-depth 6 --threads "$threads"
+    --max-depth 6 --threads "$threads" --report "$out/map_report.json" ${LMB_MAP_ARGS:-}
 fi
 default_train_args="--rounds 600 --top-k 1000"
 # shellcheck source=jobs/model_stages.sh

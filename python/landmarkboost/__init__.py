@@ -38,7 +38,7 @@ except ImportError as _e:
                       "Python3_EXECUTABLE of the build's CMakeCache.txt, /usr/bin/python3 by default)") from _e
 
 from ._core import (AreaBundle, BundleLocalizeResult, BundleLocalizer, Camera, Error, LocalizeResult,
-                    Localizer, LocalizerOptions, Model, Rigid3d, __version__)
+                    Localizer, LocalizerOptions, Model, Rigid3d, WalkTracker, __version__)
 from ._path import fspath as _fspath
 from .report import Report, read_report
 
@@ -75,5 +75,5 @@ def __getattr__(name):
 
 
 __all__ = ["AreaBundle", "BundleLocalizeResult", "BundleLocalizer", "Camera", "Error", "LocalizeResult",
-           "Localizer", "LocalizerOptions", "Model", "Report", "Rigid3d", "load", "read_report",
-           "__version__"]
+           "Localizer", "LocalizerOptions", "Model", "Report", "Rigid3d", "WalkTracker", "load",
+           "read_report", "__version__"]

@@ -27,6 +27,7 @@
 #include "infer/c_api.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
+#include "infer/walk_confidence.h"
 #include "numpy_util.h"
 
 namespace lmb::python {
@@ -463,6 +464,9 @@ LocalizerOptions(top_k=5, pose_top_k=2, seed=1). The defaults are those of `lboo
       .def_property_readonly("calibrated", &Model::calibrated,
                              "Whether the model holds a pose calibration (False: trusted by inlier count alone).")
       .def_property_readonly(
+          "walk_calibrated", [](const Model& mo) { return mo.walk_calibration().has_value(); },
+          "Whether the model holds a walk calibration (WalkTracker then reports poses that continue a walk).")
+      .def_property_readonly(
           "confidence_threshold", [](const Model& mo) { return mo.calibrated() ? mo.calibration().threshold : -1.0; },
           "The calibrated model's operating point (-1 when not calibrated).")
       .def_property_readonly(
@@ -654,6 +658,40 @@ KeyPoint.pt + 0.5; size = the detector's diameter, pixels; angle in degrees or -
 of gravity (down) in the camera frame (x right, y down, z forward), any length; options: per-call
 LocalizerOptions (default: the Localizer's). Raises landmarkboost.Error for invalid input; not
 finding a pose is result.success False.)");
+
+  // ---- Walks ----
+  py::class_<WalkTracker>(m, "WalkTracker", R"(Judges the frames of one walk (a camera localized frame after frame):
+WalkTracker(model). A frame's pose is reported when the model's pose calibration reports it, or when it
+continues the walk (a small step from the last trusted pose) by the model's walk calibration
+(model.walk_calibrated). One tracker follows one camera.)")
+      .def(py::init([](const std::shared_ptr<Model>& model) {
+             if (!model->calibrated()) {
+               LMB_FAIL("WalkTracker: the model has no pose calibration (lboost export or lboost calibrate)");
+             }
+             return WalkTracker(model->calibration(), model->walk_calibration());
+           }),
+           py::arg("model"))
+      .def(
+          "update",
+          [](WalkTracker& t, const Result& r) {
+            const WalkVerdict v = t.update(r.r.pose.success, r.r.pose.cam_from_world, r.r.evidence);
+            py::dict d;
+            d["localized"] = v.localized;
+            d["continues"] = v.continues;
+            d["by_walk"] = v.by_walk;
+            d["frame_confidence"] = v.frame_confidence;
+            d["walk_confidence"] = v.walk_confidence;
+            return d;
+          },
+          py::arg("result"),
+          R"(Judges the walk's next frame (a LocalizeResult of Localizer.localize) and returns a dict: localized (the
+answer to act on), continues (the walk rule judged it: a trusted pose at most a few frames back), by_walk
+(reported by the walk rule alone), frame_confidence, walk_confidence.)")
+      .def("reset", &WalkTracker::reset, "Forgets the last trusted pose.")
+      .def_property_readonly("last_trusted", [](const WalkTracker& t) -> py::object {
+        if (!t.last_trusted()) return py::none();
+        return py::cast(*t.last_trusted());
+      });
 
   // ---- Area bundles ----
   py::class_<AreaBundle, std::shared_ptr<AreaBundle>>(m, "AreaBundle", R"(A bundle of area models (bundle.txt of

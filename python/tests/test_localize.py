@@ -230,3 +230,29 @@ print(r.num_matches, [n for n in ('hdf5', 'opencv', 'mpi') if n in maps])
     count, loaded = out.stdout.split(" ", 1)
     assert int(count) > 0
     assert loaded.strip() == "[]", out.stdout
+
+
+def test_walk_tracker_reports_what_the_frame_rule_reports_and_more(tiny):
+    model = lb.load(tiny.model)
+    if not model.calibrated:
+        with pytest.raises(lb.Error, match="no pose calibration"):
+            lb.WalkTracker(model)
+        return
+    m = lb.io.read_map(tiny.map)
+    localizer, tracker = lb.Localizer(model), lb.WalkTracker(model)
+    assert tracker.last_trusted is None
+    for i, (f, frame) in enumerate(query_frames(m)):
+        r = localize_frame(localizer, m, f)
+        v = tracker.update(r)
+        # The frame rule's verdict is kept; the walk rule may add a pose that continues the walk.
+        assert v["localized"] == (r.success or v["by_walk"]), frame.name
+        assert v["frame_confidence"] == (r.confidence if r.pose_found else 0.0), frame.name
+        if i == 0:
+            assert not v["continues"]
+        if not model.walk_calibrated:
+            assert not v["continues"] and not v["by_walk"]
+        if v["localized"]:
+            assert tracker.last_trusted is not None
+            assert tracker.last_trusted.translation.tolist() == r.cam_from_world.translation.tolist()
+    tracker.reset()
+    assert tracker.last_trusted is None

@@ -1,5 +1,8 @@
 #include "common/camera.h"
 
+#include <string>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "common/error.h"
@@ -133,6 +136,56 @@ TEST(Camera, KnownValuesForEveryModelBothWays) {
   // Spot check of the FULL_OPENCV pixel computed above, to the digits written out by hand.
   EXPECT_NEAR(cases[5].pixel.x(), 423.47250446, 1e-7);
   EXPECT_NEAR(cases[5].pixel.y(), 202.83895748, 1e-7);
+}
+
+// The text of a cameras.txt line without its id, as `lboost localize --camera` takes it.
+TEST(Camera, FromTextReadsEveryModelAndWritesItBackExactly) {
+  const Camera c = camera_from_text("SIMPLE_PINHOLE 640 480 525.5 319.5 239.5", "--camera");
+  EXPECT_EQ(c.model, CameraModel::kSimplePinhole);
+  EXPECT_EQ(c.width, 640);
+  EXPECT_EQ(c.height, 480);
+  EXPECT_EQ(c.params, (std::vector<double>{525.5, 319.5, 239.5}));
+  // A line copied from cameras.txt (with its CAMERA_ID), tabs and spaces.
+  const Camera o = camera_from_text("3  OPENCV\t320 240 230 230 160 120 -0.22 0.05 0.0008 -0.0005 ", "--camera");
+  EXPECT_EQ(o.model, CameraModel::kOpenCV);
+  EXPECT_EQ(o.params[5], 0.05);
+  for (const std::string text : {"SIMPLE_PINHOLE 640 480 525.5 319.5 239.5", "PINHOLE 640 480 500 501 320 240",
+                                 "SIMPLE_RADIAL 640 480 500 320 240 0.1", "RADIAL 640 480 500 320 240 0.1 -0.01",
+                                 "OPENCV 320 240 230 230 160 120 -0.22 0.05 0.0008 -0.0005",
+                                 "FULL_OPENCV 640 480 500 500 320 240 0.1 0.01 0 0 0.001 0.2 0.02 0.002"}) {
+    const Camera a = camera_from_text(text, "--camera");
+    const Camera b = camera_from_text(camera_to_text(a), "--camera");
+    EXPECT_EQ(b.model, a.model) << text;
+    EXPECT_EQ(b.params, a.params) << text;  // every double the same
+    EXPECT_EQ(camera_to_text(b), camera_to_text(a)) << text;
+  }
+  EXPECT_EQ(camera_to_text(c), "SIMPLE_PINHOLE 640 480 525.5 319.5 239.5");
+}
+
+TEST(Camera, FromTextRefusesWithTheReason) {
+  const auto error = [](const std::string& text) {
+    try {
+      camera_from_text(text, "--camera");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error(""),
+            "--camera: expected \"MODEL WIDTH HEIGHT PARAMS...\" (COLMAP cameras.txt, e.g. \"PINHOLE 640 480 "
+            "fx fy cx cy\"), got ''");
+  EXPECT_EQ(error("OPENCV_FISHEYE 640 480 1 2 3 4 5 6 7 8"),
+            "--camera: unsupported camera model 'OPENCV_FISHEYE' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, "
+            "RADIAL, OPENCV, FULL_OPENCV)");
+  EXPECT_EQ(error("PINHOLE 640.5 480 500 500 320 240"),
+            "--camera: WIDTH and HEIGHT must be whole numbers of pixels, got '640.5' and '480'");
+  EXPECT_EQ(error("PINHOLE 640 -480 500 500 320 240"),
+            "--camera: WIDTH and HEIGHT must be whole numbers of pixels, got '640' and '-480'");
+  EXPECT_EQ(error("PINHOLE 0 480 500 500 320 240"), "--camera: image size must be positive, got 0x480");
+  EXPECT_EQ(error("PINHOLE 640 480 500 500 320"), "--camera: camera model PINHOLE takes 4 parameters, got 3");
+  EXPECT_EQ(error("PINHOLE 640 480 500 fy 320 240"), "--camera: camera parameter 1 is not a number: 'fy'");
+  EXPECT_EQ(error("PINHOLE 640 480 500 nan 320 240"), "--camera: camera parameter 1 is not finite");
+  EXPECT_EQ(error("PINHOLE 640 480 -500 500 320 240"), "--camera: focal length must be positive");
 }
 
 }  // namespace

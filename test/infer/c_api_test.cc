@@ -20,6 +20,7 @@
 #include "infer/bundle_localizer.h"
 #include "infer/localizer.h"
 #include "infer/version.h"
+#include "infer/walk_confidence.h"
 #include "test/infer/test_models.h"
 
 namespace lmb {
@@ -184,6 +185,78 @@ TEST(CApiTest, ReturnsTheCalibratedProbability) {
   EXPECT_EQ(confidence.threshold, -1.0);
   EXPECT_EQ(confidence.localized, 1);
   EXPECT_EQ(pose.success, 1);
+  lmb_model_free(model);
+}
+
+// lmb_walk_localize: the verdicts of the C++ WalkTracker fed with the C++ Localizer's results, frame
+// after frame (the first frame by the pose calibration, the next ones by the walk rule too); a
+// model without a pose calibration is refused; reset forgets the walk.
+TEST(CApiTest, WalkLocalizesLikeTheCppTracker) {
+  CFixture fx;
+  ModelData d = fx.model.data();
+  const Eigen::Vector3d& g = fx.world.frame.gravity_in_cam;
+  const double gravity[3] = {g.x(), g.y(), g.z()};
+  const int n = static_cast<int>(fx.keypoints.size());
+  {
+    lmb_model* plain = nullptr;
+    ASSERT_EQ(lmb_model_load(fx.path.c_str(), &plain), LMB_OK);
+    lmb_walk* walk = reinterpret_cast<lmb_walk*>(1);
+    EXPECT_EQ(lmb_walk_create(plain, &walk), LMB_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(walk, nullptr);
+    EXPECT_NE(std::string(lmb_last_error()).find("pose calibration"), std::string::npos) << lmb_last_error();
+    lmb_model_free(plain);
+  }
+  PoseCalibration c;
+  c.weights = {0.9, 1.5, -2.0, 0.5, 0.7, 0.3, -0.2};
+  c.bias = -3.0;
+  WalkCalibration w;
+  w.weights = {1.0, -2.0, -2.0, -1.0};
+  w.bias = 2.0;
+  w.translation_scale_m = 0.1;
+  w.rotation_scale_deg = 1.0;
+  const LocalizeResult reference =
+      Localizer(std::make_shared<const Model>(d))
+          .localize(fx.world.frame.camera, fx.world.frame.keypoints, fx.world.frame.descriptors.data(), g);
+  ASSERT_TRUE(reference.pose.success);
+  // The frame rule reports the pose; the walk rule's probability of the same pose again is its own.
+  c.threshold = c.probability(reference.evidence);
+  w.threshold = 0.5;
+  d.calibration = c;
+  d.walk_calibration = w;
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("lmb_c_api_walk_test_" + std::to_string(::getpid()) + ".lbm");
+  Model(d).save(path);
+  lmb_model* model = nullptr;
+  ASSERT_EQ(lmb_model_load(path.c_str(), &model), LMB_OK) << lmb_last_error();
+  std::filesystem::remove(path);
+  lmb_walk* walk = nullptr;
+  ASSERT_EQ(lmb_walk_create(model, &walk), LMB_OK) << lmb_last_error();
+  EXPECT_EQ(lmb_walk_is_calibrated(walk), 1);
+  EXPECT_EQ(lmb_walk_is_calibrated(nullptr), -1);
+  WalkTracker tracker(c, w);
+  for (int frame = 0; frame < 4; ++frame) {
+    if (frame == 3) {
+      lmb_walk_reset(walk);
+      tracker.reset();
+    }
+    const WalkVerdict v = tracker.update(true, reference.pose.cam_from_world, reference.evidence);
+    lmb_pose pose;
+    lmb_pose_confidence confidence;
+    int continued = -1;
+    ASSERT_EQ(lmb_walk_localize(walk, &fx.camera, fx.keypoints.data(), n, fx.world.frame.descriptors.data(),
+                                test::kCodeDescriptorBytes, gravity, nullptr, &pose, &confidence, &continued),
+              LMB_OK)
+        << lmb_last_error();
+    EXPECT_EQ(continued, v.continues ? 1 : 0) << "frame " << frame;
+    EXPECT_EQ(frame > 0 && frame < 3, v.continues) << "frame " << frame;
+    EXPECT_EQ(pose.success, v.localized ? 1 : 0) << "frame " << frame;
+    EXPECT_EQ(confidence.localized, pose.success);
+    EXPECT_EQ(confidence.probability, v.continues ? v.walk_confidence : v.frame_confidence) << "frame " << frame;
+    EXPECT_EQ(confidence.threshold, v.continues ? w.threshold : c.threshold);
+    EXPECT_EQ(pose.num_inliers, reference.pose.num_inliers);
+  }
+  lmb_walk_free(walk);
+  lmb_walk_free(nullptr);
   lmb_model_free(model);
 }
 

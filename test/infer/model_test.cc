@@ -195,6 +195,57 @@ TEST(ModelTest, CalibrationRoundTripBitForBitAndOlderVersionsLoadUncalibrated) {
   }
 }
 
+// Version 4: the walk calibration round-trips bit for bit beside the pose calibration; without it
+// the model is written as version 3; a walk calibration without a pose calibration, a corrupt
+// field or a cut anywhere in it is an error.
+TEST(ModelTest, WalkCalibrationRoundTripsAsVersion4) {
+  ModelData d = make_code_model_data(some_positions(6));
+  d.calibration = some_calibration();
+  EXPECT_EQ(Model(d).to_bytes()[8], kModelVersion);
+  WalkCalibration w;
+  w.weights = {0.8, -1.5, -2.25, -0.5};
+  w.bias = 1.25;
+  w.threshold = 0.6;
+  w.translation_scale_m = 0.31;
+  w.rotation_scale_deg = 7.5;
+  w.max_gap = 4;
+  w.num_samples = 40;
+  w.num_positive = 22;
+  w.target_precision = 0.95;
+  d.walk_calibration = w;
+  const std::vector<uint8_t> bytes = Model(d).to_bytes();
+  EXPECT_EQ(bytes[8], kModelVersionWithWalk);
+  const auto back = Model::from_bytes(bytes.data(), bytes.size());
+  ASSERT_TRUE(back->walk_calibration().has_value());
+  const WalkCalibration& b = *back->walk_calibration();
+  EXPECT_EQ(std::memcmp(w.weights.data(), b.weights.data(), sizeof(w.weights)), 0);
+  EXPECT_EQ(b.bias, w.bias);
+  EXPECT_EQ(b.threshold, w.threshold);
+  EXPECT_EQ(b.translation_scale_m, w.translation_scale_m);
+  EXPECT_EQ(b.rotation_scale_deg, w.rotation_scale_deg);
+  EXPECT_EQ(b.max_gap, w.max_gap);
+  EXPECT_EQ(b.num_samples, w.num_samples);
+  EXPECT_EQ(b.num_positive, w.num_positive);
+  EXPECT_EQ(back->to_bytes(), bytes);
+  const std::string payload = serialize_model_data(d);
+  for (size_t size = payload.size() - 90; size < payload.size(); ++size) {
+    EXPECT_THROW(parse_model_data(payload.substr(0, size), "t", kModelVersionWithWalk), Error) << "cut at " << size;
+  }
+  // Read as version 3, the walk calibration is bytes after the model.
+  EXPECT_THROW(parse_model_data(payload, "t", kModelVersion), Error);
+  ModelData no_pose = d;
+  no_pose.calibration.reset();
+  EXPECT_THROW(Model{no_pose}, Error);
+  ModelData bad = d;
+  bad.walk_calibration->rotation_scale_deg = -1.0;
+  try {
+    Model{bad};
+    ADD_FAILURE() << "a negative rotation scale was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("rotation_scale_deg"), std::string::npos) << e.what();
+  }
+}
+
 // A corrupt calibration field fails with one line naming the file and the field.
 TEST(ModelTest, CorruptCalibrationFailsNamingTheField) {
   ModelData d = make_code_model_data(some_positions(5));
@@ -337,7 +388,7 @@ TEST(ModelTest, RejectsWrongMagicVersionAndCrc) {
   bad[0] = 'X';
   EXPECT_NE(expect_rejected(bad).find("magic"), std::string::npos);
   bad = good;
-  bad[8] = 4;  // version 4
+  bad[8] = 5;  // version 5
   EXPECT_NE(expect_rejected(bad).find("version"), std::string::npos);
   bad = good;
   bad[kContainerHeaderBytes + 10] ^= 0x40;

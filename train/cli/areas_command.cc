@@ -89,7 +89,7 @@ void run_areas(const AreasArgs& args) {
 
 void add_areas_command(CLI::App& app) {
   auto args = std::make_shared<AreasArgs>();
-  auto* cmd = app.add_subcommand("areas", "Split a map into overlapping areas, one classifier each (docs/areas.md)");
+  auto* cmd = app.add_subcommand("areas", "Split a map into overlapping areas, one classifier each");
   cmd->add_option("--map", args->map, "map file (lboost map)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--out", args->out, "areas file (text), written atomically")->required();
   cmd->add_option("--max-classes", args->options.max_classes, "landmark classes per area at most")

@@ -121,7 +121,7 @@ void run_bundle(const BundleArgs& args) {
 
 void add_bundle_command(CLI::App& app) {
   auto args = std::make_shared<BundleArgs>();
-  auto* cmd = app.add_subcommand("bundle", "Index the areas' exported models as a bundle (docs/areas.md)");
+  auto* cmd = app.add_subcommand("bundle", "Index the areas' exported models as a bundle");
   cmd->add_option("--areas", args->areas, "areas file (lboost areas)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--models", args->models, "folder with area-ID.lbm for every area (lboost export)")
       ->required()
@@ -145,42 +145,47 @@ void add_bundle_command(CLI::App& app) {
 }
 
 void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options) {
+  // Every option below applies with --bundle only; the help lists them under their own heading.
+  const size_t first = cmd->get_options().size();
   cmd->add_option("--prior-noise", options->prior_noise,
-                  "--bundle: a position prior per query frame, its true centre moved METRES in a seeded direction, "
+                  "A position prior per query frame, its true centre moved METRES in a seeded direction, "
                   "radius METRES (repeatable)");
-  cmd->add_flag("--no-prior", options->no_prior, "--bundle: localize in every area, without a prior");
+  cmd->add_flag("--no-prior", options->no_prior, "Localize in every area, without a prior");
   cmd->add_option("--track", options->track,
-                  "--bundle: track the query frames in capture order, the camera moving at most METRES a frame "
-                  "(BundleLocalizer::track; repeatable)");
+                  "Track the query frames in capture order, the camera moving at most METRES a frame "
+                  "(repeatable)");
   cmd->add_option("--track-prior-noise", options->track_prior_noise,
-                  "--bundle --track: relocalize with a position prior of this noise (as --prior-noise) instead of "
+                  "--track: relocalize with a position prior of this noise (as --prior-noise) instead of "
                   "in every area (negative: every area)")
       ->capture_default_str();
   cmd->add_option("--tracking-areas", options->tracking_areas,
-                  "--bundle --track: areas scored before the motion gate judges the winning pose")
+                  "--track: areas scored before the motion gate judges the winning pose")
       ->capture_default_str();
   cmd->add_flag_function(
       "--all-areas", [options](int64_t) { options->search = AreaSearch::kAll; },
-      "--bundle: with a prior, score every selected area (default: nearest area first, the first calibrated "
+      "With a prior, score every selected area (default: nearest area first, the first calibrated "
       "localized pose wins)");
   cmd->add_flag_function(
       "--winners-view", [options](int64_t) { options->search = AreaSearch::kWinnersView; },
-      "--bundle: with a prior, nearest area first, then the areas that see most of the current winning pose's "
-      "view (AreaSearch::kWinnersView: fewer areas before the calibrated stop)");
+      "With a prior, nearest area first, then the areas that see most of the current winning pose's "
+      "view (fewer areas before the calibrated stop)");
   cmd->add_option("--area-winner", options->winner,
-                  "--bundle: which scored area's pose wins: support (explains most keypoints with every scored "
+                  "Which scored area's pose wins: support (explains most keypoints with every scored "
                   "area's matches) or inliers (most inliers of its own area)")
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, AreaWinner>{{"support", AreaWinner::kSupport}, {"inliers", AreaWinner::kInliers}}))
-      ->default_str("support");
+      ->default_str("support")
+      ->option_text("support|inliers=support");
   cmd->add_option("--area-threads", options->area_threads,
-                  "--bundle: areas of a frame localized at once, each on its own thread (the same result; "
+                  "Areas of a frame localized at once, each on its own thread (the same result; "
                   "cpu_ms then counts the calling thread only: read wall_ms)")
       ->capture_default_str();
-  add_seed_option(cmd, "--prior-seed", &options->prior_seed, "--bundle: seed of the prior's direction");
+  add_seed_option(cmd, "--prior-seed", &options->prior_seed, "Seed of the prior's direction");
   cmd->add_option("--cache-areas", options->cache.max_areas,
-                  "--bundle: at most this many areas loaded (least recently used freed first; 0 = no limit)")
+                  "At most this many areas loaded (least recently used freed first; 0 = no limit)")
       ->capture_default_str();
+  const std::vector<CLI::Option*> all = cmd->get_options();
+  for (size_t i = first; i < all.size(); ++i) all[i]->group("With --bundle");
 }
 
 }  // namespace lmb::cli

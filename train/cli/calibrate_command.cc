@@ -34,6 +34,7 @@ void run_calibrate(const CalibrateArgs& a) {
   check_model_fits_map(*model, a.model, map, a.map);
   ModelData data = model->data();
   data.calibration.reset();
+  data.walk_calibration.reset();
   add_pose_calibration(a.options, training_set_of(run_config_of(a.run_dir)), map, data);
   LMB_CHECK(data.calibration.has_value(), "calibrate: too few calibration poses in " << a.map << " (see above)");
   Model(std::move(data)).save(a.out);

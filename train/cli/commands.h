@@ -28,6 +28,7 @@ void add_train_command(CLI::App& app);
 void add_export_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);
 void add_localize_command(CLI::App& app);
+void add_scene_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_import_command(CLI::App& app);  // `import` group: `import tum`, `import colmap`, `import 7scenes`
 void add_areas_command(CLI::App& app);

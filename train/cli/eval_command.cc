@@ -99,13 +99,14 @@ void add_eval_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--bundle", args->bundle.bundle,
                   "A bundle of area models (bundle.txt of `lboost bundle`): pose recall with --prior-noise and/or "
-                  "--no-prior, and of --model on the same frames (docs/areas.md)")
+                  "--no-prior, and of --model on the same frames")
       ->check(CLI::ExistingFile);
   add_bundle_mode_options(cmd, &args->bundle);
   cmd->add_option("--map", o.map, "The map the model was trained on, with its query frames (map.h5)")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("--report", args->report, "Output report (JSON; every field is documented in docs/report.md)")
+  cmd->add_option("--report", args->report,
+                  "Output report (JSON; every field is described in the documentation's report page)")
       ->required();
   cmd->add_option("--run", args->run,
                   "Training run dir: its summary.json is copied into the report, and the observations it held "

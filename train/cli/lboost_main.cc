@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   lmb::cli::add_export_command(app);
   lmb::cli::add_calibrate_command(app);
   lmb::cli::add_localize_command(app);
+  lmb::cli::add_scene_command(app);
   lmb::cli::add_eval_command(app);
   lmb::cli::add_import_command(app);
   spdlog::set_pattern("[%H:%M:%S] %v");

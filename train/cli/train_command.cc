@@ -139,7 +139,7 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--top-k", args->top_k, key("training_set.top_k_landmarks"));
   cmd->add_option("--area", args->area,
                   "FILE:ID: train area ID of the areas file FILE (lboost areas): its landmarks are the classes "
-                  "(recorded as [area] in config.toml and checked on resume; docs/areas.md)");
+                  "(recorded as [area] in config.toml and checked on resume)");
   add_seed_option(cmd, "--seed", &args->seed,
                   "boost.seed and training_set.seed (default " + std::to_string(TrainConfig().boost.seed) + ")");
   cmd->add_option("--threads", args->threads, key("features.threads"));

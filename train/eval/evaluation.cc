@@ -18,6 +18,8 @@
 #include "train/eval/pose_stage.h"
 #include "train/eval/report.h"
 #include "train/eval/timing.h"
+#include "train/eval/walk_calibration_fit.h"
+#include "train/eval/walk_eval.h"
 
 namespace lmb {
 
@@ -93,20 +95,40 @@ std::vector<EvalQuery> outside_frames(const LandmarkMap& map) {
   return out;
 }
 
+// The frame's pose at the default budget with each seed; times those of `timed`.
+std::vector<FrameOutcome> seed_outcomes(const EvalQuery& q, const PoseInput& input, PoseEstimatorOptions options,
+                                        const std::vector<uint64_t>& seeds, const FrameOutcome& timed) {
+  std::vector<FrameOutcome> out;
+  for (uint64_t seed : seeds) {
+    options.seed = seed;
+    FrameOutcome o = estimate_frame_pose(q, input, options);
+    o.match_ms = timed.match_ms;
+    o.total_ms = timed.total_ms;
+    out.push_back(o);
+  }
+  return out;
+}
+
 // How many of the outside frames a method reports localized, by the inlier rule and by the
 // calibrated rule (every reported pose of an outside frame is wrong).
 nlohmann::json evaluate_outside(const EvalMethod& method, const MethodContext& context,
-                                const std::vector<EvalQuery>& frames, const CalibrationFit& fit) {
+                                const std::vector<EvalQuery>& frames, const CalibrationFit& fit,
+                                const std::vector<uint64_t>& seeds, std::vector<std::vector<FrameOutcome>>* by_seed) {
   const EvalOptions& a = *context.options;
   int64_t inlier_rule = 0, calibrated = 0;
+  by_seed->clear();
   if (!frames.empty()) {
     const std::unique_ptr<Matcher> matcher = method.make(context);
+    by_seed->resize(fit.fitted ? seeds.size() : 0);
     for (const EvalQuery& q : frames) {
       const FrameMatches m = matcher->match(q);
-      const FrameOutcome o =
-          estimate_frame_pose(q, select_correspondences(q, m.accepted, a.max_correspondences), a.pose);
+      const PoseInput input = select_correspondences(q, m.accepted, a.max_correspondences);
+      const FrameOutcome o = estimate_frame_pose(q, input, a.pose);
       inlier_rule += o.localized;
       calibrated += o.localized && fit.fitted && fit.calibration.probability(o.evidence) >= fit.calibration.threshold;
+      if (!fit.fitted) continue;
+      const std::vector<FrameOutcome> s = seed_outcomes(q, input, a.pose, seeds, o);
+      for (size_t k = 0; k < s.size(); ++k) (*by_seed)[k].push_back(s[k]);
     }
   }
   const double n = static_cast<double>(frames.size());
@@ -178,6 +200,9 @@ struct MethodRun {
   double build_seconds = 0.0;               // matcher construction (the baselines' index)
   std::vector<std::vector<int32_t>> ranks;  // per frame, per keypoint: 1-based rank of the truth, 0 absent
   double cpu_ms_per_frame = 0.0;            // thread CPU time of matching + pose, mean over frames
+  // With a calibration: per seed of the sweep, per query frame, the pose at the default budget (the
+  // walks' frames; times those of the timed pose).
+  std::vector<std::vector<FrameOutcome>> seed_frames;
 };
 
 // 1-based rank of `truth` in `ranking`, 0 when absent.
@@ -243,6 +268,11 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
     run.result.frames.push_back(o);
     part.result.frames.push_back(o);
     sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), part.result.sweep, calibration);
+    if (fit.fitted) {
+      const std::vector<FrameOutcome> by_seed = seed_outcomes(q, input, a.pose, part.result.sweep.seeds, o);
+      run.seed_frames.resize(by_seed.size());
+      for (size_t s = 0; s < by_seed.size(); ++s) run.seed_frames[s].push_back(by_seed[s]);
+    }
     add_keypoint_matches(q, m.accepted, part.matches);
     std::vector<int32_t> ranks;
     for (size_t k = 0; k < q.keypoints.size(); ++k) {
@@ -269,6 +299,36 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
   run.result.matches = evaluate_matches(matches);
   evaluate_pose_stage(a, run.result);
   return run;
+}
+
+// The query sessions as walks: per session (in the order of `queries`), per seed, its frames.
+std::vector<WalkInput> query_walks(const LandmarkMap& map, const std::vector<EvalQuery>& queries,
+                                   const std::vector<std::vector<FrameOutcome>>& seed_frames) {
+  std::vector<WalkInput> walks;
+  std::vector<int32_t> walk_session;
+  for (size_t i = 0; i < queries.size(); ++i) {
+    const int32_t session = map.frames[queries[i].frame].session;
+    auto it = std::find(walk_session.begin(), walk_session.end(), session);
+    if (it == walk_session.end()) {
+      walk_session.push_back(session);
+      walks.push_back(WalkInput{map.sessions[static_cast<size_t>(session)].name,
+                                std::vector<std::vector<FrameOutcome>>(seed_frames.size())});
+      it = walk_session.end() - 1;
+    }
+    WalkInput& w = walks[static_cast<size_t>(it - walk_session.begin())];
+    for (size_t s = 0; s < seed_frames.size(); ++s) w.by_seed[s].push_back(seed_frames[s][i]);
+  }
+  return walks;
+}
+
+void log_walks(const std::string& name, const nlohmann::json& walk) {
+  const nlohmann::json s = walk_summary(walk);
+  const auto mean = [&](const char* rule, const char* field) { return s.at(rule).at(field).at("mean").get<double>(); };
+  spdlog::info(
+      "eval: {}: walks (mean over seeds): frame rule {:.1f} reported right, precision {:.3f}; walk rule {:.1f} "
+      "reported right, precision {:.3f} (walk calibration {})",
+      name, mean("frame_rule", "reported_right"), mean("frame_rule", "precision"), mean("walk_rule", "reported_right"),
+      mean("walk_rule", "precision"), walk.at("calibration").at("fitted").get<bool>() ? "fitted" : "not fitted");
 }
 
 // A method's precision@1 and MRR on the held-out map observations, its baselines searching the
@@ -466,7 +526,15 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
         fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
     MethodRun run = evaluate_method(method, context, queries, query_session, num_sessions, fit);
     o.confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);
-    o.confidence[name]["outside"] = evaluate_outside(method, outside_context, outside, fit);
+    std::vector<std::vector<FrameOutcome>> outside_by_seed;
+    o.confidence[name]["outside"] =
+        evaluate_outside(method, outside_context, outside, fit, run.result.sweep.seeds, &outside_by_seed);
+    if (fit.fitted) {
+      const WalkCalibrationFit walk_fit = fit_walk_calibration_on_map(map, fit, calibration);
+      o.confidence[name]["walk"] = evaluate_walks(query_walks(map, queries, run.seed_frames), outside_by_seed, fit,
+                                                  walk_fit, run.result.sweep.seeds, a.pose_thresholds.front());
+      log_walks(name, o.confidence[name]["walk"]);
+    }
     if (!outside.empty()) {
       spdlog::info("eval: {}: {} of {} outside frames localized by the inlier rule, {} by the calibrated rule", name,
                    o.confidence[name]["outside"]["localized_inlier_rule"].get<int64_t>(), outside.size(),
@@ -585,7 +653,7 @@ EvalResult run_evaluation(const EvalOptions& a) {
   out.heading = heading;
   out.table = format_results_table(out.report);
   out.gap_table = format_generalization_gap(out.report);
-  out.confidence_table = format_confidence_table(out.report);
+  out.confidence_table = format_confidence_table(out.report) + format_walk_table(out.report);
   out.cpu_line = cpu_line(m.cpu);
   return out;
 }

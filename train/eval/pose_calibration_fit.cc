@@ -154,6 +154,7 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
       evidence.push_back(
           pose_evidence(*q.camera, input.pixels, input.quality, r, static_cast<int>(q.keypoints.size())));
       right.push_back(pose_within(r.cam_from_world, q.true_cam_from_world, thresholds) ? 1 : 0);
+      fit.poses.push_back(CalibrationPose{f, variant == 1, r.cam_from_world, evidence.back(), right.back() != 0});
       is_elsewhere.push_back(static_cast<char>(variant));
       fit.num_elsewhere += variant;
     }

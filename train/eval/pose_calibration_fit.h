@@ -79,18 +79,29 @@ std::vector<char> landmarks_in_view(const LandmarkMap& map, frame_t f);
 // Their map keypoints, ascending (what the descriptor baselines leave out of their index).
 std::vector<int64_t> calibration_frame_keypoints(const LandmarkMap& map, const std::vector<frame_t>& frames);
 
+// One pose the calibration was fitted on (the estimator's success), in frame order, the frame's
+// "as is" pose before its "elsewhere" one.
+struct CalibrationPose {
+  frame_t frame = -1;
+  bool elsewhere = false;
+  Rigid3d cam_from_world;
+  PoseEvidence evidence;
+  bool right = false;
+};
+
 struct CalibrationFit {
-  bool fitted = false;               // false: too few poses (num_poses < min_poses)
-  PoseCalibration calibration;       // when fitted (threshold = the operating point)
-  int64_t num_frames = 0;            // calibration frames
-  int64_t num_poses = 0;             // poses fitted on (both variants)
-  int64_t num_right = 0;             // of them right
-  int64_t num_elsewhere = 0;         // of the poses, "elsewhere" ones
-  double precision_threshold = 0.0;  // the operating point for target_precision alone
-  double elsewhere_threshold = 0.0;  // ... for max_elsewhere_share alone
-  int64_t elsewhere_passed = 0;      // "elsewhere" poses at or above the operating point
-  int64_t passed = 0;                // poses at or above the operating point
-  int64_t passed_right = 0;          // of them right
+  bool fitted = false;                 // false: too few poses (num_poses < min_poses)
+  PoseCalibration calibration;         // when fitted (threshold = the operating point)
+  int64_t num_frames = 0;              // calibration frames
+  int64_t num_poses = 0;               // poses fitted on (both variants)
+  int64_t num_right = 0;               // of them right
+  int64_t num_elsewhere = 0;           // of the poses, "elsewhere" ones
+  double precision_threshold = 0.0;    // the operating point for target_precision alone
+  double elsewhere_threshold = 0.0;    // ... for max_elsewhere_share alone
+  int64_t elsewhere_passed = 0;        // "elsewhere" poses at or above the operating point
+  int64_t passed = 0;                  // poses at or above the operating point
+  int64_t passed_right = 0;            // of them right
+  std::vector<CalibrationPose> poses;  // the poses fitted on (what the walk calibration reads)
   nlohmann::json to_json() const;
 };
 

@@ -13,6 +13,7 @@
 #include "train/areas/area_training.h"
 #include "train/boost/boost_model.h"
 #include "train/eval/landmarkboost_matcher.h"
+#include "train/eval/walk_calibration_fit.h"
 #include "train/features/build_features.h"
 
 namespace lmb {
@@ -69,6 +70,22 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
       fit.num_elsewhere, fit.num_right, fit.calibration.threshold, fit.calibration.target_precision,
       fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold, fit.passed, fit.passed_right,
       fit.elsewhere_passed);
+  // The walk calibration on the same poses: the calibration frames in session order are walks.
+  const WalkCalibrationFit walk = fit_walk_calibration_on_map(map, fit, options);
+  if (!walk.fitted) {
+    spdlog::warn(
+        "export: walk calibration: not fitted ({} walk samples, {} right): a tracked frame is judged by the pose "
+        "calibration alone",
+        walk.num_samples, walk.num_right);
+    return;
+  }
+  data.walk_calibration = walk.calibration;
+  spdlog::info(
+      "export: walk calibration on {} walk samples ({} right, {} elsewhere; median step {:.3f} m, {:.2f} deg): "
+      "operating point {:.4f}; either rule reports {} samples, {} right, {} of them elsewhere",
+      walk.num_samples, walk.num_right, walk.num_elsewhere, walk.calibration.translation_scale_m,
+      walk.calibration.rotation_scale_deg, walk.calibration.threshold, walk.passed, walk.passed_right,
+      walk.elsewhere_passed);
 }
 
 // The config of a training run dir (RUN/config.toml, read_run_train_config); nullopt without one.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <string>
@@ -24,6 +25,72 @@ __attribute__((format(printf, 2, 3))) void append(std::string* out, const char* 
 }
 
 }  // namespace
+
+std::vector<FrameReprojection> frame_reprojection_errors(const LandmarkMap& map) {
+  std::vector<FrameReprojection> out;
+  for (size_t f = 0; f < map.frames.size(); ++f) {
+    const MapFrame& frame = map.frames[f];
+    const Camera& camera = map.cameras[static_cast<size_t>(frame.camera)];
+    FrameReprojection r;
+    r.frame = static_cast<frame_t>(f);
+    double sum = 0;
+    for (int64_t k = frame.first_keypoint; k < frame.first_keypoint + frame.num_keypoints; ++k) {
+      const landmark_t l = map.keypoint_landmark[k];
+      if (l == kInvalidLandmarkId) continue;
+      const Eigen::Vector3d p = frame.cam_from_world * map.landmarks[l].position;
+      Eigen::Vector2d pixel;
+      if (p.z() <= 1e-9 || !camera.project(p, &pixel)) continue;
+      const double e = (pixel - Eigen::Vector2d(map.keypoints[k].x, map.keypoints[k].y)).norm();
+      if (!std::isfinite(e)) continue;
+      sum += e;
+      ++r.observations;
+    }
+    r.mean_error_px = r.observations > 0 ? sum / static_cast<double>(r.observations) : 0.0;
+    out.push_back(r);
+  }
+  return out;
+}
+
+nlohmann::json frame_reprojection_summary(const LandmarkMap& map, int worst) {
+  std::vector<FrameReprojection> frames = frame_reprojection_errors(map);
+  frames.erase(
+      std::remove_if(frames.begin(), frames.end(), [](const FrameReprojection& r) { return r.observations == 0; }),
+      frames.end());
+  std::sort(frames.begin(), frames.end(), [](const FrameReprojection& a, const FrameReprojection& b) {
+    return a.mean_error_px != b.mean_error_px ? a.mean_error_px > b.mean_error_px : a.frame < b.frame;
+  });
+  double sum = 0;
+  for (const FrameReprojection& r : frames) sum += r.mean_error_px;
+  auto at = [&](double q) {  // q-quantile of the frames' errors (frames sorted worst first)
+    if (frames.empty()) return 0.0;
+    const size_t k = std::min(frames.size() - 1, static_cast<size_t>((1.0 - q) * static_cast<double>(frames.size())));
+    return frames[k].mean_error_px;
+  };
+  nlohmann::json j = {{"frames", frames.size()},
+                      {"mean_px", frames.empty() ? 0.0 : sum / static_cast<double>(frames.size())},
+                      {"median_px", at(0.5)},
+                      {"p90_px", at(0.9)},
+                      {"worst", nlohmann::json::array()}};
+  for (size_t i = 0; i < frames.size() && i < static_cast<size_t>(std::max(0, worst)); ++i) {
+    j["worst"].push_back({{"name", map.frames[static_cast<size_t>(frames[i].frame)].name},
+                          {"mean_px", frames[i].mean_error_px},
+                          {"observations", frames[i].observations}});
+  }
+  return j;
+}
+
+std::string frame_reprojection_text(const nlohmann::json& s) {
+  std::string out;
+  append(&out, "reprojection error per frame (%lld frames with landmarks): mean %.2f px, median %.2f px, p90 %.2f px",
+         s["frames"].get<long long>(), s["mean_px"].get<double>(), s["median_px"].get<double>(),
+         s["p90_px"].get<double>());
+  if (!s["worst"].empty()) out += "; worst";
+  for (const auto& w : s["worst"]) {
+    append(&out, " %s %.2f px (%lld)", w["name"].get<std::string>().c_str(), w["mean_px"].get<double>(),
+           w["observations"].get<long long>());
+  }
+  return out;
+}
 
 nlohmann::json map_statistics(const LandmarkMap& map) {
   int map_frames = 0, query_frames = 0;
@@ -73,6 +140,7 @@ nlohmann::json map_statistics(const LandmarkMap& map) {
                                         {"max", obs.empty() ? 0 : obs.back()}};
   j["mean_reprojection_error_px"] = error_sum / n;
   j["quality"] = {{"min", quality_min}, {"max", quality_max}};
+  j["reprojection_error_per_frame"] = frame_reprojection_summary(map);
   // Per session: frames, keypoints, keypoints with a landmark, and (map sessions) landmarks that
   // only this session observes.
   const size_t num_sessions = map.sessions.size();
@@ -140,6 +208,96 @@ nlohmann::json map_report(const LandmarkMap& map, const MapReportOptions& option
   return j;
 }
 
+namespace {
+
+nlohmann::json camera_json(const Camera& camera) {
+  return {{"model", camera_model_name(camera.model)},
+          {"width", camera.width},
+          {"height", camera.height},
+          {"params", camera.params},
+          {"mean_focal_px", camera.mean_focal_length()}};
+}
+
+}  // namespace
+
+nlohmann::json mapper_statistics(const MapperStats& s) {
+  nlohmann::json j = {{"map_frames", s.num_map_frames},
+                      {"query_frames", s.num_query_frames},
+                      {"keypoints", s.num_keypoints},
+                      {"pairs", s.num_pairs},
+                      {"pairs_rule", s.pairs_by_overlap ? "view overlap" : "camera distance"},
+                      {"matches", s.num_matches},
+                      {"tracks", s.num_tracks},
+                      {"landmarks", s.num_landmarks},
+                      {"query_keypoints_with_landmark", s.num_query_observations},
+                      {"mean_reprojection_error_px", s.mean_reprojection_error_px},
+                      {"seconds",
+                       {{"detect", s.detect_seconds},
+                        {"match", s.match_seconds},
+                        {"triangulate", s.triangulate_seconds},
+                        {"refine", s.refine_seconds},
+                        {"total", s.total_seconds}}}};
+  if (s.pairs_by_overlap) {
+    const OverlapPairStats& o = s.overlap;
+    j["overlap_pairs"] = {
+        {"map_pairs_by_pose", s.num_first_pass_pairs},
+        {"first_map_points", s.num_first_pass_points},
+        {"query_pairs_by_pose", s.num_query_pose_pairs},
+        {"query_pairs_by_overlap", o.pairs},
+        {"query_frames_with_partner", o.query_frames_with},
+        {"query_frames_without_partner", o.query_frames_without},
+        {"mean_partners", o.mean_partners},
+        {"partner_distance",
+         {{"median", o.median_partner_distance}, {"p90", o.p90_partner_distance}, {"max", o.max_partner_distance}}}};
+  }
+  if (!s.focal_check.empty()) {
+    j["focal_check"] = nlohmann::json::array();
+    for (const FocalCheck& f : s.focal_check) {
+      j["focal_check"].push_back(
+          {{"focal_px", f.focal_px},
+           {"fitted_focal_px", f.fitted_focal_px},
+           {"observations", f.observations},
+           {"mean_reprojection_error_px", {{"before", f.error_before_px}, {"after", f.error_after_px}}}});
+    }
+  }
+  if (!s.cameras_after.empty()) {
+    nlohmann::json cameras = nlohmann::json::array();
+    for (size_t c = 0; c < s.cameras_after.size(); ++c) {
+      cameras.push_back({{"before", camera_json(s.cameras_before[c])}, {"after", camera_json(s.cameras_after[c])}});
+    }
+    j["camera_refinement"] = {{"rounds", s.refine_rounds},
+                              {"cameras", cameras},
+                              {"mean_reprojection_error_px",
+                               {{"before", s.reprojection_error_before_px}, {"after", s.reprojection_error_after_px}}},
+                              {"landmarks", {{"before", s.landmarks_before}, {"after", s.num_landmarks}}},
+                              {"query_keypoints_with_landmark",
+                               {{"before", s.query_observations_before}, {"after", s.num_query_observations}}}};
+  }
+  return j;
+}
+
+std::string camera_refinement_text(const MapperStats& s) {
+  std::string out;
+  for (size_t c = 0; c < s.cameras_after.size(); ++c) {
+    const Camera& a = s.cameras_before[c];
+    const Camera& b = s.cameras_after[c];
+    append(&out,
+           "camera %zu (%s %dx%d): focal %.2f -> %.2f px (%+.2f%%), principal point (%.2f, %.2f) -> (%.2f, %.2f)\n", c,
+           camera_model_name(a.model).c_str(), a.width, a.height, a.mean_focal_length(), b.mean_focal_length(),
+           100.0 * (b.mean_focal_length() / a.mean_focal_length() - 1.0), a.principal_point().x(),
+           a.principal_point().y(), b.principal_point().x(), b.principal_point().y());
+  }
+  if (!s.cameras_after.empty()) {
+    append(&out,
+           "%d round(s); landmark mean reprojection error %.3f -> %.3f px, landmarks %lld -> %lld, query keypoints "
+           "with a landmark %lld -> %lld\n",
+           s.refine_rounds, s.reprojection_error_before_px, s.reprojection_error_after_px,
+           static_cast<long long>(s.landmarks_before), static_cast<long long>(s.num_landmarks),
+           static_cast<long long>(s.query_observations_before), static_cast<long long>(s.num_query_observations));
+  }
+  return out;
+}
+
 std::string map_report_text(const nlohmann::json& j) {
   std::string out;
   append(&out, "%s, %d-byte descriptors, %lld camera(s)\n", j["detector"].get<std::string>().c_str(),
@@ -166,6 +324,9 @@ std::string map_report_text(const nlohmann::json& j) {
   append(&out, "mean reprojection error: %.3f px; quality %.3f .. %.3f\n",
          j["mean_reprojection_error_px"].get<double>(), j["quality"]["min"].get<double>(),
          j["quality"]["max"].get<double>());
+  if (j.contains("reprojection_error_per_frame")) {
+    out += frame_reprojection_text(j["reprojection_error_per_frame"]) + "\n";
+  }
   if (j.contains("hamming_nn")) {
     const auto& nn = j["hamming_nn"];
     append(&out,

@@ -5,8 +5,11 @@
 // common/io/session_file.h): tracks join frames of every map and query session (their poses share
 // one world frame); outside sessions are never matched.
 //
-//   detect (BRISK/ORB) -> frame pairs by pose -> guided matching -> conflict-free tracks ->
-//   OpenGV triangulation + refinement -> landmarks with a quality score -> LandmarkMap
+//   detect (BRISK/ORB) -> map frame pairs by pose -> guided matching -> tracks -> triangulation
+//   (a first map) -> query frame pairs by pose and by view overlap of its points -> guided
+//   matching -> conflict-free tracks -> OpenGV triangulation + refinement, outliers split off as
+//   tracks of their own -> [camera intrinsics refined on the tracks, matching and triangulation
+//   again] -> landmarks with a quality score -> LandmarkMap
 #pragma once
 
 #include <filesystem>
@@ -17,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "common/landmark_map.h"
+#include "train/mapping/camera_refinement.h"
 #include "train/mapping/frame_pairs.h"
 #include "train/mapping/guided_matching.h"
 #include "train/mapping/keypoint_detection.h"
@@ -24,12 +28,40 @@
 
 namespace lmb {
 
+// Whether the mapper refines the cameras' focal lengths on the map's own tracks (MapperOptions).
+enum class FocalRefinement { kOff, kAuto, kOn };
+
+// "off", "auto", "on"; parse throws lmb::Error on anything else.
+std::string focal_refinement_name(FocalRefinement r);
+FocalRefinement parse_focal_refinement(const std::string& text);
+
 struct MapperOptions {
   DetectorOptions detector;
+  // Frame pairs (frame_pairs.h): with pairs.max_center_distance > 0 the pose rule alone chooses
+  // them; with 0 (default) the pose rule pairs the frames, and the overlap rule (overlap; its depth
+  // range is matching's) adds the query frames' partners by view overlap with a first map made
+  // from the map frames' pairs.
   PairOptions pairs;
+  OverlapPairOptions overlap;
   MatchingOptions matching;
   TriangulationOptions triangulation;
+  // Camera intrinsics refined on the map's tracks (poses fixed), then matching and triangulation
+  // again with the refined cameras, up to refine_rounds times (fewer when the focal length moves
+  // by less than 0.1%). The map stores the refined cameras. kAuto: first the focal check (one
+  // refinement step, reported in MapperStats::focal_check), then the refinement when it moves a
+  // camera's focal length by more than auto_refine_min_change (relative); kOff: the check alone,
+  // reported and not applied; kOn: the refinement without the check.
+  FocalRefinement refine_focal = FocalRefinement::kAuto;
+  double auto_refine_min_change = 0.01;
+  CameraRefinementOptions refinement;  // refinement.principal_point: also cx, cy
+  int refine_rounds = 3;
+  // While refining, an observation is a triangulation inlier up to this multiple of
+  // triangulation.max_reprojection_error_px (the final triangulation uses the threshold itself).
+  double refine_inlier_factor = 3.0;
   int min_map_observations = 3;  // landmarks need this many inlier map-frame observations
+  // The outliers of a triangulated track (points joined by a wrong match) are triangulated again as
+  // a track of their own, up to this many times per track.
+  int track_splits = 12;
   // For a collection without sessions.txt: image names starting with it are the query session
   // "query", the others the map session "map" ("" = all map).
   std::string query_prefix = "query/";
@@ -54,6 +86,14 @@ struct MapperFrame {
   std::vector<uint8_t> descriptors;  // keypoints.size() * descriptor_bytes
 };
 
+// The focal check of one camera: its focal length, the one a refinement step on the map's tracks
+// moves it to, and the mean reprojection error of the observations it used, before and after.
+struct FocalCheck {
+  double focal_px = 0, fitted_focal_px = 0;
+  double error_before_px = 0, error_after_px = 0;
+  int64_t observations = 0;
+};
+
 struct MapperStats {
   int num_sessions = 0;
   int num_map_frames = 0;
@@ -61,6 +101,11 @@ struct MapperStats {
   int num_outside_frames = 0;
   int64_t num_keypoints = 0;
   int64_t num_pairs = 0;
+  bool pairs_by_overlap = false;      // the overlap rule was used (no explicit pair distance)
+  int64_t num_first_pass_pairs = 0;   // map-frame pairs by pose
+  int64_t num_first_pass_points = 0;  // scene points of the first map, from those pairs
+  int64_t num_query_pose_pairs = 0;   // query-map pairs by pose, kept beside the overlap pairs
+  OverlapPairStats overlap;
   int64_t num_matches = 0;
   int64_t num_tracks = 0;  // tracks of >= 2 keypoints before triangulation
   int64_t num_landmarks = 0;
@@ -68,7 +113,17 @@ struct MapperStats {
   int64_t num_query_observations = 0;  // query keypoints with a landmark
   double mean_map_observations = 0;    // per landmark
   double mean_reprojection_error_px = 0;
-  double detect_seconds = 0, match_seconds = 0, triangulate_seconds = 0, total_seconds = 0;
+  // With the cameras refined (refined: refine_focal kOn, or kAuto after a focal check that moved
+  // them): the cameras as given and as refined, the mean reprojection error of the
+  // landmarks with each (the first and the final triangulation), the rounds run.
+  std::vector<Camera> cameras_before, cameras_after;
+  double reprojection_error_before_px = 0, reprojection_error_after_px = 0;
+  int64_t landmarks_before = 0, query_observations_before = 0;
+  int refine_rounds = 0;
+  bool refined = false;
+  std::vector<FocalCheck> focal_check;  // refine_focal kAuto or kOff: per camera
+  // refine_seconds: the focal check and the camera refinement with its matching
+  double detect_seconds = 0, match_seconds = 0, triangulate_seconds = 0, refine_seconds = 0, total_seconds = 0;
 };
 
 // Parses "+z", "-z", "+y", "-y", "+x", "-x" (a missing sign means +); throws lmb::Error otherwise.

@@ -38,7 +38,7 @@ set(infer_headers
     common/camera.h common/context_regions.h common/error.h common/random.h common/rigid3.h
     common/shared_stump.h common/types.h common/vocabulary.h
     infer/area_bundle.h infer/bundle_index.h infer/bundle_localizer.h infer/c_api.h infer/classifier_options.h infer/export.h infer/localizer.h
-    infer/model.h infer/pose_confidence.h infer/pose_estimator.h infer/ransac.h infer/version.h)
+    infer/model.h infer/pose_confidence.h infer/pose_estimator.h infer/ransac.h infer/version.h infer/walk_confidence.h)
 set(infer_cv_headers common/detector_options.h infer/cv/feature_detection.h)
 set(include_dir ${prefix}/include/landmarkboost)
 

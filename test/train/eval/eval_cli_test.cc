@@ -442,9 +442,10 @@ TEST_F(EvalCliTest, ReportSchemaIsDocumented) {
     EXPECT_NE(text_doc.find("| " + column + " |"), std::string::npos) << "undocumented column " << column;
   }
   EXPECT_EQ(num_columns, 14) << header;
-  // The CLI and the job point to it, not to a design document outside the repository.
+  // The CLI points to it in user words (no file paths), the job by its path; neither to a design
+  // document outside the repository.
   const RunResult help = run("eval --help", dir_);
-  EXPECT_NE(help.out.find("docs/report.md"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("documentation's report page"), std::string::npos) << help.out;
   EXPECT_EQ(help.out.find("DESIGN.md"), std::string::npos) << help.out;
   const std::string job = slurp(fs::path(source) / "jobs" / "eval.sh");
   EXPECT_NE(job.find("docs/report.md"), std::string::npos);
@@ -516,6 +517,57 @@ TEST_F(EvalCliTest, PoseCalibrationIsDeterministicStoredAndCountedByEval) {
     EXPECT_EQ(lb.at("bias").get<double>(), model->calibration().bias);
   }
   EXPECT_NE(eval_.out.find("success of reported poses"), std::string::npos) << eval_.out;
+}
+
+// Walks: every calibrated method's query session is tracked with each seed of the sweep. The frame
+// rule over the walk is the calibrated rule the sweep counts at the default budget (the same poses);
+// the walk verdict keeps every pose the frame rule reports, so it reports at least as many; the
+// export stores the walk calibration eval fits for LandmarkBoost.
+TEST_F(EvalCliTest, WalksCountTheFrameRuleAndTheWalkRule) {
+  ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  int walks = 0;
+  for (const auto& [name, m] : report.at("methods").items()) {
+    const nlohmann::json& c = m.at("pose_confidence");
+    if (!c.at("calibration").at("fitted").get<bool>()) {
+      EXPECT_FALSE(c.contains("walk")) << name;
+      continue;
+    }
+    ++walks;
+    const nlohmann::json& w = c.at("walk");
+    const nlohmann::json& seeds = w.at("seeds");
+    ASSERT_EQ(seeds, m.at("pose_recall_sweep").at("seeds")) << name;
+    const nlohmann::json* at_default = nullptr;
+    for (const nlohmann::json& b : c.at("sweep")) {
+      if (b.value("default_budget", false)) at_default = &b;
+    }
+    ASSERT_NE(at_default, nullptr) << name;
+    int64_t frames = 0;
+    for (const nlohmann::json& session : w.at("walks")) {
+      frames += session.at("seeds")[0].at("walk_rule").at("frames").get<int64_t>();
+    }
+    EXPECT_EQ(frames, c.at("frames").get<int64_t>()) << name;  // every query frame, once
+    for (size_t s = 0; s < seeds.size(); ++s) {
+      const nlohmann::json& total = w.at("total")[s];
+      const nlohmann::json& frame_rule = total.at("frame_rule");
+      const nlohmann::json& walk_rule = total.at("walk_rule");
+      const nlohmann::json& swept = at_default->at("seeds")[s].at("calibrated_rule");
+      EXPECT_EQ(frame_rule.at("reported"), swept.at("frames_localized")) << name << " seed " << s;
+      EXPECT_EQ(frame_rule.at("reported_right"), swept.at("frames_correct")) << name << " seed " << s;
+      EXPECT_GE(walk_rule.at("reported").get<int64_t>(), frame_rule.at("reported").get<int64_t>()) << name;
+      EXPECT_EQ(walk_rule.at("frames_right"), frame_rule.at("frames_right")) << name;
+      EXPECT_GT(walk_rule.at("mean_ms").get<double>(), 0.0) << name;
+    }
+  }
+  EXPECT_GT(walks, 0);
+  const auto model = Model::load(dir_ / "model.lbm");
+  const nlohmann::json& lb = report.at("methods").at("landmarkboost").at("pose_confidence");
+  if (lb.contains("walk") && lb.at("walk").at("calibration").at("fitted").get<bool>()) {
+    ASSERT_TRUE(model->walk_calibration().has_value());
+    EXPECT_EQ(model->walk_calibration()->threshold, lb.at("walk").at("calibration").at("threshold").get<double>());
+    EXPECT_EQ(model->walk_calibration()->bias, lb.at("walk").at("calibration").at("bias").get<double>());
+  }
+  EXPECT_NE(eval_.out.find("walks (each query session tracked"), std::string::npos) << eval_.out;
 }
 
 // The classes of the model and the training observations of a map (every observation of a class

@@ -130,6 +130,44 @@ TEST(BuildLandmarkMap, AliasedDescriptorsDefeatPlainNearestNeighbour) {
   EXPECT_LT(na.precision_at_1, 0.6);
 }
 
+// A dense video along the corridor (map frames 2 cm apart, 1.2 m of path) and query frames that
+// see the same corridor from about 1 m to the side: the pose rule alone (here its automatic
+// distance, 8 x 2 cm) gives them no partner and no landmark; the default overlap rule links them,
+// with the right landmarks.
+TEST(BuildLandmarkMap, QueryFramesAMetreFromDenseMapFramesGetTheirLandmarks) {
+  test::SyntheticSceneOptions o;
+  o.num_points = 3000;
+  o.num_map_frames = 60;
+  o.map_spacing = 0.02;
+  o.map_wobble = 0.0;
+  o.query_poses = {test::look_along(Eigen::Vector3d(0.3, 1.0, 1.4), 0.05),
+                   test::look_along(Eigen::Vector3d(0.9, -1.0, 1.6), -0.05, 0.05)};
+  const test::SyntheticScene s = test::make_synthetic_scene(o);
+  MapperOptions options;
+  options.pairs.max_center_distance = 8 * 0.02;  // the pose rule alone, at its automatic distance
+  MapperStats by_pose;
+  build_landmark_map({s.camera}, s.frames, "BRISK", 64, options, &by_pose);
+  EXPECT_FALSE(by_pose.pairs_by_overlap);
+  EXPECT_EQ(by_pose.num_query_observations, 0);
+
+  options.pairs.max_center_distance = 0;  // default: query partners by view overlap
+  MapperStats stats;
+  const LandmarkMap map = build_landmark_map({s.camera}, s.frames, "BRISK", 64, options, &stats);
+  validate_landmark_map(map, "mapped");
+  const Accuracy a = evaluate(s, map);
+  std::printf(
+      "dense map, queries 1 m aside: %lld overlap pairs (query-partner distance median %.2f m, max %.2f m), %lld "
+      "query keypoints with a landmark, query labels %.4f\n",
+      static_cast<long long>(stats.overlap.pairs), stats.overlap.median_partner_distance,
+      stats.overlap.max_partner_distance, static_cast<long long>(stats.num_query_observations), a.query_label_accuracy);
+  EXPECT_TRUE(stats.pairs_by_overlap);
+  EXPECT_EQ(stats.overlap.query_frames_with, 2);
+  EXPECT_GE(stats.overlap.median_partner_distance, 0.9);
+  EXPECT_GT(stats.num_query_observations, 200);
+  EXPECT_GT(a.query_label_accuracy, 0.98);
+  EXPECT_GT(a.mean_purity, 0.98);
+}
+
 TEST(BuildLandmarkMap, QueryOnlyTracksAreNotLandmarks) {
   test::SyntheticSceneOptions o;
   o.num_points = 800;

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/io/colmap_model.h"
 #include "common/io/map_h5.h"
 #include "common/io/session_file.h"
 #include "train/mapping/depth_ground_truth.h"
@@ -166,6 +167,75 @@ TEST(MapperOnRenderedWorld, TwoMapSessionsJoinAndCollectionsJoinTheSame) {
   const LandmarkMap labelled = map_collections({{part_a, "day1", ""}, {part_b, "day2", ""}}, options);
   EXPECT_EQ(labelled.sessions[1].name, "day2/map-2");
   EXPECT_THROW(map_collections({{part_a, "x", ""}, {part_b, "x", ""}}, options), Error);
+  fs::remove_all(dir);
+}
+
+// Wrong intrinsics: the tiny world rendered with its focal length and mapped with one 8% longer.
+// The focal check flags it; the refinement (on, and auto after the check) recovers the rendered
+// focal length within 1%, and the map it writes (with the refined camera) gets back the landmarks
+// of the right one. With the right focal length auto leaves the camera as it is.
+TEST(MapperOnRenderedWorld, RefineFocalRecoversTheRenderedFocalLength) {
+  const fs::path dir = fs::temp_directory_path() / ("lmb_mapper_focal_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  WorldOptions world = world_preset("tiny");
+  world.seed = 1;
+  write_world(world, dir / "world");
+  MapperOptions options;
+  MapperStats right;
+  const LandmarkMap right_map = map_collection(dir / "world", options, &right);
+  const double focal = right_map.cameras[0].mean_focal_length();
+  ASSERT_EQ(right.focal_check.size(), 1u);
+  EXPECT_NEAR(right.focal_check[0].fitted_focal_px / focal, 1.0, 0.005);
+  EXPECT_FALSE(right.refined);  // auto: the check moved it by less than 1%
+  EXPECT_EQ(right_map.cameras[0].params, read_colmap_model(dir / "world" / "sparse").cameras.begin()->second.params);
+
+  ColmapModel model = read_colmap_model(dir / "world" / "sparse");
+  for (auto& [id, camera] : model.cameras) camera = scaled_camera(camera, 1.08);
+  fs::create_directories(dir / "wrong" / "sparse");
+  write_colmap_text(model, dir / "wrong" / "sparse");
+  fs::create_symlink(dir / "world" / "images", dir / "wrong" / "images");
+  fs::copy_file(dir / "world" / kSessionFileName, dir / "wrong" / kSessionFileName);
+  MapperStats wrong;
+  options.refine_focal = FocalRefinement::kOff;
+  map_collection(dir / "wrong", options, &wrong);
+  EXPECT_FALSE(wrong.refined);
+  ASSERT_EQ(wrong.focal_check.size(), 1u);
+  EXPECT_NEAR(wrong.focal_check[0].focal_px, 1.08 * focal, 1e-9);
+  EXPECT_LT(wrong.focal_check[0].fitted_focal_px, 1.05 * focal);  // flagged: moves toward the truth
+  EXPECT_LT(wrong.num_landmarks, right.num_landmarks / 2);
+
+  options.refine_focal = FocalRefinement::kOn;
+  MapperStats refined;
+  const LandmarkMap map = map_collection(dir / "wrong", options, &refined);
+  std::printf(
+      "tiny world, focal %.2f px mapped as %.2f px: refined to %.2f px in %d round(s); landmarks %lld (right focal "
+      "%lld, wrong %lld), query keypoints with a landmark %lld (%lld, %lld)\n",
+      focal, 1.08 * focal, map.cameras[0].mean_focal_length(), refined.refine_rounds,
+      static_cast<long long>(refined.num_landmarks), static_cast<long long>(right.num_landmarks),
+      static_cast<long long>(wrong.num_landmarks), static_cast<long long>(refined.num_query_observations),
+      static_cast<long long>(right.num_query_observations), static_cast<long long>(wrong.num_query_observations));
+  EXPECT_NEAR(map.cameras[0].mean_focal_length() / focal, 1.0, 0.01);
+  EXPECT_EQ(map.cameras[0].params[2], model.cameras.begin()->second.params[2]);  // principal point kept
+  ASSERT_EQ(refined.cameras_before.size(), 1u);
+  EXPECT_EQ(refined.cameras_before[0].params, model.cameras.begin()->second.params);
+  EXPECT_EQ(refined.cameras_after[0].params, map.cameras[0].params);
+  EXPECT_TRUE(refined.focal_check.empty());
+  EXPECT_GT(refined.num_landmarks, 0.9 * static_cast<double>(right.num_landmarks));
+  EXPECT_GT(refined.num_query_observations, 0.9 * static_cast<double>(right.num_query_observations));
+  EXPECT_LT(refined.reprojection_error_after_px, refined.reprojection_error_before_px);
+  EXPECT_TRUE(refined.refined);
+  write_map_h5(map, dir / "map.h5");
+  EXPECT_EQ(read_map_h5(dir / "map.h5").cameras[0].params, map.cameras[0].params);
+
+  // auto: the check flags the camera, then the same refinement runs (the check is kept).
+  options.refine_focal = FocalRefinement::kAuto;
+  MapperStats automatic;
+  const LandmarkMap auto_map = map_collection(dir / "wrong", options, &automatic);
+  EXPECT_TRUE(automatic.refined);
+  ASSERT_EQ(automatic.focal_check.size(), 1u);
+  EXPECT_EQ(automatic.focal_check[0].fitted_focal_px, wrong.focal_check[0].fitted_focal_px);
+  EXPECT_EQ(auto_map.cameras[0].params, map.cameras[0].params);
+  EXPECT_EQ(automatic.num_landmarks, refined.num_landmarks);
   fs::remove_all(dir);
 }
 

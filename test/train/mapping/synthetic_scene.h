@@ -22,7 +22,10 @@ struct SyntheticSceneOptions {
   double bit_flip_rate = 0.04;  // per observation
   double pixel_noise = 0.3;     // standard deviation, pixels
   int num_map_frames = 30;
-  int num_query_frames = 8;
+  double map_spacing = 0.4;  // metres between map frames along the corridor
+  double map_wobble = 0.3;   // amplitude of their sideways and yaw wobble (metres; x 0.5 = radians)
+  int num_query_frames = 8;  // at random poses along the corridor, unless query_poses is given
+  std::vector<Rigid3d> query_poses;
   int clutter_per_frame = 40;
   int descriptor_bytes = 64;
 };
@@ -108,10 +111,13 @@ inline SyntheticScene make_synthetic_scene(const SyntheticSceneOptions& o) {
     s.keypoint_point.push_back(std::move(gt));
   };
   for (int i = 0; i < o.num_map_frames; ++i) {
-    const double x = 0.4 * i;
-    add_frame(look_along(Eigen::Vector3d(x, 0.3 * std::sin(0.7 * i), 1.5), 0.15 * std::sin(0.5 * i)), false, i);
+    const double x = o.map_spacing * i;
+    add_frame(
+        look_along(Eigen::Vector3d(x, o.map_wobble * std::sin(0.7 * i), 1.5), 0.5 * o.map_wobble * std::sin(0.5 * i)),
+        false, i);
   }
-  for (int i = 0; i < o.num_query_frames; ++i) {
+  for (size_t i = 0; i < o.query_poses.size(); ++i) add_frame(o.query_poses[i], true, static_cast<int>(i));
+  for (int i = 0; i < (o.query_poses.empty() ? o.num_query_frames : 0); ++i) {
     const double x = 0.5 + 1.3 * i;
     add_frame(
         look_along(Eigen::Vector3d(x, rng.uniform(-0.6, 0.6), 1.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.1)),
