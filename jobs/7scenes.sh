@@ -6,8 +6,8 @@
 # frames with their poses beside them), camera-intrinsics.txt and gravity-direction.txt (read in
 # place, never copied). The split is the recording's first half for the map and its second half,
 # another part of the path, as queries: LMB_7SCENES_MAP (default 0-499) and LMB_7SCENES_QUERY
-# (default 500-999), frame numbers or sequence folders as `lboost import 7scenes` takes them. To
-# keep it to minutes on 2 cores every LMB_7SCENES_STRIDE-th frame (default 3) of each is kept.
+# (default 500-999), frame numbers or sequence folders as `lboost import 7scenes` takes them, every
+# LMB_7SCENES_STRIDE-th frame of each (default 1, all: about 20 min on 2 cores; 3 takes a third).
 # LMB_7SCENES_IMPORT_ARGS adds import flags, e.g. "--focal 525" for the camera, "--gravity-up 0 -1
 # 0" without a gravity-direction.txt. The vocabulary is trained on unrelated images: a rendered
 # world (seed 1001), as in jobs/pipeline.sh, so no image of the recording shapes the visual words.
@@ -27,7 +27,7 @@ lboost=${LBOOST:-$here/build/train/lboost}
 threads=${LMB_THREADS:-$(nproc)}
 map_frames=${LMB_7SCENES_MAP:-0-499}
 query_frames=${LMB_7SCENES_QUERY:-500-999}
-stride=${LMB_7SCENES_STRIDE:-3}
+stride=${LMB_7SCENES_STRIDE:-1}
 [ -d "$data" ] || { echo "jobs/7scenes.sh: $data is not a folder" >&2; exit 1; }
 data=$(cd "$data" && pwd)
 mkdir -p "$out"

@@ -136,7 +136,7 @@ def walk_table(report):
         return ""
     header = ["method", "frames", "right (seed 0)", "frame rule: reported right", "precision",
               "walk verdict: reported right", "precision", "outside frames reported"]
-    lines = ["", "Walks: each query session tracked frame after frame (docs/walks.md); mean [min, max] over "
+    lines = ["", "", "Walks: each query session tracked frame after frame (docs/walks.md); mean [min, max] over "
              f"{seeds} RANSAC seeds.", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(lines)

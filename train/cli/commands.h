@@ -33,9 +33,6 @@ void add_eval_command(CLI::App& app);
 void add_import_command(CLI::App& app);  // `import` group: `import tum`, `import colmap`, `import 7scenes`
 void add_areas_command(CLI::App& app);
 void add_bundle_command(CLI::App& app);
-// The options of localization through a bundle that `localize` and `eval` share: --prior-noise,
-// --no-prior, --prior-seed, --cache-areas (in bundle_command.cc).
-void add_bundle_mode_options(CLI::App* cmd, BundleEvalOptions* options);
 // One line on stderr per area of a bundle that could not be loaded, "lboost COMMAND: warning: ..."
 // (`command`: "localize", "eval"; cli_util.h).
 inline void warn_area_errors(const std::string& command, const std::vector<std::string>& area_errors) {

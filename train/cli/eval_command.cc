@@ -19,6 +19,7 @@
 #include "common/error.h"
 #include "common/file_io.h"
 #include "train/boost/train_config.h"
+#include "train/cli/bundle_mode_options.h"
 #include "train/cli/commands.h"
 #include "train/eval/bundle_eval.h"
 #include "train/eval/evaluation.h"

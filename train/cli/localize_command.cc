@@ -19,6 +19,7 @@
 #include "common/landmark_map.h"
 #include "infer/localizer.h"
 #include "infer/model.h"
+#include "train/cli/bundle_mode_options.h"
 #include "train/cli/commands.h"
 #include "train/cli/photo_localization.h"
 #include "train/eval/bundle_eval.h"

@@ -88,7 +88,8 @@ double evaluate(const Problem& problem, const std::vector<Camera>& cameras, cons
       const camera_t c = problem.frame_camera[f];
       const Eigen::Vector3d p = problem.poses[f] * points[t];
       if (p.z() <= 1e-9) continue;
-      const double e = (cameras[c].img_from_cam(Eigen::Vector2d(p.x() / p.z(), p.y() / p.z())) - track.pixels[o]).norm();
+      const double e =
+          (cameras[c].img_from_cam(Eigen::Vector2d(p.x() / p.z(), p.y() / p.z())) - track.pixels[o]).norm();
       if (!std::isfinite(e)) continue;
       cost += huber_cost(e, problem.options.huber_px);
       if (error_sum) (*error_sum)[c] += e;

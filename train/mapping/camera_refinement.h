@@ -34,12 +34,12 @@ struct RefinementTrack {
 };
 
 struct CameraRefinementResult {
-  std::vector<Camera> cameras;                    // refined (or unchanged: too few observations)
-  std::vector<int64_t> observations;              // per camera
-  std::vector<double> mean_error_before_px;       // per camera, plain mean reprojection error
-  std::vector<double> mean_error_after_px;        // per camera, with the refined points and camera
-  std::vector<Eigen::Vector3d> positions;         // refined track points (world)
-  int iterations = 0;                             // steps taken
+  std::vector<Camera> cameras;               // refined (or unchanged: too few observations)
+  std::vector<int64_t> observations;         // per camera
+  std::vector<double> mean_error_before_px;  // per camera, plain mean reprojection error
+  std::vector<double> mean_error_after_px;   // per camera, with the refined points and camera
+  std::vector<Eigen::Vector3d> positions;    // refined track points (world)
+  int iterations = 0;                        // steps taken
 };
 
 // Refines `cameras` (indexed by frame_camera[frame]) on `tracks` observed in frames whose poses are

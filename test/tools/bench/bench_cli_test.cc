@@ -1,11 +1,14 @@
 // lboost-bench, the benchmarks' own tool, and lboost without them: the subcommands each one lists in
-// its help; lboost-bench's errors, one line naming the benchmark; small runs of `boost`, of `dist`
-// on 2 MPI ranks, and of `pose` on the tiny world (its settings and JSON).
+// its help; the bundle modes' options, the same in lboost and lboost-bench; lboost-bench's errors, one line naming the
+// benchmark; small runs of `boost`, of `dist` on 2 MPI ranks, and of `pose` on the tiny world (its settings and JSON).
 #include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -74,6 +77,50 @@ TEST_F(BenchCliTest, LboostListsNoBenchmarkAndLboostBenchListsThemAll) {
     const RunResult help = test::run_lboost_bench(command + " --help", dir_);
     EXPECT_EQ(help.exit_code, 0) << command << ": " << help.err;
     EXPECT_NE(help.out.find("--json"), std::string::npos) << command << ": " << help.out;
+  }
+}
+
+// The lines of a help text's "With --bundle:" group, each option with its help (a help that CLI11
+// wraps onto the next line joined to its option), defaults removed ("FLOAT=5 ..." -> "FLOAT ...").
+std::map<std::string, std::string> bundle_group(const std::string& help) {
+  std::map<std::string, std::string> options;
+  const size_t at = help.find("With --bundle:");
+  if (at == std::string::npos) return options;
+  std::istringstream lines(help.substr(at));
+  std::string line, name;
+  std::getline(lines, line);
+  while (std::getline(lines, line) && !line.empty()) {
+    std::istringstream words(line);
+    std::string first;
+    words >> first;
+    if (first.rfind("--", 0) == 0) name = first;
+    std::string rest((std::istreambuf_iterator<char>(words)), std::istreambuf_iterator<char>());
+    options[name] += rest;
+  }
+  for (auto& [option, text] : options) {
+    text = std::regex_replace(text, std::regex("=[^ ]+"), "");
+    text = std::regex_replace(text, std::regex(" +"), " ");
+  }
+  return options;
+}
+
+// One definition per concept: the options of the bundle's modes read the same (name, type, help)
+// in lboost localize, lboost eval and lboost-bench bundle, defaults aside; --prior-noise and
+// --track are lists in all three.
+TEST_F(BenchCliTest, BundleModeOptionsAreTheSameInEveryCommand) {
+  const auto help = [&](bool bench, const std::string& command) {
+    const RunResult r =
+        bench ? test::run_lboost_bench(command + " --help", dir_) : test::run_lboost(command + " --help", dir_);
+    EXPECT_EQ(r.exit_code, 0) << command << ": " << r.err;
+    return bundle_group(r.out);
+  };
+  const auto localize = help(false, "localize"), eval = help(false, "eval"), bench = help(true, "bundle");
+  ASSERT_GE(localize.size(), 10u);
+  EXPECT_EQ(localize, eval);
+  EXPECT_EQ(localize, bench);
+  for (const std::string list : {"--prior-noise", "--track"}) {
+    ASSERT_TRUE(bench.count(list));
+    EXPECT_NE(bench.at(list).find("FLOAT ..."), std::string::npos) << list << ": " << bench.at(list);
   }
 }
 

@@ -40,13 +40,21 @@ struct SeedOption {
   std::string program, command, option;
 };
 const std::vector<SeedOption> kSeedOptions = {
-    {"lboost", "world", "--seed"},         {"lboost", "areas", "--seed"},
-    {"lboost", "bundle", "--seed"},        {"lboost", "vocab", "--seed"},
-    {"lboost", "train", "--seed"},         {"lboost", "export", "--region-seed"},
-    {"lboost", "localize", "--seed"},      {"lboost", "localize", "--prior-seed"},
-    {"lboost", "eval", "--seed"},          {"lboost", "eval", "--prior-seed"},
-    {"lboost-bench", "context", "--seed"}, {"lboost-bench", "context", "--region-seed"},
-    {"lboost-bench", "infer", "--seed"},   {"lboost-bench", "bundle", "--seed"},
+    {"lboost", "world", "--seed"},
+    {"lboost", "areas", "--seed"},
+    {"lboost", "bundle", "--seed"},
+    {"lboost", "vocab", "--seed"},
+    {"lboost", "train", "--seed"},
+    {"lboost", "export", "--region-seed"},
+    {"lboost", "localize", "--seed"},
+    {"lboost", "localize", "--prior-seed"},
+    {"lboost", "eval", "--seed"},
+    {"lboost", "eval", "--prior-seed"},
+    {"lboost-bench", "context", "--seed"},
+    {"lboost-bench", "context", "--region-seed"},
+    {"lboost-bench", "infer", "--seed"},
+    {"lboost-bench", "bundle", "--seed"},
+    {"lboost-bench", "bundle", "--prior-seed"},
 };
 
 TEST_F(CliRefusalsTest, EverySeedOptionTakesZeroTo2Pow63Minus1) {

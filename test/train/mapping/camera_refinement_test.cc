@@ -64,7 +64,7 @@ TEST(RefineCameras, RecoversAPerturbedFocalLength) {
               r.mean_error_before_px[0], r.mean_error_after_px[0]);
   EXPECT_NEAR(r.cameras[0].mean_focal_length() / s.scene.camera.mean_focal_length(), 1.0, 0.002);
   EXPECT_NEAR(r.cameras[0].params[1] / r.cameras[0].params[0], 1.0, 1e-12);  // the aspect ratio stays
-  EXPECT_EQ(r.cameras[0].params[2], wrong.params[2]);                         // the principal point too
+  EXPECT_EQ(r.cameras[0].params[2], wrong.params[2]);                        // the principal point too
   EXPECT_LT(r.mean_error_after_px[0], 0.5);
   EXPECT_GT(r.mean_error_before_px[0], 2.0 * r.mean_error_after_px[0]);
   EXPECT_EQ(r.positions.size(), tracks.size());
