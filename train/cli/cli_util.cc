@@ -1,5 +1,7 @@
 #include "train/cli/cli_util.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <cstdio>
 #include <exception>
@@ -10,6 +12,17 @@
 #include "common/text_lines.h"
 
 namespace lmb::cli {
+
+const char* const kImageExtensions = "png, jpg, jpeg, bmp, ppm, pgm, tif, tiff";
+
+bool is_image_file(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  for (const char* e : {".png", ".jpg", ".jpeg", ".bmp", ".ppm", ".pgm", ".tif", ".tiff"}) {
+    if (ext == e) return true;
+  }
+  return false;
+}
 
 std::string one_line(const std::string& message) { return escape_control_bytes(message); }
 

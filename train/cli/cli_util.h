@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -36,6 +37,12 @@ int run_command_line(CLI::App& app, const std::string& program, int argc, char**
 CLI::Option* add_seed_option(CLI::App* cmd, const std::string& name, uint64_t* value, const std::string& help);
 CLI::Option* add_seed_option(CLI::App* cmd, const std::string& name, std::optional<uint64_t>* value,
                              const std::string& help);
+
+// Whether `path` names an image the commands read, by its extension (any case): png, jpg, jpeg,
+// bmp, ppm, pgm, tif, tiff.
+bool is_image_file(const std::filesystem::path& path);
+// Those extensions, for messages: "png, jpg, jpeg, bmp, ppm, pgm, tif, tiff".
+extern const char* const kImageExtensions;
 
 // One line on stderr per area of a bundle that could not be loaded: "PROGRAM COMMAND: warning:
 // <error> (the bundle's other areas were scored)".

@@ -212,9 +212,10 @@ void add_photo_options(CLI::App* cmd, LocalizeArgs* args) {
   cmd->add_option("--image", args->images,
                   "Photos to localize instead of --map (image files OpenCV reads; each gets an entry of --out, in "
                   "this order)");
-  cmd->add_option("--images", args->images_dir,
-                  "Or a folder whose photos (png, jpg, jpeg, bmp, tif, tiff; not its sub-folders) are localized, "
-                  "sorted by name");
+  cmd->add_option(
+      "--images", args->images_dir,
+      "Or a folder whose photos (png, jpg, jpeg, bmp, ppm, pgm, tif, tiff; not its sub-folders) are localized, "
+      "sorted by name");
   const std::vector<CLI::Option*> only_photos = {
       cmd->add_option("--camera", args->camera,
                       "The photos' camera, required with --image/--images: \"MODEL WIDTH HEIGHT PARAMS...\" as a "

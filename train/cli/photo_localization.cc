@@ -14,7 +14,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/error.h"
+#include "train/cli/cli_util.h"
+#include "train/eval/map_localization.h"
 #include "train/eval/report.h"
+#include "train/eval/timing.h"
 #include "train/mapping/keypoint_detection.h"
 
 namespace lmb::cli {
@@ -22,16 +25,6 @@ namespace lmb::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
-
-bool is_photo_name(const fs::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".tif" || ext == ".tiff";
-}
 
 // What one photo gave.
 struct PhotoOutcome {
@@ -73,7 +66,7 @@ Eigen::Vector3d photo_gravity(const fs::path& path, const PhotoLocalizationOptio
 PhotoOutcome localize_photo(const fs::path& path, const Localizer* localizer, const BundleLocalizer* bundle_localizer,
                             const PhotoLocalizationOptions& o) {
   PhotoOutcome out;
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   const cv::Mat image = read_photo(path, &out.error);
   out.read_ms = ms_since(start);
   if (!out.error.empty()) return out;
@@ -83,7 +76,7 @@ PhotoOutcome localize_photo(const fs::path& path, const Localizer* localizer, co
                           << camera.width << "x" << camera.height);
   o.detector.check_image_size(image.cols, image.rows, path.string());
   out.gravity_in_cam = photo_gravity(path, o);
-  const auto detect_start = std::chrono::steady_clock::now();
+  const auto detect_start = Clock::now();
   const ImageFeatures features = detect_keypoints(image, o.detector);
   out.detection_ms = ms_since(detect_start);
   out.num_keypoints = static_cast<int32_t>(features.keypoints.size());
@@ -137,11 +130,9 @@ nlohmann::json vector_json(const Eigen::Vector3d& v) { return nlohmann::json::ar
 // The pose as `lboost localize --map` writes it ({qw, qx, qy, qz, tx, ty, tz}: x_cam = R x_world +
 // t), the 3x4 matrix [R | t] by rows, and the camera centre in the world.
 void write_pose(const Rigid3d& cam_from_world, nlohmann::json* jp) {
-  const Eigen::Quaterniond& q = cam_from_world.rotation;
+  (*jp)["cam_from_world"] = cam_from_world_json(cam_from_world);
   const Eigen::Vector3d& t = cam_from_world.translation;
-  (*jp)["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
-                             {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
-  const Eigen::Matrix3d r = q.toRotationMatrix();
+  const Eigen::Matrix3d r = cam_from_world.rotation.toRotationMatrix();
   nlohmann::json m = nlohmann::json::array();
   for (int row = 0; row < 3; ++row) m.push_back({r(row, 0), r(row, 1), r(row, 2), t(row)});
   (*jp)["cam_from_world_matrix"] = std::move(m);
@@ -260,11 +251,11 @@ std::vector<fs::path> list_photos(const fs::path& dir) {
   std::vector<fs::path> photos;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     std::error_code type_ec;
-    if (is_photo_name(it->path()) && it->is_regular_file(type_ec)) photos.push_back(it->path());
+    if (is_image_file(it->path()) && it->is_regular_file(type_ec)) photos.push_back(it->path());
   }
   LMB_CHECK(!ec, "--images " << dir.string() << ": cannot list the folder: " << ec.message());
   std::sort(photos.begin(), photos.end());
-  LMB_CHECK(!photos.empty(), "--images " << dir.string() << ": no photos (png, jpg, jpeg, bmp, tif, tiff)");
+  LMB_CHECK(!photos.empty(), "--images " << dir.string() << ": no photos (" << kImageExtensions << ")");
   return photos;
 }
 

@@ -30,13 +30,6 @@ struct VocabArgs {
   int max_iterations = 100;
 };
 
-bool is_image(const std::filesystem::path& p) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".ppm" || ext == ".pgm" ||
-         ext == ".tif" || ext == ".tiff";
-}
-
 // All images under the folders, recursively, sorted so that the result does not depend on the
 // file system's listing order.
 std::vector<std::filesystem::path> list_images(const std::vector<std::string>& dirs) {
@@ -46,10 +39,10 @@ std::vector<std::filesystem::path> list_images(const std::vector<std::string>& d
     std::vector<std::filesystem::path> found;
     for (const auto& entry : std::filesystem::recursive_directory_iterator(
              dir, std::filesystem::directory_options::follow_directory_symlink)) {
-      if (entry.is_regular_file() && is_image(entry.path())) found.push_back(entry.path());
+      if (entry.is_regular_file() && is_image_file(entry.path())) found.push_back(entry.path());
     }
     std::sort(found.begin(), found.end());
-    LMB_CHECK(!found.empty(), "--images " << dir << ": no images (png, jpg, bmp, ppm, pgm, tif)");
+    LMB_CHECK(!found.empty(), "--images " << dir << ": no images (" << kImageExtensions << ")");
     images.insert(images.end(), found.begin(), found.end());
   }
   return images;

@@ -267,11 +267,14 @@ MethodRun evaluate_method(const EvalMethod& method, const MethodContext& context
     run.cpu_ms_per_frame += m.cpu_ms + thread_cpu_ms() - c0;
     run.result.frames.push_back(o);
     part.result.frames.push_back(o);
-    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), part.result.sweep, calibration);
-    if (fit.fitted) {
-      const std::vector<FrameOutcome> by_seed = seed_outcomes(q, input, a.pose, part.result.sweep.seeds, o);
-      run.seed_frames.resize(by_seed.size());
-      for (size_t s = 0; s < by_seed.size(); ++s) run.seed_frames[s].push_back(by_seed[s]);
+    std::vector<FrameOutcome> by_seed;
+    sweep_frame_pose(q, input, a.pose, a.pose_thresholds.front(), part.result.sweep, calibration,
+                     fit.fitted ? &by_seed : nullptr);
+    run.seed_frames.resize(by_seed.size());
+    for (size_t s = 0; s < by_seed.size(); ++s) {
+      by_seed[s].match_ms = o.match_ms;
+      by_seed[s].total_ms = o.total_ms;
+      run.seed_frames[s].push_back(by_seed[s]);
     }
     add_keypoint_matches(q, m.accepted, part.matches);
     std::vector<int32_t> ranks;

@@ -99,10 +99,7 @@ nlohmann::json frame_json(const MapFrame& frame, const LocalizedFrame& o, bool a
   jf["success"] = r.localized;
   jf["pose_found"] = r.pose.success;
   jf["confidence"] = r.confidence;
-  const Eigen::Quaterniond& q = r.pose.cam_from_world.rotation;
-  const Eigen::Vector3d& t = r.pose.cam_from_world.translation;
-  jf["cam_from_world"] = {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()},
-                          {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
+  jf["cam_from_world"] = cam_from_world_json(r.pose.cam_from_world);
   jf["num_inliers"] = r.pose.num_inliers;
   const RansacStats& st = r.pose.stats;
   jf["ransac"] = {{"iterations", st.iterations},
@@ -231,6 +228,12 @@ nlohmann::json localize_map_frames(const std::shared_ptr<const Model>& model, co
                            {"target_precision", model->calibration().target_precision}}
           : nlohmann::json(nullptr);
   return out;
+}
+
+nlohmann::json cam_from_world_json(const Rigid3d& cam_from_world) {
+  const Eigen::Quaterniond& q = cam_from_world.rotation;
+  const Eigen::Vector3d& t = cam_from_world.translation;
+  return {{"qw", q.w()}, {"qx", q.x()}, {"qy", q.y()}, {"qz", q.z()}, {"tx", t.x()}, {"ty", t.y()}, {"tz", t.z()}};
 }
 
 std::string map_localization_summary_line(const nlohmann::json& s, int threads) {

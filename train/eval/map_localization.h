@@ -29,6 +29,9 @@ struct MapLocalizationOptions {
 nlohmann::json localize_map_frames(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
                                    const std::vector<char>& is_class, const MapLocalizationOptions& options);
 
+// A pose as poses.json writes it: {qw, qx, qy, qz, tx, ty, tz}, x_cam = R x_world + t.
+nlohmann::json cam_from_world_json(const Rigid3d& cam_from_world);
+
 // The summary as one line of text ("localize: N/M frames localized ...").
 std::string map_localization_summary_line(const nlohmann::json& summary, int threads);
 

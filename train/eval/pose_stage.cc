@@ -70,15 +70,30 @@ PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_
 }
 
 void sweep_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options,
-                      const PoseThresholds& thresholds, PoseSweep& sweep, const PoseCalibration* calibration) {
+                      const PoseThresholds& thresholds, PoseSweep& sweep, const PoseCalibration* calibration,
+                      std::vector<FrameOutcome>* per_seed) {
   LMB_CHECK((calibration != nullptr) == !sweep.calibrated_localized.empty(),
             "sweep_frame_pose: a calibration must be given exactly when the sweep was started calibrated");
   PoseEstimatorOptions o = options;
+  const bool budget_swept =
+      std::find(sweep.iterations.begin(), sweep.iterations.end(), options.max_iterations) != sweep.iterations.end();
+  if (per_seed != nullptr) {
+    per_seed->clear();
+    for (uint64_t seed : sweep.seeds) {
+      if (budget_swept) break;  // filled below, from the sweep's own poses
+      o.seed = seed;
+      per_seed->push_back(estimate_frame_pose(query, input, o));
+    }
+  }
   for (size_t b = 0; b < sweep.iterations.size(); ++b) {
     for (size_t s = 0; s < sweep.seeds.size(); ++s) {
       o.max_iterations = sweep.iterations[b];
       o.seed = sweep.seeds[s];
       const FrameOutcome f = estimate_frame_pose(query, input, o);
+      if (per_seed != nullptr && budget_swept && o.max_iterations == options.max_iterations &&
+          per_seed->size() < sweep.seeds.size()) {
+        per_seed->push_back(f);
+      }
       const bool right = f.localized && pose_within(f.cam_from_world, f.true_cam_from_world, thresholds);
       sweep.frames_correct[b][s] += right;
       sweep.frames_localized[b][s] += f.localized;

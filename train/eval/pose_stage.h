@@ -45,9 +45,12 @@ struct PoseSweepOptions {
 // Adds one frame to `sweep` (set up by start_pose_sweep): RANSAC on `input` for every budget and
 // seed, otherwise with `options`, counting the poses within `thresholds` of the truth, the poses
 // reported by the inlier rule and, with a calibration (the sweep started with one), those the
-// calibrated rule reports and how many of them are right.
+// calibrated rule reports and how many of them are right. With per_seed, also the frame's outcome
+// for each seed of the sweep at options.max_iterations (taken from the sweep when that budget is
+// one of its budgets, else estimated; times left to the caller).
 void sweep_frame_pose(const EvalQuery& query, const PoseInput& input, const PoseEstimatorOptions& options,
-                      const PoseThresholds& thresholds, PoseSweep& sweep, const PoseCalibration* calibration = nullptr);
+                      const PoseThresholds& thresholds, PoseSweep& sweep, const PoseCalibration* calibration = nullptr,
+                      std::vector<FrameOutcome>* per_seed = nullptr);
 // An empty sweep (no frame yet) of the budgets and seeds of `sweep_options` from base_seed; with
 // calibrated, the calibrated counts too.
 PoseSweep start_pose_sweep(const PoseSweepOptions& sweep_options, uint64_t base_seed, bool calibrated = false);
