@@ -52,7 +52,7 @@ TOML
     --threads "$threads"
   # --fusion off: the descriptor-distance term would bring the descriptor back in.
   "$lboost" export --run "$d/run" --map "$out/map.h5" --vocab "$d/vocab.lbv" --out "$d/model.lbm" --fusion off
-  "$lboost" eval --model "$d/model.lbm" --map "$out/map.h5" --run "$d/run" --methods landmarkboost \
+  "$lboost" eval --model "$d/model.lbm" --map "$out/map.h5" --run "$d/run" --vocab "$d/vocab.lbv" --methods landmarkboost \
     --report "$d/report.json"
 done
 /usr/bin/python3 "$here/jobs/vocab_table.py" "$sweep" | tee "$sweep/table.md"

@@ -122,7 +122,8 @@ if [ "$mode" = inputs ]; then
     fi
     "$lboost" train --map "$map" --vocab "$vocab" --out "$fx/run" --rounds 20 --dims-per-round 100 --threads 2 || return 1
     "$lboost" export --run "$fx/run" --map "$map" --vocab "$vocab" --out "$fx/model.lbm" || return 1
-    "$lboost" eval --model "$fx/model.lbm" --map "$map" --run "$fx/run" --report "$fx/report.json" || return 1
+    "$lboost" eval --model "$fx/model.lbm" --map "$map" --run "$fx/run" --vocab "$vocab" --report "$fx/report.json" ||
+      return 1
     # Areas of a third of the eligible landmarks each (as test/train/cli/areas_cli_test.cc).
     "$lboost" areas --map "$map" --out "$fx/one_area.txt" --min-observations 3 --max-classes 1000000 || return 1
     eligible=$(sed -n 's/^eligible //p' "$fx/one_area.txt")

@@ -49,5 +49,6 @@ def tiny(tmp_path_factory):
     run_lboost("localize", "--model", t.model, "--map", t.map, "--out", t.poses, "--all-matches")
     run_lboost("localize", "--model", t.model, "--map", t.map, "--out", t.poses_other, "--all-matches",
                "--threads", 2, *OTHER_FLAGS)
-    run_lboost("eval", "--model", t.model, "--map", t.map, "--run", t.run, "--report", t.report)
+    run_lboost("eval", "--model", t.model, "--map", t.map, "--run", t.run, "--vocab", t.vocab, "--report", t.report,
+               "--methods", "landmarkboost,hamming_ratio")
     return t

@@ -25,6 +25,11 @@ const std::vector<Setting<TrainingSetOptions>>& training_set_settings() {
        SettingRange::open_closed(0.0, 1.0), "... and at most this share of the map-session frames"},
       {"min_calibration_frames", [](T& o) -> SettingRef { return &o.min_calibration_frames; },
        SettingRange::at_least(1), "none held out when fewer than this would be"},
+      {"calibration_folds", [](T& o) -> SettingRef { return &o.calibration_folds; }, SettingRange::at_least(0),
+       "a map too small to hold calibration frames out is cross-fitted: this many folds of its frames (every K-th), "
+       "one fold model each; 0 = never"},
+      {"calibration_fold", [](T& o) -> SettingRef { return &o.calibration_fold; }, SettingRange::at_least(-1),
+       "the fold this run holds out (a fold model), -1 = none (the full model)"},
   };
   return settings;
 }
@@ -104,7 +109,12 @@ void AugmentOptions::check() const {
   }
 }
 
-void TrainingSetOptions::check() const { check_settings("training set", training_set_settings(), *this); }
+void TrainingSetOptions::check() const {
+  check_settings("training set", training_set_settings(), *this);
+  LMB_CHECK(calibration_fold < calibration_folds, "training set: calibration_fold ("
+                                                      << calibration_fold << ") must be -1 or below calibration_folds ("
+                                                      << calibration_folds << ")");
+}
 
 void BoostOptions::check() const {
   check_settings("boost options", boost_settings(), *this);

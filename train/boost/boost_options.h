@@ -34,6 +34,16 @@ struct TrainingSetOptions {
   int32_t calibration_frames = 50;
   double calibration_frame_share = 0.05;
   int32_t min_calibration_frames = 20;
+  // Cross-fitting (docs/pose.md "Cross-fitted calibration"), for a map too small for the rule
+  // above (it holds out none: fewer than min_calibration_frames / calibration_frame_share
+  // map-session frames): the map-session frames (map order) are dealt into calibration_folds K
+  // folds, every K-th frame each; fold model k (calibration_fold k in [0, K), trained by `lboost
+  // train` after the model itself) holds out fold k whole, and the pose calibration is fitted on
+  // every frame, each matched by the fold model that never saw it. The model itself
+  // (calibration_fold -1) trains on every frame. 0 = no cross-fitting (a small map's calibration
+  // falls back to frames the model trained on; a run's config.toml without the key).
+  int32_t calibration_folds = 5;
+  int32_t calibration_fold = -1;
   // Non-empty: the classes are exactly these landmarks (an area's, docs/areas.md; ascending,
   // distinct), top_k_landmarks is not used. Not a config key: set from TrainConfig::area.
   std::vector<landmark_t> class_landmarks;

@@ -253,6 +253,7 @@ TrainConfig read_run_train_config(const std::filesystem::path& path) {
   apply_train_config_toml(text, path.string(), &c);
   const toml::table doc = toml::parse(text, path.string());  // parsed above without an error
   if (!doc["training_set"]["calibration_frames"]) c.training_set.calibration_frames = 0;
+  if (!doc["training_set"]["calibration_folds"]) c.training_set.calibration_folds = 0;
   try {
     c.check();
   } catch (const Error& e) {

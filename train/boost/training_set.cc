@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <numeric>
 
@@ -135,6 +136,8 @@ std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
 std::vector<frame_t> calibration_holdout_frames(const LandmarkMap& map, const TrainingSetOptions& options) {
   options.check();
   const std::vector<frame_t> all = map.map_session_frames();
+  if (options.calibration_fold >= 0)
+    return calibration_fold_frames(map, options.calibration_folds, options.calibration_fold);
   const auto share =
       static_cast<int64_t>(std::floor(options.calibration_frame_share * static_cast<double>(all.size())));
   const int64_t h = std::min<int64_t>(options.calibration_frames, share);
@@ -142,6 +145,28 @@ std::vector<frame_t> calibration_holdout_frames(const LandmarkMap& map, const Tr
   const size_t step = (all.size() + static_cast<size_t>(h) - 1) / static_cast<size_t>(h);
   std::vector<frame_t> out;
   for (size_t i = 0; i < all.size(); i += step) out.push_back(all[i]);
+  return out;
+}
+
+int32_t cross_fitting_folds(const LandmarkMap& map, const TrainingSetOptions& options) {
+  TrainingSetOptions rule = options;
+  rule.calibration_fold = -1;
+  if (options.calibration_folds == 0 || !calibration_holdout_frames(map, rule).empty()) return 0;
+  const auto frames = static_cast<int64_t>(map.map_session_frames().size());
+  if (frames < 2) return 0;
+  return static_cast<int32_t>(std::min<int64_t>(options.calibration_folds, frames));
+}
+
+std::vector<frame_t> calibration_fold_frames(const LandmarkMap& map, int32_t folds, int32_t fold) {
+  LMB_CHECK(folds >= 1 && fold >= -1 && fold < folds,
+            "calibration folds: fold " << fold << " of " << folds << " (want -1 <= fold < folds, folds >= 1)");
+  if (fold < 0) return {};
+  const std::vector<frame_t> all = map.map_session_frames();
+  LMB_CHECK(static_cast<int64_t>(all.size()) >= static_cast<int64_t>(folds),
+            "calibration folds: " << folds << " folds need at least " << folds << " map-session frames, the map has "
+                                  << all.size());
+  std::vector<frame_t> out;
+  for (size_t i = static_cast<size_t>(fold); i < all.size(); i += static_cast<size_t>(folds)) out.push_back(all[i]);
   return out;
 }
 

@@ -48,7 +48,20 @@ struct TrainingSet {
 // the map sessions (map order, as calibration_frames of train/eval/pose_calibration_fit.h), h =
 // min(calibration_frames, floor(calibration_frame_share * F)) frames, every ceil(F / h)-th from the
 // first; none when h < min_calibration_frames. Ascending. A function of the map and the options.
+// A fold model (calibration_fold >= 0): calibration_fold_frames of its fold instead.
 std::vector<frame_t> calibration_holdout_frames(const LandmarkMap& map, const TrainingSetOptions& options);
+
+// The fold models a model trained with `options` on `map` is cross-fitted with: calibration_folds
+// (at most one a map-session frame) when the rule of calibration_holdout_frames holds no frame out
+// and the map has at least 2 map-session frames, else 0 (the model's calibration frames are its
+// held-out ones, or none).
+int32_t cross_fitting_folds(const LandmarkMap& map, const TrainingSetOptions& options);
+
+// Fold `fold` of `folds` of the map-session frames (map order: fold k holds positions k, k + K,
+// k + 2K, ... of the n frames, so each frame's neighbours train its fold model, as the held-out
+// frames of a large map have trained neighbours), ascending; empty for fold -1. Throws lmb::Error
+// for a fold out of range or a map with fewer frames than folds.
+std::vector<frame_t> calibration_fold_frames(const LandmarkMap& map, int32_t folds, int32_t fold);
 
 // Builds the training set from the map's non-query frames outside calibration_holdout_frames (their
 // keypoints are no sample at all, except an area's class observations, below):

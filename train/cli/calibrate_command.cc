@@ -1,13 +1,16 @@
 // `lboost calibrate`: the pose calibration of an exported model (e.g. one exported without it),
 // fitted as `lboost export` fits it (train/eval/run_export.h), written as a new model file.
 #include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
+#include "common/vocabulary.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
 #include "train/eval/evaluation.h"
@@ -20,14 +23,16 @@ namespace {
 struct CalibrateArgs {
   std::string model, map, out;
   std::string run_dir;  // optional: the training run (its config.toml's held-out frames)
+  std::string vocab;    // the vocabulary of training: needed with a cross-fitted run
   PoseCalibrationOptions options;
 };
 
 // `lboost calibrate`: the pose calibration of an exported model (e.g. one exported before the
 // calibration existed), fitted as export fits it, written as a new model file.
 void run_calibrate(const CalibrateArgs& a) {
-  check_outputs_not_inputs({{a.out, "--out"}},
-                           {{a.model, "--model"}, {a.map, "--map"}, {run_file(a.run_dir, "config.toml"), "--run"}});
+  check_outputs_not_inputs(
+      {{a.out, "--out"}},
+      {{a.model, "--model"}, {a.map, "--map"}, {a.vocab, "--vocab"}, {run_file(a.run_dir, "config.toml"), "--run"}});
   check_writable_file(a.out, "--out");
   const std::shared_ptr<const Model> model = Model::load(a.model);
   const LandmarkMap map = read_map_h5(a.map);
@@ -35,7 +40,16 @@ void run_calibrate(const CalibrateArgs& a) {
   ModelData data = model->data();
   data.calibration.reset();
   data.walk_calibration.reset();
-  add_pose_calibration(a.options, training_set_of(run_config_of(a.run_dir)), map, data);
+  const std::optional<TrainConfig> run_config = run_config_of(a.run_dir);
+  const TrainingSetOptions training = training_set_of(run_config);
+  std::vector<FoldModel> folds;
+  if (cross_fitting_folds(map, training) > 0) {
+    LMB_CHECK(!a.vocab.empty(), "calibrate: --run " << a.run_dir << " is cross-fitted ("
+                                                    << cross_fitting_folds(map, training)
+                                                    << " fold models): give --vocab (the vocabulary of training)");
+    folds = export_fold_models(a.run_dir, *run_config, map, Vocabulary::load(a.vocab));
+  }
+  add_pose_calibration(a.options, training, map, data, folds);
   LMB_CHECK(data.calibration.has_value(), "calibrate: too few calibration poses in " << a.map << " (see above)");
   Model(std::move(data)).save(a.out);
   spdlog::info("calibrate: {} -> {}", a.model, a.out);
@@ -53,6 +67,10 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--run", args->run_dir,
                   "The model's training run: the frames its config.toml held out of training are the calibration "
                   "frames (default: the frames the default training options hold out)");
+  cmd->add_option("--vocab", args->vocab,
+                  "The vocabulary of training (.lbv): needed with a --run trained with --calibration-folds (its fold "
+                  "models are exported to cross-fit the calibration)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--calibration-frames", args->options.max_frames,
                   "Map frames the calibration is fitted on at most (every n-th map-session frame), when training held "
                   "none out")

@@ -37,6 +37,7 @@ void run_eval(const EvalOptions& options, const std::string& report_path, const 
   check_outputs_not_inputs({{report_path, "--report"}, {keypoint_ranks, "--keypoint-ranks"}},
                            {{options.model, "--model"},
                             {options.map, "--map"},
+                            {options.vocab, "--vocab"},
                             {run_file("config.toml"), "--run"},
                             {run_file("summary.json"), "--run"}});
   LMB_CHECK(!options.methods.empty(), "eval: --methods is empty");
@@ -47,6 +48,7 @@ void run_eval(const EvalOptions& options, const std::string& report_path, const 
     LMB_CHECK(std::filesystem::exists(config),
               "eval: --run " << run_dir << ": no config.toml (not a `lboost train` run dir)");
     o.training_set = read_run_train_config(config).training_set;
+    o.run_dir = run_dir;
   }
   EvalResult result = run_evaluation(o);
   if (!run_dir.empty()) attach_training_summary(result.report, run_dir);
@@ -112,6 +114,10 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--run", args->run,
                   "Training run dir: its summary.json is copied into the report, and the observations it held "
                   "out of the map sessions (config.toml) are ranked beside the query sessions");
+  cmd->add_option("--vocab", o.vocab,
+                  "The vocabulary of training (.lbv): needed with a --run trained with --calibration-folds, whose "
+                  "fold models every method's pose calibration is cross-fitted on")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--query-session", o.query_sessions,
                   "Query sessions to evaluate, by name (repeat or comma-separate; default: every session of kind "
                   "query; `lboost inspect` lists them)")

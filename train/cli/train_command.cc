@@ -3,7 +3,7 @@
 //   lboost train --map map.h5 --vocab vocab.lbv --out RUN_DIR [--config cfg.toml] [--rounds N]
 //                [--dims-per-round N] [--top-k N] [--seed S] [--threads N]
 //                [--checkpoint-minutes M] [--checkpoint-interval N] [--checkpoint-keep K]
-//                [--area AREAS_FILE:ID]
+//                [--area AREAS_FILE:ID] [--calibration-folds K]
 //   lboost train --synthetic small|medium|paper --out RUN_DIR ...   (synthetic problem of
 //                train/boost/synthetic_problem.h instead of a map: tests, job tests, benchmarks)
 // The run itself: train/dist/run_training.h (rank 0 locks RUN_DIR; a run resumes from the newest
@@ -18,6 +18,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <spdlog/spdlog.h>
+
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/machine_info.h"
@@ -28,6 +30,7 @@
 #include "train/dist/run_training.h"
 #include "train/dist/stop_signal.h"
 #include "train/dist/training_job.h"
+#include "train/eval/run_export.h"
 
 namespace lmb::cli {
 
@@ -47,6 +50,7 @@ struct TrainArgs {
   std::optional<double> checkpoint_minutes;
   std::optional<int32_t> checkpoint_interval;
   std::optional<int32_t> checkpoint_keep;
+  std::optional<int32_t> calibration_folds;
   std::string synthetic;
   std::string area;  // --area FILE:ID
 };
@@ -71,9 +75,12 @@ void run_train(const TrainArgs& a) {
   if (a.checkpoint_minutes) config.checkpoint_minutes = *a.checkpoint_minutes;
   if (a.checkpoint_interval) config.checkpoint_interval = *a.checkpoint_interval;
   if (a.checkpoint_keep) config.checkpoint_keep = *a.checkpoint_keep;
+  if (a.calibration_folds) config.training_set.calibration_folds = *a.calibration_folds;
   if (!a.area.empty()) {
     LMB_CHECK(a.synthetic.empty(), "--area trains an area of a map: give --map, not --synthetic");
     config.area = make_area_reference(a.area, "--area");
+    // An area's model is calibrated within its bundle (lboost bundle), on the areas' held-out frames.
+    config.training_set.calibration_folds = 0;
   }
   LMB_CHECK(!config.area.set() || a.synthetic.empty(),
             a.config << ": [area] trains an area of a map: give --map, not --synthetic");
@@ -94,7 +101,26 @@ void run_train(const TrainArgs& a) {
       in.config = a.config;
       in.run_dir = a.out;
       in.synthetic = a.synthetic;
-      if (!train_on_ranks(in, config, comm, &step)) throw CommandExit{kRequeueExitCode};
+      int32_t folds = 0;
+      if (!train_on_ranks(in, config, comm, &step, &folds)) throw CommandExit{kRequeueExitCode};
+      // Cross-fitting (a map too small to hold calibration frames out): the model first, then one fold
+      // model a fold of the frames, each its own resumable run in RUN/folds/k (a finished one
+      // resumes at its end).
+      if (config.training_set.calibration_fold < 0) {
+        for (int32_t k = 0; k < folds; ++k) {
+          TrainConfig fold = config;
+          fold.training_set.calibration_folds = folds;  // at most one a map frame
+          fold.training_set.calibration_fold = k;
+          TrainRunInputs fold_in = in;
+          fold_in.config.clear();
+          fold_in.run_dir = fold_run_dir(a.out, k).string();
+          if (comm.rank() == 0) {
+            spdlog::info("train: fold model {} of {} (held out: one map frame in {} from position {}) -> {}", k + 1,
+                         folds, folds, k, fold_in.run_dir);
+          }
+          if (!train_on_ranks(fold_in, fold, comm, &step)) throw CommandExit{kRequeueExitCode};
+        }
+      }
     } catch (const std::bad_alloc&) {
       LMB_FAIL("out of memory while " << step << " (" << memory_info().summary() << " on this machine)");
     } catch (const std::length_error& e) {
@@ -147,6 +173,9 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--checkpoint-minutes", args->checkpoint_minutes, key("checkpoint.minutes"));
   cmd->add_option("--checkpoint-interval", args->checkpoint_interval, key("checkpoint.interval"));
   cmd->add_option("--checkpoint-keep", args->checkpoint_keep, key("checkpoint.keep"));
+  cmd->add_option("--calibration-folds", args->calibration_folds,
+                  key("training_set.calibration_folds") +
+                      "; the fold models are trained after the model, into RUN_DIR/folds/0 .. K-1");
   cmd->callback([args] { run_train(*args); });
 }
 

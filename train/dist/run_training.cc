@@ -54,7 +54,8 @@ struct RankData {
   std::string source;          // checked on resume
   FeatureSpace feature_space;  // rank 0 (the map's fingerprint is computed there only)
   HammingValidationP1 hamming;
-  AugmentNoise augment;  // the noise of the augmented copies (when config.augment.copies > 0)
+  AugmentNoise augment;             // the noise of the augmented copies (when config.augment.copies > 0)
+  int32_t cross_fitting_folds = 0;  // the fold models this run's model is cross-fitted with
 };
 
 // The augmentation noise of a run: each rate the config leaves at -1 measured on the map (the same
@@ -162,9 +163,25 @@ RankData load_rank_data(const TrainRunInputs& a, const TrainConfig& config, Comm
     }
     d.set = build_training_set(map, words, set_options);
     const size_t calibration_frames = calibration_holdout_frames(map, set_options).size();
-    if (calibration_frames > 0) {
+    if (set_options.calibration_folds > 0 && set_options.calibration_fold >= 0) {
+      spdlog::info(
+          "train: fold model: fold {} of {} (one map frame in {}, {} frames) held out whole for the "
+          "cross-fitted pose calibration",
+          set_options.calibration_fold, set_options.calibration_folds, set_options.calibration_folds,
+          calibration_frames);
+    } else if (!config.area.set() && cross_fitting_folds(map, set_options) > 0) {
+      d.cross_fitting_folds = cross_fitting_folds(map, set_options);
+      spdlog::info(
+          "train: too few map frames to hold calibration frames out: every map frame trains, and the pose "
+          "calibration is cross-fitted on {} fold models, trained next (training_set.calibration_folds)",
+          d.cross_fitting_folds);
+    } else if (calibration_frames > 0) {
       spdlog::info("train: {} map frames held out whole for the pose calibration (training_set.calibration_frames)",
                    calibration_frames);
+    } else if (!config.area.set()) {
+      spdlog::warn(
+          "train: no map frame held out and no fold models (training_set.calibration_folds 0, or one map frame): the "
+          "pose calibration will be fitted on frames the model trained on");
     }
     *step = "generating " + std::to_string(config.regions.num_regions) + " context regions";
     const ContextRegions regions(config.regions);
@@ -292,7 +309,8 @@ class LogFileSink : public spdlog::sinks::base_sink<std::mutex> {
 
 }  // namespace
 
-bool train_on_ranks(const TrainRunInputs& a, const TrainConfig& config, Communicator& comm, std::string* step) {
+bool train_on_ranks(const TrainRunInputs& a, const TrainConfig& config, Communicator& comm, std::string* step,
+                    int32_t* cross_fitting_folds) {
   const std::filesystem::path run_dir(a.run_dir);
   const std::string config_text = train_config_toml(config);
 
@@ -334,6 +352,7 @@ bool train_on_ranks(const TrainRunInputs& a, const TrainConfig& config, Communic
       a.synthetic.empty() ? std::filesystem::absolute(a.map).lexically_normal().string() : "synthetic:" + a.synthetic;
   const std::optional<Checkpoint> resume = find_resume_checkpoint(comm, job);
   const RankData data = load_rank_data(a, config, comm, step);
+  if (cross_fitting_folds != nullptr) *cross_fitting_folds = data.cross_fitting_folds;
   job.feature_space = data.feature_space;
   check_resume_feature_space(comm, job, resume);
   *step = "setting up the learner (" + std::to_string(data.features.num_samples) + " samples x " +

@@ -23,7 +23,10 @@ struct TrainRunInputs {
 
 // Trains `config` on `in`. Collective. Returns false when a stop signal ended the run after its
 // checkpoint (requeue), true when it finished. `step` names what the run is doing (for an
-// out-of-memory error). Throws lmb::Error (AgreedError when the ranks agree on it).
-bool train_on_ranks(const TrainRunInputs& in, const TrainConfig& config, Communicator& comm, std::string* step);
+// out-of-memory error); `cross_fitting_folds`, when given, receives the number of fold models the
+// model is to be cross-fitted with (cross_fitting_folds of train/boost/training_set.h; 0 for a fold
+// model, an area or a synthetic problem). Throws lmb::Error (AgreedError when the ranks agree on it).
+bool train_on_ranks(const TrainRunInputs& in, const TrainConfig& config, Communicator& comm, std::string* step,
+                    int32_t* cross_fitting_folds = nullptr);
 
 }  // namespace lmb

@@ -21,7 +21,9 @@ bool fit_bundle_calibration(const BundleCalibrationOptions& args, const std::sha
   // The frames the areas' training held out (default training options), else every n-th map frame.
   PoseCalibrationOptions frame_options;
   frame_options.max_frames = args.max_frames;
-  frame_options = with_holdout_frames(frame_options, map, TrainingSetOptions{});
+  TrainingSetOptions areas_training;  // the areas' training: default options, no fold models
+  areas_training.calibration_folds = 0;
+  frame_options = with_holdout_frames(frame_options, map, areas_training);
   const std::vector<frame_t> frames = calibration_frames(map, frame_options);
   // The areas' descriptor fusion without the frames' own descriptors among its exemplars (else each
   // keypoint finds itself at distance 0), as `lboost export` fits a model's calibration.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <memory>
@@ -17,6 +18,7 @@
 #include "train/eval/pose_calibration_fit.h"
 #include "train/eval/pose_stage.h"
 #include "train/eval/report.h"
+#include "train/eval/run_export.h"
 #include "train/eval/timing.h"
 #include "train/eval/walk_calibration_fit.h"
 #include "train/eval/walk_eval.h"
@@ -474,6 +476,17 @@ struct MethodsOutcome {
   size_t held_frames = 0, held_keypoints = 0;
 };
 
+// The fold models of a cross-fitted run (EvalOptions::run_dir), none for any other.
+std::vector<FoldModel> cross_fitting_folds(const EvalOptions& a, const LandmarkMap& map) {
+  if (!a.training_set || cross_fitting_folds(map, *a.training_set) == 0) return {};
+  LMB_CHECK(!a.vocab.empty(), "eval: --run " << a.run_dir << " is cross-fitted ("
+                                             << cross_fitting_folds(map, *a.training_set)
+                                             << " fold models): give --vocab (the vocabulary of training), "
+                                                "which its fold models need to be exported for the pose calibration");
+  const TrainConfig config = read_run_train_config(std::filesystem::path(a.run_dir) / "config.toml");
+  return export_fold_models(a.run_dir, config, map, Vocabulary::load(a.vocab));
+}
+
 // Each method in turn: its pose calibration, the queries, the outside frames and the held-out map
 // observations.
 MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Model>& model, const LandmarkMap& map,
@@ -501,7 +514,7 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
   // Every method's calibration frames: those the model's training held out (the run's options, or
   // the defaults), else every n-th map frame.
   const PoseCalibrationOptions calibration =
-      with_holdout_frames(a.calibration, map, a.training_set.value_or(TrainingSetOptions{}));
+      with_holdout_frames(a.calibration, map, a.training_set.value_or(training_set_of(std::nullopt)));
   const std::vector<int64_t> calibration_keypoints =
       calibration_frame_keypoints(map, calibration_frames(map, calibration));
   MethodContext calibration_context{model, &map, &a, &calibration_keypoints};
@@ -510,21 +523,40 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
   const std::vector<EvalQuery> outside = outside_frames(map);
   MethodContext outside_context = context;
   outside_context.accept_only = true;
+  // A cross-fitted run: each fold of the frames is matched by the method as it is without it (the
+  // fold model; the baselines' index without the fold's observations).
+  const std::vector<FoldModel> folds = cross_fitting_folds(a, map);
+  std::vector<std::vector<int64_t>> fold_keypoints;
+  for (const FoldModel& fold : folds) fold_keypoints.push_back(calibration_frame_keypoints(map, fold.frames));
   for (const std::string& name : a.method_names()) {
     const Clock::time_point t0 = Clock::now();
     const EvalMethod& method = find_eval_method(name);
     // The method's pose calibration, fitted on map frames (train/eval/pose_calibration_fit.h); the
     // descriptor baselines search an index without the calibration frames' observations.
     const CalibrationFit fit = [&] {
-      const std::unique_ptr<Matcher> matcher = method.make(calibration_context);
-      return fit_method_calibration(*matcher, map, a.pose, a.max_correspondences, a.pose_thresholds.front(),
-                                    calibration);
+      if (folds.empty()) {
+        const std::unique_ptr<Matcher> matcher = method.make(calibration_context);
+        return fit_method_calibration(*matcher, map, a.pose, a.max_correspondences, a.pose_thresholds.front(),
+                                      calibration);
+      }
+      std::vector<std::unique_ptr<Matcher>> matchers;
+      std::vector<CalibrationFold> calibration_folds;
+      for (size_t k = 0; k < folds.size(); ++k) {
+        MethodContext fold_context{folds[k].model, &map, &a, &fold_keypoints[k]};
+        fold_context.accept_only = true;
+        fold_context.excluded_from_fusion = true;
+        matchers.push_back(method.make(fold_context));
+        calibration_folds.push_back(CalibrationFold{matchers.back().get(), folds[k].frames});
+      }
+      return fit_cross_fitted_calibration(calibration_folds, map, a.pose, a.max_correspondences,
+                                          a.pose_thresholds.front(), calibration);
     }();
     spdlog::info(
         "eval: {}: pose calibration on {} map frames{}: {} poses ({} right, {} elsewhere){}", name, fit.num_frames,
-        calibration.frames.empty() ? ""
-        : a.training_set           ? " held out of training by the run"
-                                   : " the default training options hold out (--run RUN_DIR: the run's own)",
+        !folds.empty()               ? fmt::format(", cross-fitted on the run's {} fold models", folds.size())
+        : calibration.frames.empty() ? std::string()
+        : a.training_set             ? std::string(" held out of training by the run")
+                         : std::string(" the default training options hold out (--run RUN_DIR: the run's own)"),
         fit.num_poses, fit.num_right, fit.num_elsewhere,
         fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
     MethodRun run = evaluate_method(method, context, queries, query_session, num_sessions, fit);

@@ -3,6 +3,7 @@
 #include <atomic>
 #include <cstdio>
 #include <exception>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -11,6 +12,7 @@
 #include "common/error.h"
 #include "common/stats.h"
 #include "infer/detail/scoring_index.h"
+#include "infer/walk_confidence.h"
 #include "train/eval/metrics.h"
 #include "train/eval/report.h"
 
@@ -141,13 +143,39 @@ nlohmann::json frame_json(const MapFrame& frame, const LocalizedFrame& o, bool a
   return jf;
 }
 
+// Each frame's verdict when the selected frames of each query session are tracked as one walk, in
+// map order (WalkTracker: the frame rule, or the walk rule while a trusted pose is at most a few
+// frames back). Sequential over the per-frame results, so it does not depend on the threads that
+// localized them. Uncalibrated model: the frame's own verdict.
+std::vector<WalkVerdict> walk_verdicts(const Model& model, const Localizer& localizer, const LandmarkMap& map,
+                                       const std::vector<frame_t>& frames,
+                                       const std::vector<LocalizedFrame>& outcomes) {
+  std::vector<WalkVerdict> out(frames.size());
+  if (!model.calibrated()) {
+    for (size_t i = 0; i < frames.size(); ++i) out[i].localized = outcomes[i].result.localized;
+    return out;
+  }
+  PoseCalibration frame_rule = model.calibration();
+  if (localizer.options().min_confidence >= 0) frame_rule.threshold = localizer.options().min_confidence;
+  std::map<int32_t, WalkTracker> trackers;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const int32_t session = map.frames[frames[i]].session;
+    WalkTracker& tracker = trackers.try_emplace(session, frame_rule, model.walk_calibration()).first->second;
+    const LocalizeResult& r = outcomes[i].result;
+    out[i] = tracker.update(r.pose.success, r.pose.cam_from_world, r.evidence);
+  }
+  return out;
+}
+
 // The summary over the frames (also printed): pose counts and errors, the accepted matches'
 // metrics (train/eval/metrics.h: match_precision, match_recall, background_rejection_rate, the
 // same definitions as `lboost eval`'s report) and the mean timings.
 nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& frames,
-                            const std::vector<LocalizedFrame>& outcomes, bool localizer_calibrated) {
+                            const std::vector<LocalizedFrame>& outcomes, const std::vector<WalkVerdict>& walk,
+                            bool localizer_calibrated) {
   std::vector<double> position_errors, rotation_errors;
   int localized = 0, pose_found = 0, pose_found_right = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
+  int walk_localized = 0, walk_right = 0, walk_added = 0;
   double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
   std::vector<KeypointMatch> matches;
   for (size_t i = 0; i < frames.size(); ++i) {
@@ -160,6 +188,11 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
     const Rigid3d& truth = map.frames[frames[i]].cam_from_world;
     pose_found += r.pose.success;
     pose_found_right += r.pose.success && pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
+    if (walk[i].localized) {
+      ++walk_localized;
+      walk_right += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
+      walk_added += walk[i].by_walk;
+    }
     if (!r.localized) continue;
     ++localized;
     position_errors.push_back(position_error(r.pose.cam_from_world, truth));
@@ -177,6 +210,11 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
           {"pose_found_within_20cm_5deg", pose_found_right},
           {"within_5cm_1deg", within_5cm_1deg},
           {"within_20cm_5deg", within_20cm_5deg},
+          {"walk",
+           {{"localized", walk_localized},
+            {"within_20cm_5deg", walk_right},
+            {"by_walk_rule", walk_added},
+            {"precision_20cm_5deg", walk_localized > 0 ? static_cast<double>(walk_right) / walk_localized : 0.0}}},
           {"median_position_error_m", median(position_errors)},
           {"median_rotation_error_deg", median(rotation_errors)},
           {"match_recall", mm.match_recall},
@@ -216,16 +254,24 @@ nlohmann::json localize_map_frames(const std::shared_ptr<const Model>& model, co
                     {"min_inliers", o.localizer.pose.min_inliers},
                     {"seed", o.localizer.pose.seed},
                     {"prosac", o.localizer.pose.progressive_sampling}};
+  const std::vector<WalkVerdict> walk = walk_verdicts(*model, localizer, map, frames, outcomes);
   nlohmann::json jframes = nlohmann::json::array();
-  for (size_t i = 0; i < frames.size(); ++i)
-    jframes.push_back(frame_json(map.frames[frames[i]], outcomes[i], o.all_matches));
+  for (size_t i = 0; i < frames.size(); ++i) {
+    nlohmann::json jf = frame_json(map.frames[frames[i]], outcomes[i], o.all_matches);
+    jf["walk"] = {{"localized", walk[i].localized},
+                  {"by_walk_rule", walk[i].by_walk},
+                  {"continues", walk[i].continues},
+                  {"walk_confidence", walk[i].walk_confidence}};
+    jframes.push_back(std::move(jf));
+  }
   out["frames"] = std::move(jframes);
-  out["summary"] = summary_json(map, frames, outcomes, model->calibrated());
+  out["summary"] = summary_json(map, frames, outcomes, walk, model->calibrated());
   out["calibration"] =
       model->calibrated()
           ? nlohmann::json{{"threshold", localizer.options().min_confidence >= 0 ? localizer.options().min_confidence
                                                                                  : model->calibration().threshold},
-                           {"target_precision", model->calibration().target_precision}}
+                           {"target_precision", model->calibration().target_precision},
+                           {"walk_calibration", model->walk_calibration().has_value()}}
           : nlohmann::json(nullptr);
   return out;
 }
@@ -242,7 +288,8 @@ std::string map_localization_summary_line(const nlohmann::json& s, int threads) 
   std::snprintf(
       line, sizeof(line),
       "localize: %d/%zu frames localized (%s; precision %.3f at 20 cm/5 deg; %d/%zu with >= min-inliers inliers, %d of "
-      "them right), %d within 5 cm/1 deg, %d within 20 cm/5 deg; median error "
+      "them right), %d within 5 cm/1 deg, %d within 20 cm/5 deg; tracked as walks %d localized (%d by the walk "
+      "rule), precision %.3f; median error "
       "%.3f m %.2f deg (localized frames); match recall %.3f of %lld keypoints whose true landmark is a "
       "model class, match precision %.3f of %lld accepted matches, background rejection %.3f of %lld "
       "background keypoints; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d thread(s))",
@@ -250,12 +297,14 @@ std::string map_localization_summary_line(const nlohmann::json& s, int threads) 
       s.at("calibrated").get<bool>() ? "calibrated confidence" : "uncalibrated model: inlier rule",
       s.at("precision_20cm_5deg").get<double>(), s.at("pose_found").get<int>(), s.at("frames").get<size_t>(),
       s.at("pose_found_within_20cm_5deg").get<int>(), s.at("within_5cm_1deg").get<int>(),
-      s.at("within_20cm_5deg").get<int>(), s.at("median_position_error_m").get<double>(),
-      s.at("median_rotation_error_deg").get<double>(), s.at("match_recall").get<double>(),
-      s.at("keypoints_with_class_truth").get<long long>(), s.at("match_precision").get<double>(),
-      s.at("accepted_matches").get<long long>(), s.at("background_rejection_rate").get<double>(),
-      s.at("background_keypoints").get<long long>(), ms.at("total").get<double>(), ms.at("embedding").get<double>(),
-      ms.at("classification").get<double>(), ms.at("pose").get<double>(), threads);
+      s.at("within_20cm_5deg").get<int>(), s.at("walk").at("localized").get<int>(),
+      s.at("walk").at("by_walk_rule").get<int>(), s.at("walk").at("precision_20cm_5deg").get<double>(),
+      s.at("median_position_error_m").get<double>(), s.at("median_rotation_error_deg").get<double>(),
+      s.at("match_recall").get<double>(), s.at("keypoints_with_class_truth").get<long long>(),
+      s.at("match_precision").get<double>(), s.at("accepted_matches").get<long long>(),
+      s.at("background_rejection_rate").get<double>(), s.at("background_keypoints").get<long long>(),
+      ms.at("total").get<double>(), ms.at("embedding").get<double>(), ms.at("classification").get<double>(),
+      ms.at("pose").get<double>(), threads);
   return line;
 }
 

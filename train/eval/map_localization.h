@@ -24,7 +24,10 @@ struct MapLocalizationOptions {
 };
 
 // Localizes the frames; `is_class` per map landmark: a class of the model (check_model_fits_map).
-// Returns {"options", "frames", "summary", "calibration"}. Throws lmb::Error for an unknown frame
+// Each query session's selected frames are also tracked as one walk, in map order (WalkTracker,
+// infer/walk_confidence.h): per frame "walk" says whether the walk reports its pose, and the
+// summary's "walk" counts them; sequential after the frames are localized, so the same on any
+// number of threads. Returns {"options", "frames", "summary", "calibration"}. Throws lmb::Error for an unknown frame
 // name, a map without query frames, or threads outside 1..256.
 nlohmann::json localize_map_frames(const std::shared_ptr<const Model>& model, const LandmarkMap& map,
                                    const std::vector<char>& is_class, const MapLocalizationOptions& options);

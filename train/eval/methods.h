@@ -46,6 +46,11 @@ struct EvalOptions {
   // held-out map observations of that run (train/boost/training_set.h, held_out_observations) are
   // ranked too, beside the query sessions: the generalization gap.
   std::optional<TrainingSetOptions> training_set;
+  // The training run dir and the vocabulary of training: with a cross-fitted run
+  // (training_set.calibration_folds > 0) every method's pose calibration is cross-fitted on the
+  // run's fold models (train/eval/run_export.h), which need the vocabulary to be exported.
+  std::string run_dir;
+  std::string vocab;
 
   // Throws lmb::Error naming the flag (e.g. "eval: --top-k 0 must be in 1..10000").
   void check() const;

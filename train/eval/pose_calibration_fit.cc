@@ -33,7 +33,13 @@ std::vector<frame_t> calibration_frames(const LandmarkMap& map, int max_frames) 
 
 PoseCalibrationOptions with_holdout_frames(PoseCalibrationOptions options, const LandmarkMap& map,
                                            const TrainingSetOptions& training) {
-  options.frames = calibration_holdout_frames(map, training);
+  if (cross_fitting_folds(map, training) > 0) {
+    // Cross-fitted: every fold is held out of one fold model, so every map-session frame calibrates.
+    options.frames = map.map_session_frames();
+    std::sort(options.frames.begin(), options.frames.end());
+  } else {
+    options.frames = calibration_holdout_frames(map, training);
+  }
   return options;
 }
 
@@ -104,6 +110,7 @@ EvalQuery map_frame_query(const LandmarkMap& map, frame_t f) {
 
 nlohmann::json CalibrationFit::to_json() const {
   nlohmann::json j = {{"fitted", fitted},
+                      {"frames_source", frames_source},
                       {"frames", num_frames},
                       {"poses", num_poses},
                       {"poses_right", num_right},
@@ -126,19 +133,12 @@ nlohmann::json CalibrationFit::to_json() const {
   return j;
 }
 
-CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap& map, const PoseEstimatorOptions& pose,
-                                      int max_correspondences, const PoseThresholds& thresholds,
-                                      const PoseCalibrationOptions& options) {
-  options.check();
+std::vector<CalibrationPose> calibration_poses(const Matcher& matcher, const LandmarkMap& map,
+                                               const std::vector<frame_t>& frames, const PoseEstimatorOptions& pose,
+                                               int max_correspondences, const PoseThresholds& thresholds) {
   pose.check();
   thresholds.check();
-  const std::vector<frame_t> frames = calibration_frames(map, options);
-  LMB_CHECK(!frames.empty(), "pose calibration: the map has no frame of a map session to calibrate on");
-  CalibrationFit fit;
-  fit.num_frames = static_cast<int64_t>(frames.size());
-  std::vector<PoseEvidence> evidence;
-  std::vector<char> right;
-  std::vector<char> is_elsewhere;
+  std::vector<CalibrationPose> poses;
   for (frame_t f : frames) {
     const EvalQuery q = map_frame_query(map, f);
     const FrameMatches m = matcher.match(q);
@@ -151,13 +151,27 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
       const PoseInput input = select_correspondences(q, accepted, max_correspondences);
       const PoseResult r = estimate_absolute_pose(*q.camera, input.pixels, input.points_world, pose, input.quality);
       if (!r.success) continue;
-      evidence.push_back(
-          pose_evidence(*q.camera, input.pixels, input.quality, r, static_cast<int>(q.keypoints.size())));
-      right.push_back(pose_within(r.cam_from_world, q.true_cam_from_world, thresholds) ? 1 : 0);
-      fit.poses.push_back(CalibrationPose{f, variant == 1, r.cam_from_world, evidence.back(), right.back() != 0});
-      is_elsewhere.push_back(static_cast<char>(variant));
-      fit.num_elsewhere += variant;
+      const PoseEvidence evidence =
+          pose_evidence(*q.camera, input.pixels, input.quality, r, static_cast<int>(q.keypoints.size()));
+      const bool right = pose_within(r.cam_from_world, q.true_cam_from_world, thresholds);
+      poses.push_back(CalibrationPose{f, variant == 1, r.cam_from_world, evidence, right});
     }
+  }
+  return poses;
+}
+
+CalibrationFit fit_calibration_on_poses(std::vector<CalibrationPose> poses, int64_t num_frames,
+                                        const PoseCalibrationOptions& options) {
+  options.check();
+  CalibrationFit fit;
+  fit.num_frames = num_frames;
+  fit.poses = std::move(poses);
+  std::vector<PoseEvidence> evidence;
+  std::vector<char> right;
+  for (const CalibrationPose& c : fit.poses) {
+    evidence.push_back(c.evidence);
+    right.push_back(c.right ? 1 : 0);
+    fit.num_elsewhere += c.elsewhere ? 1 : 0;
   }
   fit.num_poses = static_cast<int64_t>(evidence.size());
   fit.num_right = std::count(right.begin(), right.end(), 1);
@@ -168,7 +182,7 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
   fit.precision_threshold = precision_threshold(p, right, options.target_precision);
   std::vector<double> p_elsewhere;
   for (size_t i = 0; i < p.size(); ++i) {
-    if (is_elsewhere[i]) p_elsewhere.push_back(p[i]);
+    if (fit.poses[i].elsewhere) p_elsewhere.push_back(p[i]);
   }
   fit.elsewhere_threshold = pass_share_threshold(p_elsewhere, fit.num_frames, options.max_elsewhere_share);
   fit.calibration.threshold = std::max(fit.precision_threshold, fit.elsewhere_threshold);
@@ -178,9 +192,42 @@ CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap&
     if (p[i] < fit.calibration.threshold) continue;
     ++fit.passed;
     fit.passed_right += right[i];
-    fit.elsewhere_passed += is_elsewhere[i];
+    fit.elsewhere_passed += fit.poses[i].elsewhere ? 1 : 0;
   }
   fit.fitted = true;
+  return fit;
+}
+
+CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap& map, const PoseEstimatorOptions& pose,
+                                      int max_correspondences, const PoseThresholds& thresholds,
+                                      const PoseCalibrationOptions& options) {
+  const std::vector<frame_t> frames = calibration_frames(map, options);
+  LMB_CHECK(!frames.empty(), "pose calibration: the map has no frame of a map session to calibrate on");
+  CalibrationFit fit =
+      fit_calibration_on_poses(calibration_poses(matcher, map, frames, pose, max_correspondences, thresholds),
+                               static_cast<int64_t>(frames.size()), options);
+  fit.frames_source = options.frames.empty() ? "trained" : "held_out";
+  return fit;
+}
+
+CalibrationFit fit_cross_fitted_calibration(const std::vector<CalibrationFold>& folds, const LandmarkMap& map,
+                                            const PoseEstimatorOptions& pose, int max_correspondences,
+                                            const PoseThresholds& thresholds, const PoseCalibrationOptions& options) {
+  LMB_CHECK(!folds.empty(), "pose calibration: no calibration fold");
+  std::vector<CalibrationPose> poses;
+  int64_t num_frames = 0;
+  for (const CalibrationFold& fold : folds) {
+    LMB_CHECK(fold.matcher != nullptr && !fold.frames.empty(), "pose calibration: a fold without matcher or frames");
+    std::vector<CalibrationPose> p =
+        calibration_poses(*fold.matcher, map, fold.frames, pose, max_correspondences, thresholds);
+    poses.insert(poses.end(), p.begin(), p.end());
+    num_frames += static_cast<int64_t>(fold.frames.size());
+  }
+  // In frame order, as calibration_poses gives them for one matcher (the walk calibration reads them so).
+  std::stable_sort(poses.begin(), poses.end(),
+                   [](const CalibrationPose& a, const CalibrationPose& b) { return a.frame < b.frame; });
+  CalibrationFit fit = fit_calibration_on_poses(std::move(poses), num_frames, options);
+  fit.frames_source = "cross_fitted";
   return fit;
 }
 

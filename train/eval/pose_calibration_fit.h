@@ -60,7 +60,8 @@ struct PoseCalibrationOptions {
 
 // The calibration options of a model trained with `training` (its run's training-set options, or
 // the defaults) on `map`: `options` with the frames its training held out
-// (calibration_holdout_frames), or `options` as given when it held out none.
+// (calibration_holdout_frames), every map-session frame when cross-fitted (cross_fitting_folds),
+// or `options` as given when it held out none.
 PoseCalibrationOptions with_holdout_frames(PoseCalibrationOptions options, const LandmarkMap& map,
                                            const TrainingSetOptions& training);
 // The calibration frames of `options` on `map`: options.frames, or calibration_frames(max_frames).
@@ -102,15 +103,38 @@ struct CalibrationFit {
   int64_t passed = 0;                  // poses at or above the operating point
   int64_t passed_right = 0;            // of them right
   std::vector<CalibrationPose> poses;  // the poses fitted on (what the walk calibration reads)
+  // Which frames: "cross_fitted" (each fold by the fold model without it), "held_out" (frames
+  // the model's training held out) or "trained" (frames it trained on: a small map without folds).
+  std::string frames_source = "trained";
   nlohmann::json to_json() const;
 };
 
-// Matches every calibration frame with `matcher`, estimates both poses with `pose` (at most
-// max_correspondences correspondences, 0 = all) and fits the calibration. Throws lmb::Error on
-// invalid options or a map without map-session frames.
+// The poses of `frames` matched by `matcher`, both variants each, with `pose` (at most
+// max_correspondences correspondences, 0 = all), in frame order (see the file comment).
+std::vector<CalibrationPose> calibration_poses(const Matcher& matcher, const LandmarkMap& map,
+                                               const std::vector<frame_t>& frames, const PoseEstimatorOptions& pose,
+                                               int max_correspondences, const PoseThresholds& thresholds);
+// The calibration fitted on `poses` of num_frames frames (the logistic, then the operating point).
+CalibrationFit fit_calibration_on_poses(std::vector<CalibrationPose> poses, int64_t num_frames,
+                                        const PoseCalibrationOptions& options);
+
+// Matches every calibration frame with `matcher`, estimates both poses and fits the calibration.
+// Throws lmb::Error on invalid options or a map without map-session frames.
 CalibrationFit fit_method_calibration(const Matcher& matcher, const LandmarkMap& map, const PoseEstimatorOptions& pose,
                                       int max_correspondences, const PoseThresholds& thresholds,
                                       const PoseCalibrationOptions& options);
+
+// Cross-fitting (training_set.calibration_folds): each fold of the frames matched by the method as
+// it is without that fold (LandmarkBoost: the fold model trained without it; the descriptor
+// baselines: an index without its observations). The poses of every fold are pooled, in frame
+// order, and one calibration is fitted on them; it applies to the model trained on every frame.
+struct CalibrationFold {
+  const Matcher* matcher = nullptr;
+  std::vector<frame_t> frames;  // ascending, never seen by `matcher`
+};
+CalibrationFit fit_cross_fitted_calibration(const std::vector<CalibrationFold>& folds, const LandmarkMap& map,
+                                            const PoseEstimatorOptions& pose, int max_correspondences,
+                                            const PoseThresholds& thresholds, const PoseCalibrationOptions& options);
 
 // One map frame as a query, its truth every keypoint kInvalidLandmarkId (the calibration needs the
 // frame's pose only; evaluation's frame_query fills the truth in).

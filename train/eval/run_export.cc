@@ -39,21 +39,35 @@ ContextRegions training_regions(const RunExport& a, const FeatureSpace& trained,
 
 }  // namespace
 
-// Fits the pose calibration of `data` with the Localizer's default options (see the file comment)
-// on the frames its training held out (`training`: the run's training-set options, or the
-// defaults), else on options.max_frames map frames. The fusion's exemplars leave those frames'
-// own descriptors out (else each keypoint finds itself at distance 0).
+// Fits the pose calibration of `data` with the Localizer's default options (see the header).
 void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptions& training, const LandmarkMap& map,
-                          ModelData& data) {
+                          ModelData& data, const std::vector<FoldModel>& folds) {
   options = with_holdout_frames(std::move(options), map, training);
-  const std::vector<int64_t> own = calibration_frame_keypoints(map, calibration_frames(map, options));
-  const auto model = without_exemplars(std::make_shared<const Model>(data), map, own, /*keep_sole=*/true);
   const LocalizerOptions localizer;  // what `lboost localize` and the library use by default
   LMB_CHECK(localizer.pose_top_k == 1,
             "export: the pose calibration assumes the Localizer's default of one match per keypoint");
-  const LandmarkBoostMatcher matcher(model, localizer.classifier, /*rank=*/false);
-  const CalibrationFit fit =
-      fit_method_calibration(matcher, map, localizer.pose, localizer.max_correspondences, PoseThresholds{}, options);
+  CalibrationFit fit;
+  const int32_t num_folds = cross_fitting_folds(map, training);
+  if (num_folds > 0) {
+    LMB_CHECK(static_cast<int32_t>(folds.size()) == num_folds, "export: the run is cross-fitted with "
+                                                                   << num_folds << " folds, " << folds.size()
+                                                                   << " fold models given");
+    std::vector<std::unique_ptr<LandmarkBoostMatcher>> matchers;
+    std::vector<CalibrationFold> calibration_folds;
+    for (const FoldModel& fold : folds) {
+      const auto model = without_exemplars(fold.model, map, calibration_frame_keypoints(map, fold.frames), true);
+      matchers.push_back(std::make_unique<LandmarkBoostMatcher>(model, localizer.classifier, /*rank=*/false));
+      calibration_folds.push_back(CalibrationFold{matchers.back().get(), fold.frames});
+    }
+    fit = fit_cross_fitted_calibration(calibration_folds, map, localizer.pose, localizer.max_correspondences,
+                                       PoseThresholds{}, options);
+  } else {
+    const std::vector<int64_t> own = calibration_frame_keypoints(map, calibration_frames(map, options));
+    const auto model = without_exemplars(std::make_shared<const Model>(data), map, own, /*keep_sole=*/true);
+    const LandmarkBoostMatcher matcher(model, localizer.classifier, /*rank=*/false);
+    fit =
+        fit_method_calibration(matcher, map, localizer.pose, localizer.max_correspondences, PoseThresholds{}, options);
+  }
   if (!fit.fitted) {
     spdlog::warn(
         "export: pose calibration: only {} poses from {} map frames (at least {} needed): the model is written "
@@ -62,14 +76,19 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
     return;
   }
   data.calibration = fit.calibration;
+  const std::string how = num_folds > 0 ? fmt::format(
+                                              ", cross-fitted (each of {} folds matched by the fold model trained "
+                                              "without it)",
+                                              num_folds)
+                          : options.frames.empty() ? std::string(" (the model trained on them)")
+                                                   : std::string(" held out of training");
   spdlog::info(
       "export: pose calibration on {} map frames{}: {} poses ({} of them with no landmark of the frame's view in the "
       "map), {} right; operating point {:.4f} (precision {}: {:.4f}; at most {} of the frames elsewhere: {:.4f}) "
       "keeps {} poses, {} right, {} of them elsewhere",
-      fit.num_frames, options.frames.empty() ? " (the model trained on them)" : " held out of training", fit.num_poses,
-      fit.num_elsewhere, fit.num_right, fit.calibration.threshold, fit.calibration.target_precision,
-      fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold, fit.passed, fit.passed_right,
-      fit.elsewhere_passed);
+      fit.num_frames, how, fit.num_poses, fit.num_elsewhere, fit.num_right, fit.calibration.threshold,
+      fit.calibration.target_precision, fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold,
+      fit.passed, fit.passed_right, fit.elsewhere_passed);
   // The walk calibration on the same poses: the calibration frames in session order are walks.
   const WalkCalibrationFit walk = fit_walk_calibration_on_map(map, fit, options);
   if (!walk.fitted) {
@@ -88,6 +107,48 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
       walk.elsewhere_passed);
 }
 
+std::filesystem::path fold_run_dir(const std::filesystem::path& run_dir, int32_t fold) {
+  return run_dir / "folds" / std::to_string(fold);
+}
+
+std::vector<FoldModel> export_fold_models(const std::string& run_dir, const TrainConfig& config, const LandmarkMap& map,
+                                          const Vocabulary& vocabulary) {
+  const int32_t folds = cross_fitting_folds(map, config.training_set);
+  LMB_CHECK(folds > 0, run_dir << ": not a cross-fitted run (its map holds calibration frames out, or "
+                               << "training_set.calibration_folds is 0)");
+  std::vector<FoldModel> out;
+  for (int32_t k = 0; k < folds; ++k) {
+    const std::filesystem::path dir = fold_run_dir(run_dir, k);
+    const std::string retrain = "run `lboost train` again with the same flags: it trains the missing fold models";
+    LMB_CHECK(std::filesystem::exists(dir / "model.bin") && std::filesystem::exists(dir / "config.toml"),
+              dir.string() << ": fold " << k << " of the cross-fitted run " << run_dir << " has no trained model; "
+                           << retrain);
+    TrainConfig fold_config = read_run_train_config(dir / "config.toml");
+    LMB_CHECK(fold_config.training_set.calibration_fold == k, dir.string() << "/config.toml: trained as fold "
+                                                                           << fold_config.training_set.calibration_fold
+                                                                           << ", not " << k);
+    LMB_CHECK(fold_config.training_set.calibration_folds == folds,
+              dir.string() << "/config.toml: trained as fold " << k << " of "
+                           << fold_config.training_set.calibration_folds << ", not of " << folds);
+    fold_config.training_set.calibration_fold = config.training_set.calibration_fold;
+    fold_config.training_set.calibration_folds = config.training_set.calibration_folds;
+    fold_config.feature_threads = config.feature_threads;
+    fold_config.checkpoint_minutes = config.checkpoint_minutes;
+    fold_config.checkpoint_interval = config.checkpoint_interval;
+    fold_config.checkpoint_keep = config.checkpoint_keep;
+    LMB_CHECK(train_config_toml(fold_config) == train_config_toml(config),
+              dir.string() << "/config.toml: fold " << k << " was trained with other settings than " << run_dir
+                           << "/config.toml; " << retrain << " after deleting " << dir.string());
+    RunExport fold;
+    fold.run_dir = dir.string();
+    fold.calibration = false;
+    ExportStats stats;
+    out.push_back(FoldModel{std::make_shared<const Model>(export_run(fold, map, vocabulary, &stats)),
+                            calibration_fold_frames(map, folds, k)});
+  }
+  return out;
+}
+
 // The config of a training run dir (RUN/config.toml, read_run_train_config); nullopt without one.
 std::optional<TrainConfig> run_config_of(const std::string& run_dir) {
   if (run_dir.empty()) return std::nullopt;
@@ -96,7 +157,10 @@ std::optional<TrainConfig> run_config_of(const std::string& run_dir) {
 
 // The training-set options a model was trained with: its run's, or the defaults without a run.
 TrainingSetOptions training_set_of(const std::optional<TrainConfig>& run_config) {
-  return run_config ? run_config->training_set : TrainingSetOptions{};
+  if (run_config) return run_config->training_set;
+  TrainingSetOptions defaults;
+  defaults.calibration_folds = 0;  // no run, no fold models
+  return defaults;
 }
 
 // The trained model of a run dir: <run>/model.bin (the trainer's file, magic "LMBBOOST"), unless
@@ -158,7 +222,11 @@ ModelData export_run(const RunExport& a, const LandmarkMap& map, const Vocabular
     spdlog::info("export: held-out P@1 by weight: {}", curve);
   }
   if (a.calibration) {
-    add_pose_calibration(a.calibration_options, training_set_of(run_config), map, data);
+    const TrainingSetOptions training = training_set_of(run_config);
+    const std::vector<FoldModel> folds = cross_fitting_folds(map, training) > 0
+                                             ? export_fold_models(a.run_dir, *run_config, map, vocabulary)
+                                             : std::vector<FoldModel>{};
+    add_pose_calibration(a.calibration_options, training, map, data, folds);
   }
   return data;
 }

@@ -13,8 +13,10 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/landmark_map.h"
 #include "common/vocabulary.h"
@@ -47,18 +49,35 @@ std::filesystem::path boost_model_path(const std::string& run_dir, const std::st
 // The config of a training run dir (RUN/config.toml); nullopt without a run dir.
 std::optional<TrainConfig> run_config_of(const std::string& run_dir);
 
-// The training-set options a model was trained with: its run's, or the defaults without a run.
+// The training-set options a model was trained with: its run's, or the defaults without a run
+// (without cross-fitting: there are no fold models).
 TrainingSetOptions training_set_of(const std::optional<TrainConfig>& run_config);
 
 // The inference model's data of a trained run (the fusion and the calibration as asked). Throws
 // lmb::Error for a map, vocabulary or regions other than training's, or fusion without a run.
 ModelData export_run(const RunExport& a, const LandmarkMap& map, const Vocabulary& vocabulary, ExportStats* stats);
 
+// A fold model of a cross-fitted run (training_set.calibration_folds K > 0): `lboost train` trains
+// the model on every frame into RUN and fold k's, without fold k of the frames
+// (calibration_fold_frames), into fold_run_dir(RUN, k).
+struct FoldModel {
+  std::shared_ptr<const Model> model;
+  std::vector<frame_t> frames;  // the fold it never trained on
+};
+std::filesystem::path fold_run_dir(const std::filesystem::path& run_dir, int32_t fold);
+// Every fold model of the cross-fitted run `run_dir` (config: its config), exported as `lboost
+// export` would (fusion on, no calibration). Throws lmb::Error naming the fold when its run is
+// missing or unfinished, or was trained with other settings than the run's (calibration_fold
+// aside).
+std::vector<FoldModel> export_fold_models(const std::string& run_dir, const TrainConfig& config, const LandmarkMap& map,
+                                          const Vocabulary& vocabulary);
+
 // Fits the pose calibration of `data` with the Localizer's default options (see the file comment)
 // on the frames its training held out (`training`: the run's training-set options, or the
-// defaults), else on options.max_frames map frames. The fusion's exemplars leave those frames'
-// own descriptors out (else each keypoint finds itself at distance 0).
+// defaults), else on options.max_frames map frames; cross-fitted on `folds` when given (each fold
+// model on its own fold). The fusion's exemplars leave the matched frames' own descriptors out
+// (else each keypoint finds itself at distance 0).
 void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptions& training, const LandmarkMap& map,
-                          ModelData& data);
+                          ModelData& data, const std::vector<FoldModel>& folds = {});
 
 }  // namespace lmb

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <set>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -267,8 +269,14 @@ TEST(TrainingSet, CalibrationFramesAreHeldOutWhole) {
   p = o;
   p.calibration_frames = 0;
   EXPECT_TRUE(calibration_holdout_frames(map, p).empty());
-  // The default options hold none out of a 40-frame map (5%: 2 frames, fewer than 20).
+  // The default options hold none out of a 40-frame map (5%: 2 frames, fewer than 20): it is
+  // cross-fitted with 5 fold models instead; a map that holds frames out is not.
   EXPECT_TRUE(calibration_holdout_frames(map, TrainingSetOptions()).empty());
+  EXPECT_EQ(cross_fitting_folds(map, TrainingSetOptions()), 5);
+  EXPECT_EQ(cross_fitting_folds(map, o), 0);
+  TrainingSetOptions never;
+  never.calibration_folds = 0;
+  EXPECT_EQ(cross_fitting_folds(map, never), 0);
 
   std::vector<char> held(map.frames.size(), 0);
   for (frame_t f : calibration_holdout_frames(map, o)) held[static_cast<size_t>(f)] = 1;
@@ -386,6 +394,49 @@ TEST(TrainingSet, RejectsBadInput) {
   nan_weight.sample_weight.assign(static_cast<size_t>(set.num_samples()), 1.f);
   nan_weight.sample_weight[3] = std::nanf("");
   EXPECT_THROW(nan_weight.check(), Error);
+}
+
+// Cross-fitting: fold k of K holds out every K-th map-session frame from position k (the query
+// frame skipped, map order), the folds cover every map frame once, none of a fold's frames gives a
+// training sample of its fold model, and the model itself (fold -1) trains on all.
+TEST(TrainingSet, CalibrationFoldsDealTheFramesRoundRobin) {
+  const LandmarkMap map = make_session_map();  // 40 map frames, frame 20 the query
+  std::vector<frame_t> covered;
+  for (int32_t k = 0; k < 3; ++k) {
+    const std::vector<frame_t> fold = calibration_fold_frames(map, 3, k);
+    ASSERT_FALSE(fold.empty());
+    covered.insert(covered.end(), fold.begin(), fold.end());
+  }
+  std::sort(covered.begin(), covered.end());
+  EXPECT_EQ(covered, map.map_session_frames());
+  // Positions 1, 4, ..., 19 are frames 1, ..., 19; position 22 is frame 23 (frame 20 the query).
+  const std::vector<frame_t> fold1 = calibration_fold_frames(map, 3, 1);
+  EXPECT_EQ(std::vector<frame_t>(fold1.begin(), fold1.begin() + 8),
+            (std::vector<frame_t>{1, 4, 7, 10, 13, 16, 19, 23}));
+  EXPECT_TRUE(calibration_fold_frames(map, 3, -1).empty());
+  EXPECT_THROW(calibration_fold_frames(map, 3, 3), Error);
+  EXPECT_THROW(calibration_fold_frames(map, 41, 0), Error);                   // fewer frames than folds
+  EXPECT_EQ(calibration_fold_frames(map, 40, 39), std::vector<frame_t>{40});  // one frame a fold
+
+  const std::vector<int32_t> words(map.keypoints.size(), 0);
+  TrainingSetOptions o;
+  o.top_k_landmarks = 60;
+  o.calibration_folds = 2;
+  for (int32_t k = 0; k < 2; ++k) {
+    o.calibration_fold = k;
+    const std::vector<frame_t> fold = calibration_fold_frames(map, 2, k);
+    EXPECT_EQ(calibration_holdout_frames(map, o), fold);
+    const TrainingSet set = build_training_set(map, words, o);
+    for (frame_t f : set.sample_frame) {
+      EXPECT_FALSE(std::binary_search(fold.begin(), fold.end(), f)) << "fold " << k << " trains on frame " << f;
+    }
+  }
+  o.calibration_fold = -1;
+  const TrainingSet all = build_training_set(map, words, o);
+  const std::set<frame_t> frames(all.sample_frame.begin(), all.sample_frame.end());
+  EXPECT_EQ(frames.size(), map.map_session_frames().size());
+  o.calibration_fold = 2;
+  EXPECT_THROW(o.check(), Error);
 }
 
 }  // namespace

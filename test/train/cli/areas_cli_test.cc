@@ -547,7 +547,9 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       const LandmarkMap m = read_map_h5(map_);
       PoseCalibrationOptions options;
       options.max_frames = 40;
-      const std::vector<frame_t> frames = calibration_frames(m, with_holdout_frames(options, m, TrainingSetOptions{}));
+      TrainingSetOptions areas_training;  // what the bundle's calibration assumes: no fold models
+      areas_training.calibration_folds = 0;
+      const std::vector<frame_t> frames = calibration_frames(m, with_holdout_frames(options, m, areas_training));
       ASSERT_FALSE(frames.empty());
       int64_t rows = 0, left_out = 0;
       for (int id = 0; id < num_areas; ++id) {

@@ -99,7 +99,7 @@ class CliReliabilityTest : public ::testing::Test {
   }
   static std::string train_args(const std::string& vocab = "vocab.lbv") {
     return "train --map " + map_.string() + " --vocab " + (dir_ / vocab).string() +
-           " --rounds 8 --dims-per-round 64 --checkpoint-interval 4";
+           " --rounds 8 --dims-per-round 64 --checkpoint-interval 4 --calibration-folds 0";
   }
   static std::string export_args(const std::string& vocab = "vocab.lbv", const std::string& run_dir = "run") {
     return "export --run " + (dir_ / run_dir).string() + " --map " + map_.string() + " --vocab " +

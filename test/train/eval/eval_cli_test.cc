@@ -90,10 +90,10 @@ class EvalCliTest : public ::testing::Test {
           step("export --run " + (dir_ / "run").string() + m + " --vocab " + (dir_ / "vocab.lbv").string() + " --out " +
                (dir_ / "model.lbm").string());
     if (!ok_) return;
-    eval_ =
-        run("eval --model " + (dir_ / "model.lbm").string() + m + " --run " + (dir_ / "run").string() + " --report " +
-                (dir_ / "report.json").string() + " --keypoint-ranks " + (dir_ / "ranks.json").string(),
-            dir_);
+    eval_ = run("eval --model " + (dir_ / "model.lbm").string() + m + " --run " + (dir_ / "run").string() +
+                    " --vocab " + (dir_ / "vocab.lbv").string() + " --report " + (dir_ / "report.json").string() +
+                    " --keypoint-ranks " + (dir_ / "ranks.json").string(),
+                dir_);
   }
   static void TearDownTestSuite() {
     if (!dir_.empty()) fs::remove_all(dir_);
@@ -404,6 +404,48 @@ TEST_F(EvalCliTest, LocalizeAndEvalShareMetricNames) {
   EXPECT_EQ(poses_inf.at("options").at("min_margin"), "-inf");
   EXPECT_DOUBLE_EQ(poses_inf.at("summary").at("match_recall").get<double>(), lb.at("precision_at_1").get<double>());
   EXPECT_EQ(poses_inf.at("summary").at("background_rejection_rate").get<double>(), 0.0);
+}
+
+// `lboost localize --map` tracks each query session as a walk after localizing its frames: the
+// walk verdicts and every pose are the same on 1 and 4 threads (timings aside); a frame the frame
+// rule reports is reported by the walk too, a frame only the walk rule reports continues a trusted
+// pose, and the summary counts what the frames say.
+TEST_F(EvalCliTest, WalksAreTheSameOnOneAndFourThreads) {
+  std::vector<nlohmann::json> frames;
+  nlohmann::json summary;
+  for (int threads : {1, 4}) {
+    const fs::path out = dir_ / ("poses_threads" + std::to_string(threads) + ".json");
+    const RunResult r = run("localize --model " + (dir_ / "model.lbm").string() + " --map " + map_.string() +
+                                " --threads " + std::to_string(threads) + " --out " + out.string(),
+                            dir_);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("tracked as walks"), std::string::npos) << r.out;
+    nlohmann::json poses = nlohmann::json::parse(slurp(out));
+    for (nlohmann::json& f : poses.at("frames")) f.erase("timings_ms");
+    frames.push_back(poses.at("frames"));
+    summary = poses.at("summary");
+  }
+  ASSERT_EQ(frames[0], frames[1]);
+  int localized = 0, by_walk = 0;
+  for (const nlohmann::json& f : frames[0]) {
+    const nlohmann::json& w = f.at("walk");
+    if (f.at("success").get<bool>()) {
+      EXPECT_TRUE(w.at("localized").get<bool>()) << f.at("name");
+    }
+    if (w.at("by_walk_rule").get<bool>()) {
+      EXPECT_FALSE(f.at("success").get<bool>()) << f.at("name");
+      EXPECT_TRUE(w.at("continues").get<bool>()) << f.at("name");
+      EXPECT_TRUE(f.at("pose_found").get<bool>()) << f.at("name");
+    }
+    if (w.at("localized").get<bool>()) {
+      EXPECT_TRUE(f.at("pose_found").get<bool>()) << f.at("name");
+    }
+    localized += w.at("localized").get<bool>();
+    by_walk += w.at("by_walk_rule").get<bool>();
+  }
+  EXPECT_EQ(summary.at("walk").at("localized"), localized);
+  EXPECT_EQ(summary.at("walk").at("by_walk_rule"), by_walk);
+  EXPECT_GE(localized, summary.at("localized").get<int>());
 }
 
 // Every field report.json carries is documented in docs/report.md, and every documented field is
@@ -810,6 +852,69 @@ TEST_F(EvalCliTest, TheFramesTrainingHeldOutAreTheCalibrationFrames) {
   EXPECT_EQ(report.at("methods").at("landmarkboost").at("pose_confidence").at("calibration").at("frames"), 6);
 }
 
+// The fixture's tiny world is too small to hold calibration frames out (the default options), so
+// its run is cross-fitted: train says so and trains the five fold models into run/folds/k, each
+// without every 5th map frame from position k (its config.toml records the fold); export and eval
+// fit the calibration on every map frame, each matched by the fold model that never saw it (the
+// logs and the report say so, for every method); eval without --vocab and a fold trained with
+// other settings are one-line errors.
+TEST_F(EvalCliTest, ASmallMapIsCalibratedByCrossFitting) {
+  const LandmarkMap map = read_map_h5(map_);
+  const TrainConfig c = read_run_train_config(dir_ / "run" / "config.toml");
+  ASSERT_TRUE(calibration_holdout_frames(map, c.training_set).empty());
+  ASSERT_EQ(cross_fitting_folds(map, c.training_set), 5);
+  for (int32_t k = 0; k < 5; ++k) {
+    const fs::path fold = dir_ / "run" / "folds" / std::to_string(k);
+    ASSERT_TRUE(fs::exists(fold / "model.bin")) << fold;
+    const TrainConfig fc = read_run_train_config(fold / "config.toml");
+    EXPECT_EQ(fc.training_set.calibration_fold, k);
+    EXPECT_EQ(calibration_holdout_frames(map, fc.training_set), calibration_fold_frames(map, 5, k));
+  }
+  EXPECT_NE(slurp(dir_ / "run" / "log.txt").find("the pose calibration is cross-fitted on 5 fold models"),
+            std::string::npos);
+  EXPECT_NE((eval_.out + eval_.err)
+                .find("landmarkboost: pose calibration on " + std::to_string(map.map_session_frames().size()) +
+                      " map frames, cross-fitted on the run's 5 fold models"),
+            std::string::npos)
+      << eval_.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
+  for (const auto& [name, m] : report.at("methods").items()) {
+    const nlohmann::json& cal = m.at("pose_confidence").at("calibration");
+    EXPECT_EQ(cal.at("frames_source"), "cross_fitted") << name;
+    EXPECT_EQ(cal.at("frames"), static_cast<int64_t>(map.map_session_frames().size())) << name;
+  }
+  const std::string m = " --map " + map_.string();
+  const RunResult exported = run("export --run " + (dir_ / "run").string() + m + " --vocab " +
+                                     (dir_ / "vocab.lbv").string() + " --out " + (dir_ / "crossed.lbm").string(),
+                                 dir_);
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_NE((exported.out + exported.err).find("cross-fitted (each of 5 folds matched by the fold model"),
+            std::string::npos)
+      << exported.err;
+  expect_eval_error(run("eval --model " + (dir_ / "model.lbm").string() + m + " --run " + (dir_ / "run").string() +
+                            " --methods landmarkboost --report " + (dir_ / "novocab.json").string(),
+                        dir_),
+                    "give --vocab");
+  EXPECT_FALSE(fs::exists(dir_ / "novocab.json"));
+  // A fold trained with other settings is refused, naming it.
+  const fs::path copy = dir_ / "run_copy";
+  fs::copy(dir_ / "run", copy, fs::copy_options::recursive);
+  {
+    std::ofstream(copy / "folds" / "1" / "config.toml", std::ios::app) << "\n";
+    std::string text = slurp(copy / "folds" / "1" / "config.toml");
+    const size_t at = text.find("num_rounds = ");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, text.find('\n', at) - at, "num_rounds = 7");
+    std::ofstream(copy / "folds" / "1" / "config.toml") << text;
+  }
+  const RunResult refused = run("export --run " + copy.string() + m + " --vocab " + (dir_ / "vocab.lbv").string() +
+                                    " --out " + (dir_ / "refused.lbm").string(),
+                                dir_);
+  test::expect_one_error(refused, "export", "fold 1 was trained with other settings");
+  EXPECT_FALSE(fs::exists(dir_ / "refused.lbm"));
+  fs::remove_all(copy);
+}
+
 // export --max-exemplars N keeps at most N exemplars a class, each a map observation of its class
 // outside the held-out ones (k_centre_exemplars of them, tested against a brute force in
 // descriptor_fusion_test); the model is smaller, eval ranks its held-out observations with it, and
@@ -848,10 +953,10 @@ TEST_F(EvalCliTest, ExportMaxExemplarsKeepsAtMostThatManyAClass) {
     }
   }
   EXPECT_LT(f.exemplar_begin.back(), full);
-  const RunResult ev =
-      run("eval --model " + (dir_ / "model_cap2.lbm").string() + " --map " + map_.string() + " --run " +
-              (dir_ / "run").string() + " --methods landmarkboost --report " + (dir_ / "report_cap2.json").string(),
-          dir_);
+  const RunResult ev = run("eval --model " + (dir_ / "model_cap2.lbm").string() + " --map " + map_.string() +
+                               " --run " + (dir_ / "run").string() + " --vocab " + (dir_ / "vocab.lbv").string() +
+                               " --methods landmarkboost --report " + (dir_ / "report_cap2.json").string(),
+                           dir_);
   ASSERT_EQ(ev.exit_code, 0) << ev.err;
   const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report_cap2.json"));
   EXPECT_GT(report.at("generalization_gap").at("precision_at_1").at("landmarkboost").at("held_out_map_observations"),

@@ -4,6 +4,7 @@
 // copy when the frame's own view is not in the map, a wrong pose as good as the right one.
 #include "train/eval/pose_calibration_fit.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -186,11 +187,18 @@ TEST(FitMethodCalibrationTest, TheFramesTrainingHeldOutAreTheCalibrationFrames) 
   const CalibrationFit fit = fit_method_calibration(matcher, map, PoseEstimatorOptions{}, 0, PoseThresholds{}, on_held);
   EXPECT_EQ(fit.num_frames, 8);
   EXPECT_EQ(fit.num_poses, 16);
-  // Training that held none out (the defaults, on 40 frames): every n-th frame, max_frames of them.
-  const PoseCalibrationOptions legacy = with_holdout_frames(options, map, TrainingSetOptions{});
+  // Training that held none out and no fold models (the defaults without cross-fitting, on 40
+  // frames): every n-th frame, max_frames of them.
+  TrainingSetOptions no_folds;
+  no_folds.calibration_folds = 0;
+  const PoseCalibrationOptions legacy = with_holdout_frames(options, map, no_folds);
   EXPECT_TRUE(legacy.frames.empty());
   EXPECT_EQ(calibration_frames(map, legacy), calibration_frames(map, 3));
   EXPECT_EQ(fit_method_calibration(matcher, map, PoseEstimatorOptions{}, 0, PoseThresholds{}, legacy).num_frames, 3);
+  // Cross-fitted (the defaults on a map too small to hold frames out): every map-session frame.
+  const PoseCalibrationOptions crossed = with_holdout_frames(options, map, TrainingSetOptions{});
+  EXPECT_EQ(crossed.frames.size(), map.map_session_frames().size());
+  EXPECT_TRUE(std::is_sorted(crossed.frames.begin(), crossed.frames.end()));
   PoseCalibrationOptions bad = on_held;
   bad.frames = {5, 0};
   EXPECT_THROW(calibration_frames(map, bad), Error);
