@@ -139,6 +139,7 @@ std::vector<FoldModel> export_fold_models(const std::string& run_dir, const Trai
     LMB_CHECK(train_config_toml(fold_config) == train_config_toml(config),
               dir.string() << "/config.toml: fold " << k << " was trained with other settings than " << run_dir
                            << "/config.toml; " << retrain << " after deleting " << dir.string());
+    spdlog::info("export: fold model {} of {} ({}), for the cross-fitted pose calibration", k + 1, folds, dir.string());
     RunExport fold;
     fold.run_dir = dir.string();
     fold.calibration = false;
