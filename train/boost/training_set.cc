@@ -135,9 +135,9 @@ std::vector<landmark_t> select_class_landmarks(const LandmarkMap& map,
 
 std::vector<frame_t> calibration_holdout_frames(const LandmarkMap& map, const TrainingSetOptions& options) {
   options.check();
-  const std::vector<frame_t> all = map.map_session_frames();
   if (options.calibration_fold >= 0)
     return calibration_fold_frames(map, options.calibration_folds, options.calibration_fold);
+  const std::vector<frame_t> all = map.map_session_frames();
   const auto share =
       static_cast<int64_t>(std::floor(options.calibration_frame_share * static_cast<double>(all.size())));
   const int64_t h = std::min<int64_t>(options.calibration_frames, share);

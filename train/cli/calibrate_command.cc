@@ -1,16 +1,13 @@
 // `lboost calibrate`: the pose calibration of an exported model (e.g. one exported without it),
 // fitted as `lboost export` fits it (train/eval/run_export.h), written as a new model file.
 #include <memory>
-#include <optional>
 #include <string>
-#include <vector>
 
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
 #include "common/file_io.h"
 #include "common/io/map_h5.h"
-#include "common/vocabulary.h"
 #include "infer/model.h"
 #include "train/cli/commands.h"
 #include "train/eval/evaluation.h"
@@ -40,16 +37,8 @@ void run_calibrate(const CalibrateArgs& a) {
   ModelData data = model->data();
   data.calibration.reset();
   data.walk_calibration.reset();
-  const std::optional<TrainConfig> run_config = run_config_of(a.run_dir);
-  const TrainingSetOptions training = training_set_of(run_config);
-  std::vector<FoldModel> folds;
-  if (cross_fitting_folds(map, training) > 0) {
-    LMB_CHECK(!a.vocab.empty(), "calibrate: --run " << a.run_dir << " is cross-fitted ("
-                                                    << cross_fitting_folds(map, training)
-                                                    << " fold models): give --vocab (the vocabulary of training)");
-    folds = export_fold_models(a.run_dir, *run_config, map, Vocabulary::load(a.vocab));
-  }
-  add_pose_calibration(a.options, training, map, data, folds);
+  add_pose_calibration(a.options, training_set_of(run_config_of(a.run_dir)), map, data,
+                       fold_models_of_run(a.run_dir, map, a.vocab, "calibrate"));
   LMB_CHECK(data.calibration.has_value(), "calibrate: too few calibration poses in " << a.map << " (see above)");
   Model(std::move(data)).save(a.out);
   spdlog::info("calibrate: {} -> {}", a.model, a.out);

@@ -105,21 +105,19 @@ void run_train(const TrainArgs& a) {
       if (!train_on_ranks(in, config, comm, &step, &folds)) throw CommandExit{kRequeueExitCode};
       // Cross-fitting (a map too small to hold calibration frames out): the model first, then one fold
       // model a fold of the frames, each its own resumable run in RUN/folds/k (a finished one
-      // resumes at its end).
-      if (config.training_set.calibration_fold < 0) {
-        for (int32_t k = 0; k < folds; ++k) {
-          TrainConfig fold = config;
-          fold.training_set.calibration_folds = folds;  // at most one a map frame
-          fold.training_set.calibration_fold = k;
-          TrainRunInputs fold_in = in;
-          fold_in.config.clear();
-          fold_in.run_dir = fold_run_dir(a.out, k).string();
-          if (comm.rank() == 0) {
-            spdlog::info("train: fold model {} of {} (held out: one map frame in {} from position {}) -> {}", k + 1,
-                         folds, folds, k, fold_in.run_dir);
-          }
-          if (!train_on_ranks(fold_in, fold, comm, &step)) throw CommandExit{kRequeueExitCode};
+      // resumes at its end). `folds` is 0 for a run that is itself a fold model.
+      for (int32_t k = 0; k < folds; ++k) {
+        TrainConfig fold = config;
+        fold.training_set.calibration_folds = folds;  // at most one a map frame
+        fold.training_set.calibration_fold = k;
+        TrainRunInputs fold_in = in;
+        fold_in.config.clear();
+        fold_in.run_dir = fold_run_dir(a.out, k).string();
+        if (comm.rank() == 0) {
+          spdlog::info("train: fold model {} of {} (held out: one map frame in {} from position {}) -> {}", k + 1,
+                       folds, folds, k, fold_in.run_dir);
         }
+        if (!train_on_ranks(fold_in, fold, comm, &step)) throw CommandExit{kRequeueExitCode};
       }
     } catch (const std::bad_alloc&) {
       LMB_FAIL("out of memory while " << step << " (" << memory_info().summary() << " on this machine)");

@@ -163,14 +163,15 @@ RankData load_rank_data(const TrainRunInputs& a, const TrainConfig& config, Comm
     }
     d.set = build_training_set(map, words, set_options);
     const size_t calibration_frames = calibration_holdout_frames(map, set_options).size();
-    if (set_options.calibration_folds > 0 && set_options.calibration_fold >= 0) {
+    const int32_t folds = config.area.set() ? 0 : cross_fitting_folds(map, set_options);
+    if (set_options.calibration_fold >= 0) {
       spdlog::info(
           "train: fold model: fold {} of {} (one map frame in {}, {} frames) held out whole for the "
           "cross-fitted pose calibration",
           set_options.calibration_fold, set_options.calibration_folds, set_options.calibration_folds,
           calibration_frames);
-    } else if (!config.area.set() && cross_fitting_folds(map, set_options) > 0) {
-      d.cross_fitting_folds = cross_fitting_folds(map, set_options);
+    } else if (folds > 0) {
+      d.cross_fitting_folds = folds;
       spdlog::info(
           "train: too few map frames to hold calibration frames out: every map frame trains, and the pose "
           "calibration is cross-fitted on {} fold models, trained next (training_set.calibration_folds)",

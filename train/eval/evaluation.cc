@@ -476,17 +476,6 @@ struct MethodsOutcome {
   size_t held_frames = 0, held_keypoints = 0;
 };
 
-// The fold models of a cross-fitted run (EvalOptions::run_dir), none for any other.
-std::vector<FoldModel> cross_fitting_folds(const EvalOptions& a, const LandmarkMap& map) {
-  if (!a.training_set || cross_fitting_folds(map, *a.training_set) == 0) return {};
-  LMB_CHECK(!a.vocab.empty(), "eval: --run " << a.run_dir << " is cross-fitted ("
-                                             << cross_fitting_folds(map, *a.training_set)
-                                             << " fold models): give --vocab (the vocabulary of training), "
-                                                "which its fold models need to be exported for the pose calibration");
-  const TrainConfig config = read_run_train_config(std::filesystem::path(a.run_dir) / "config.toml");
-  return export_fold_models(a.run_dir, config, map, Vocabulary::load(a.vocab));
-}
-
 // Each method in turn: its pose calibration, the queries, the outside frames and the held-out map
 // observations.
 MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Model>& model, const LandmarkMap& map,
@@ -525,7 +514,7 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
   outside_context.accept_only = true;
   // A cross-fitted run: each fold of the frames is matched by the method as it is without it (the
   // fold model; the baselines' index without the fold's observations).
-  const std::vector<FoldModel> folds = cross_fitting_folds(a, map);
+  const std::vector<FoldModel> folds = fold_models_of_run(a.run_dir, map, a.vocab, "eval");
   std::vector<std::vector<int64_t>> fold_keypoints;
   for (const FoldModel& fold : folds) fold_keypoints.push_back(calibration_frame_keypoints(map, fold.frames));
   for (const std::string& name : a.method_names()) {

@@ -150,6 +150,17 @@ std::vector<FoldModel> export_fold_models(const std::string& run_dir, const Trai
   return out;
 }
 
+std::vector<FoldModel> fold_models_of_run(const std::string& run_dir, const LandmarkMap& map,
+                                          const std::string& vocab_path, const std::string& command) {
+  const std::optional<TrainConfig> config = run_config_of(run_dir);
+  const int32_t folds = config ? cross_fitting_folds(map, config->training_set) : 0;
+  if (folds == 0) return {};
+  LMB_CHECK(!vocab_path.empty(), command << ": --run " << run_dir << " is cross-fitted (" << folds
+                                         << " fold models): give --vocab (the vocabulary of training), which its fold "
+                                            "models need to be exported for the pose calibration");
+  return export_fold_models(run_dir, *config, map, Vocabulary::load(vocab_path));
+}
+
 // The config of a training run dir (RUN/config.toml, read_run_train_config); nullopt without one.
 std::optional<TrainConfig> run_config_of(const std::string& run_dir) {
   if (run_dir.empty()) return std::nullopt;

@@ -71,6 +71,11 @@ std::filesystem::path fold_run_dir(const std::filesystem::path& run_dir, int32_t
 // aside).
 std::vector<FoldModel> export_fold_models(const std::string& run_dir, const TrainConfig& config, const LandmarkMap& map,
                                           const Vocabulary& vocabulary);
+// The fold models of the run `run_dir` (empty: none) when it is cross-fitted on `map`, else none.
+// `vocab_path`, the vocabulary of training, is read only then; without it the error names
+// `command` and its --vocab flag.
+std::vector<FoldModel> fold_models_of_run(const std::string& run_dir, const LandmarkMap& map,
+                                          const std::string& vocab_path, const std::string& command);
 
 // Fits the pose calibration of `data` with the Localizer's default options (see the file comment)
 // on the frames its training held out (`training`: the run's training-set options, or the

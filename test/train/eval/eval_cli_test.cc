@@ -900,7 +900,6 @@ TEST_F(EvalCliTest, ASmallMapIsCalibratedByCrossFitting) {
   const fs::path copy = dir_ / "run_copy";
   fs::copy(dir_ / "run", copy, fs::copy_options::recursive);
   {
-    std::ofstream(copy / "folds" / "1" / "config.toml", std::ios::app) << "\n";
     std::string text = slurp(copy / "folds" / "1" / "config.toml");
     const size_t at = text.find("num_rounds = ");
     ASSERT_NE(at, std::string::npos);
