@@ -159,8 +159,10 @@ LMB_INFER_EXPORT lmb_status lmb_localize_with_confidence(
 
 /* Walks: a camera localized frame after frame (infer/walk_confidence.h). A walk keeps the last
  * trusted pose; a frame's pose is reported (lmb_pose.success) when the model's pose calibration
- * reports it, or when it continues the walk by the model's walk calibration (model format 4). With
- * a model without a walk calibration every frame is judged as lmb_localize_with_confidence judges it.
+ * reports it, or when it continues the walk by the model's walk calibration (model format 4 or 5),
+ * and, when that calibration has an agreement (format 5), the pose agrees with the pose of the frame
+ * before (docs/walks.md). With a model without a walk calibration every frame is judged as
+ * lmb_localize_with_confidence judges it.
  *
  *   lmb_walk* walk = NULL;
  *   lmb_walk_create(model, &walk);
@@ -178,7 +180,7 @@ LMB_INFER_EXPORT lmb_status lmb_walk_create(const lmb_model* model, lmb_walk** o
 LMB_INFER_EXPORT void lmb_walk_free(lmb_walk* walk);
 /* 1 when the walk's model holds a walk calibration, 0 when not, -1 for a NULL walk. */
 LMB_INFER_EXPORT int lmb_walk_is_calibrated(const lmb_walk* walk);
-/* Forgets the last trusted pose (the next frame is judged on its own). */
+/* Forgets the last trusted and estimated poses (the next frame is judged on its own). */
 LMB_INFER_EXPORT void lmb_walk_reset(lmb_walk* walk);
 /* Localizes the walk's next frame as lmb_localize_with_confidence does (no matches written) and
  * judges it in the walk: out_pose->success and out_confidence->localized are the walk's verdict;

@@ -78,7 +78,7 @@ void check_ascending(const std::vector<int32_t>& ids, int32_t lo, int32_t hi_inc
   }
 }
 
-WalkCalibration read_walk_calibration(BoundedReader& r, const std::string& what) {
+WalkCalibration read_walk_calibration(BoundedReader& r, const std::string& what, uint32_t version) {
   WalkCalibration c;
   uint32_t features = 0;
   r.value(features);
@@ -93,6 +93,16 @@ WalkCalibration read_walk_calibration(BoundedReader& r, const std::string& what)
   r.value(c.num_samples);
   r.value(c.num_positive);
   r.value(c.target_precision);
+  if (version >= kModelVersionWithAgreement) {
+    uint8_t adds = 0;
+    r.value(adds);
+    LMB_CHECK(adds <= 1, what << ": walk calibration: adds = " << static_cast<int>(adds) << " is not 0 or 1");
+    c.adds = adds == 1;
+    r.value(c.agreement_noise_m);
+    r.value(c.agreement_noise_deg);
+    r.value(c.agreement_step_m);
+    r.value(c.agreement_step_deg);
+  }
   return c;
 }
 
@@ -165,7 +175,10 @@ void ModelData::check(const std::string& where) const {
 }
 
 uint32_t model_file_version(const ModelData& data) {
-  if (data.walk_calibration) return kModelVersionWithWalk;
+  if (data.walk_calibration) {
+    const WalkCalibration& w = *data.walk_calibration;
+    return w.has_agreement() || !w.adds ? kModelVersionWithAgreement : kModelVersionWithWalk;
+  }
   if (data.calibration) return kModelVersion;
   return data.fusion.enabled() ? kModelVersionWithFusion : kModelVersionWithoutFusion;
 }
@@ -219,14 +232,18 @@ std::string serialize_model_data(const ModelData& data) {
       for (double w : c.weights) ar(w);
       ar(c.bias, c.threshold, c.translation_scale_m, c.rotation_scale_deg, c.max_gap, c.num_samples, c.num_positive,
          c.target_precision);
+      if (version >= kModelVersionWithAgreement) {
+        ar(static_cast<uint8_t>(c.adds ? 1 : 0), c.agreement_noise_m, c.agreement_noise_deg, c.agreement_step_m,
+           c.agreement_step_deg);
+      }
     }
   }
   return os.str();
 }
 
 ModelData parse_model_data(const std::string& payload, const std::string& what, uint32_t version) {
-  LMB_CHECK(version == kModelVersionWithWalk || version == kModelVersion || version == kModelVersionWithFusion ||
-                version == kModelVersionWithoutFusion,
+  LMB_CHECK(version == kModelVersionWithAgreement || version == kModelVersionWithWalk || version == kModelVersion ||
+                version == kModelVersionWithFusion || version == kModelVersionWithoutFusion,
             what << ": model format version " << version << " is not supported");
   ModelData d;
   try {
@@ -308,7 +325,7 @@ ModelData parse_model_data(const std::string& payload, const std::string& what, 
       r.value(c.target_precision);
       d.calibration = c;
     }
-    if (version == kModelVersionWithWalk) d.walk_calibration = read_walk_calibration(r, what);
+    if (version >= kModelVersionWithWalk) d.walk_calibration = read_walk_calibration(r, what, version);
     LMB_CHECK(r.bytes_left() == 0, what << ": " << r.bytes_left() << " unexpected bytes after the model");
   } catch (const cereal::Exception& e) {
     LMB_FAIL(what << ": truncated or corrupt model payload (" << e.what() << ")");
@@ -325,7 +342,7 @@ Model::Model(ModelData data) : data_(std::move(data)) {
 std::shared_ptr<const Model> Model::load(const std::filesystem::path& path) {
   uint32_t version = 0;
   const std::string payload =
-      read_container_file(path, kModelMagic, kModelVersionWithoutFusion, kModelVersionWithWalk, &version);
+      read_container_file(path, kModelMagic, kModelVersionWithoutFusion, kModelVersionWithAgreement, &version);
   return std::make_shared<const Model>(parse_model_data(payload, path.string(), version));
 }
 
@@ -333,7 +350,7 @@ std::shared_ptr<const Model> Model::from_bytes(const uint8_t* data, size_t size,
   LMB_CHECK(data != nullptr || size == 0, what << ": null buffer");
   uint32_t version = 0;
   const std::string payload =
-      open_container(data, size, kModelMagic, kModelVersionWithoutFusion, kModelVersionWithWalk, what, &version);
+      open_container(data, size, kModelMagic, kModelVersionWithoutFusion, kModelVersionWithAgreement, what, &version);
   return std::make_shared<const Model>(parse_model_data(payload, what, version));
 }
 

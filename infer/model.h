@@ -25,10 +25,12 @@
 //     pose calibration (infer/pose_confidence.h): uint32 F = PoseEvidence::kNumFeatures, F x
 //     double weights, double bias, double threshold, int64 num_samples, int64 num_positive,
 //     double target_precision;
-//   version 4 only: version 3's contents, then the walk calibration (infer/walk_confidence.h):
+//   version 4 and 5: version 3's contents, then the walk calibration (infer/walk_confidence.h):
 //     uint32 F = WalkEvidence::kNumFeatures, F x double weights, double bias, double threshold,
 //     double translation_scale_m, double rotation_scale_deg, int32 max_gap, int64 num_samples,
-//     int64 num_positive, double target_precision.
+//     int64 num_positive, double target_precision;
+//   version 5 only: then uint8 adds (0 or 1), double agreement_noise_m,
+//     double agreement_noise_deg, double agreement_step_m, double agreement_step_deg.
 // Every count is checked against the bytes left in the payload before anything is allocated.
 //
 // Threading: a Model is immutable after construction; all methods are const and may be called

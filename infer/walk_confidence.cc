@@ -50,7 +50,17 @@ double WalkCalibration::probability(const WalkEvidence& e) const {
   return 1.0 / (1.0 + std::exp(-z));
 }
 
+bool WalkCalibration::agrees(const Rigid3d& a, const Rigid3d& b, int32_t frames_apart) const {
+  if (!has_agreement()) return true;
+  const double g = static_cast<double>(std::max(1, frames_apart));
+  return position_error(a, b) <= std::sqrt(2.0) * agreement_noise_m + g * agreement_step_m &&
+         rotation_error_deg(a, b) <= std::sqrt(2.0) * agreement_noise_deg + g * agreement_step_deg;
+}
+
 void WalkCalibration::check(const std::string& where) const {
+  for (const double v : {agreement_noise_m, agreement_noise_deg, agreement_step_m, agreement_step_deg}) {
+    LMB_CHECK(std::isfinite(v) && v >= 0.0, where << ": agreement tolerance " << v << " must be finite and >= 0");
+  }
   for (int k = 0; k < kW; ++k) {
     LMB_CHECK(std::isfinite(weights[k]),
               where << ": weight " << k << " (" << WalkEvidence::feature_names()[k] << ") is not finite");
@@ -78,6 +88,10 @@ WalkCalibration fit_walk_calibration(const std::vector<WalkEvidence>& evidence, 
   c.translation_scale_m = scales.translation_scale_m;
   c.rotation_scale_deg = scales.rotation_scale_deg;
   c.max_gap = scales.max_gap;
+  c.agreement_noise_m = scales.agreement_noise_m;
+  c.agreement_noise_deg = scales.agreement_noise_deg;
+  c.agreement_step_m = scales.agreement_step_m;
+  c.agreement_step_deg = scales.agreement_step_deg;
   c.check("fit_walk_calibration");
   std::vector<std::array<double, kW>> x;
   std::vector<double> y;
@@ -99,8 +113,19 @@ WalkTracker::WalkTracker(const PoseCalibration& frame, const std::optional<WalkC
 }
 
 void WalkTracker::reset() {
+  forget_trusted();
+  forget_found();
+  compared_ = disagreed_ = 0;
+}
+
+void WalkTracker::forget_trusted() {
   last_.reset();
   since_ = 0;
+}
+
+void WalkTracker::forget_found() {
+  last_found_.reset();
+  since_found_ = 0;
 }
 
 WalkVerdict WalkTracker::update(bool success, const Rigid3d& cam_from_world, const PoseEvidence& evidence) {
@@ -112,21 +137,38 @@ WalkVerdict WalkTracker::update(bool success, const Rigid3d& cam_from_world, con
   if (has_pose) {
     v.frame_confidence = frame_.probability(evidence);
     frame_ok = v.frame_confidence >= frame_.threshold;
-    if (v.continues) {
+    if (walk_ && walk_->has_agreement() && last_found_ && since_found_ + 1 <= walk_->max_gap) {
+      v.compared = true;
+      v.agrees = walk_->agrees(*last_found_, cam_from_world, since_found_ + 1);
+      v.agreement_applies = compared_ >= kMinComparisons && 2 * disagreed_ <= compared_;
+      ++compared_;
+      disagreed_ += v.agrees ? 0 : 1;
+    }
+    if (v.continues && walk_->adds) {
       v.evidence = walk_evidence(frame_.logit(evidence), *last_, cam_from_world, elapsed);
       v.walk_confidence = walk_->probability(v.evidence);
       walk_ok = v.walk_confidence >= walk_->threshold;
     }
+    // A pose that disagrees with the frame before is refused by either rule.
+    const bool refused = v.agreement_applies && !v.agrees;
+    frame_ok = frame_ok && !refused;
+    walk_ok = walk_ok && !refused;
   }
   v.localized = frame_ok || walk_ok;
   v.by_walk = walk_ok && !frame_ok;
+  if (has_pose) {
+    last_found_ = cam_from_world;
+    since_found_ = 0;
+  } else if (last_found_ && ++since_found_ >= (walk_ ? walk_->max_gap : 1)) {
+    forget_found();
+  }
   if (v.localized) {
     last_ = cam_from_world;
     since_ = 0;
   } else if (last_) {
     ++since_;
     // The walk is lost once the last trusted pose is further back than the walk rule reads.
-    if (!walk_ || since_ >= walk_->max_gap) reset();
+    if (!walk_ || since_ >= walk_->max_gap) forget_trusted();
   }
   return v;
 }

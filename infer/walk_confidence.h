@@ -23,10 +23,24 @@
 //
 // The verdict: a pose is reported when the frame rule (the pose calibration at its operating point)
 // reports it, or when a trusted pose is at most max_gap frames back and the walk rule (this model at
-// its operating point) reports it. So the walk only adds poses that continue it: a pose far from
-// the last trusted one (a relocalization, a walk recorded at a low frame rate) is judged on its own
-// evidence, as a single frame is; a look-alike pose whose own evidence does not carry it is refused
-// on the jump even where the walk's continuing poses with the same evidence are reported.
+// its operating point) reports it. So the walk rule only adds poses that continue it: a pose far
+// from the last trusted one (a relocalization, a walk recorded at a low frame rate) is judged on its
+// own evidence, as a single frame is; a look-alike pose whose own evidence does not carry it is
+// refused on the jump even where the walk's continuing poses with the same evidence are reported.
+//
+// Agreement (when the calibration has one): neither rule reports a pose that disagrees with the
+// pose estimated for the nearest earlier frame that has one, at most max_gap frames back (trusted
+// or not). Two poses g frames apart agree when their camera centres are at
+// most sqrt(2) * noise_m + g * step_m apart and their rotations at most sqrt(2) * noise_deg +
+// g * step_deg: noise is how far a right pose strays from the truth, step how far the camera moves
+// in a frame, both measured on the map (train/eval/walk_calibration_fit.h). Two right poses of
+// neighbouring frames agree; a pose that jumps to a look-alike place, or that wanders by more than
+// a right pose does from one frame to the next, is refused whatever its own evidence. A frame with
+// no pose in the max_gap frames before it (the walk's first frame, a relocalization) is judged by
+// the frame rule alone. The test assumes the walk moves per frame as the map's walks do (video at
+// the map's frame rate or faster), so it applies only once the walk has shown that: at least
+// kMinComparisons of its poses compared so far, at most half of them disagreeing. A sequence of
+// photos metres apart, whose right poses disagree with each other, keeps the frame rule alone.
 //
 // Threading: WalkCalibration is a value; a WalkTracker follows one walk from one thread.
 #pragma once
@@ -65,8 +79,16 @@ struct LMB_INFER_EXPORT WalkCalibration {
   double threshold = 0.5;            // a pose counts as a success at this probability, in [0, 1]
   double translation_scale_m = 1.0;  // > 0, finite
   double rotation_scale_deg = 1.0;   // > 0, finite
-  int32_t max_gap = 3;               // frames elapsed at most for the walk rule, 1..1000
-  int64_t num_samples = 0;           // informative
+  int32_t max_gap = 3;               // frames elapsed at most for the walk rule and agreement, 1..1000
+  // The walk rule (the logistic above) reports poses beside the frame rule; false when it could
+  // not be fitted (no wrong sample to tell a jump from): it then reports nothing.
+  bool adds = true;
+  // Agreement (see the file comment), all >= 0 and finite; noise_m == 0: no agreement test.
+  double agreement_noise_m = 0.0;
+  double agreement_noise_deg = 0.0;
+  double agreement_step_m = 0.0;
+  double agreement_step_deg = 0.0;
+  int64_t num_samples = 0;  // informative
   int64_t num_positive = 0;
   double target_precision = 0.0;
 
@@ -74,12 +96,16 @@ struct LMB_INFER_EXPORT WalkCalibration {
   std::array<double, WalkEvidence::kNumFeatures> features(const WalkEvidence& e) const;
   // sigma(bias + weights . features), in (0, 1).
   double probability(const WalkEvidence& e) const;
+  bool has_agreement() const { return agreement_noise_m > 0.0; }
+  // Whether poses a and b of frames frames_apart (>= 1) apart agree (true without agreement).
+  bool agrees(const Rigid3d& a, const Rigid3d& b, int32_t frames_apart) const;
   // Throws lmb::Error (prefixed by `where`) naming the field.
   void check(const std::string& where = "walk calibration") const;
 };
 
 // Fits the model to evidence[i] labelled right[i] (the logistic fit of fit_pose_calibration, with
-// the same options); the scales and max_gap are taken from `scales`; the threshold is left at 0.5.
+// the same options); the scales, max_gap and agreement are taken from `scales`; the threshold is
+// left at 0.5.
 // Throws lmb::Error when the sizes differ or there is no sample.
 LMB_INFER_EXPORT WalkCalibration fit_walk_calibration(const std::vector<WalkEvidence>& evidence,
                                                       const std::vector<char>& right, const WalkCalibration& scales,
@@ -92,8 +118,14 @@ struct LMB_INFER_EXPORT WalkVerdict {
   double frame_confidence = 0.0;  // the frame rule's probability (0 without a pose)
   double walk_confidence = 0.0;   // the walk rule's (0 without a pose or when not continues)
   bool by_walk = false;           // reported by the walk rule and not by the frame rule
-  bool localized = false;         // the pose succeeded and one of the rules reports it
-  WalkEvidence evidence;          // meaningful when continues
+  // The pose was compared with an earlier frame's (agreement), whether it agreed, and whether the
+  // test applied (the walk has moved like the map's walks so far): only then does disagreeing
+  // refuse the pose.
+  bool compared = false;
+  bool agrees = true;
+  bool agreement_applies = false;
+  bool localized = false;  // the pose succeeded and one of the rules reports it
+  WalkEvidence evidence;   // meaningful when continues
 };
 
 // Follows one walk: judges each frame's pose by the frame rule and, while a trusted pose is at
@@ -101,19 +133,28 @@ struct LMB_INFER_EXPORT WalkVerdict {
 // the last trusted one. Without a walk calibration every frame is judged by the frame rule.
 class LMB_INFER_EXPORT WalkTracker {
  public:
+  // Comparisons a walk needs before the agreement test applies (see the file comment).
+  static constexpr int32_t kMinComparisons = 3;
+
   WalkTracker(const PoseCalibration& frame, const std::optional<WalkCalibration>& walk);
   // `success`: the estimator found a pose (PoseResult::success); `evidence` its evidence.
   WalkVerdict update(bool success, const Rigid3d& cam_from_world, const PoseEvidence& evidence);
-  // Forgets the last trusted pose (the next frame is judged as a first frame).
+  // Forgets the last trusted and estimated poses (the next frame is judged as a first frame).
   void reset();
   const std::optional<Rigid3d>& last_trusted() const { return last_; }
   int32_t frames_since_trusted() const { return since_; }
 
  private:
+  void forget_trusted();
+  void forget_found();
+
   PoseCalibration frame_;
   std::optional<WalkCalibration> walk_;
   std::optional<Rigid3d> last_;
-  int32_t since_ = 0;  // frames since last_ (0 right after it was set)
+  int32_t since_ = 0;                  // frames since last_ (0 right after it was set)
+  std::optional<Rigid3d> last_found_;  // the latest pose estimated, trusted or not (agreement)
+  int32_t since_found_ = 0;
+  int64_t compared_ = 0, disagreed_ = 0;  // the walk's agreement tests so far
 };
 
 }  // namespace lmb

@@ -144,7 +144,9 @@ printf '\n=== the README table\n%s\n' "$summary"
   printf '# Results of the build at hand\n\n'
   printf 'Written by `jobs/results.sh` from the reports in docs/results/. P@1 over the query keypoints '
   printf 'whose landmark is a model class; pose recall within 20 cm / 5 deg, the mean over 5 RANSAC seeds at '
-  printf '500 iterations; reported poses: those the calibrated confidence reports localized; CPU time of '
+  printf '500 iterations; reported poses: those the calibrated confidence reports localized; tracked as a '
+  printf 'walk: the frames reported right (and their precision) with each query session localized frame after '
+  printf 'frame (docs/walks.md), the mean over the seeds; CPU time of '
   printf 'matching and pose, one thread. Per data set: %s.\n\n%s\n' "${links[*]}" "$summary"
 } > "$docs/summary.md"
 section=$(mktemp)

@@ -296,8 +296,8 @@ std::vector<Row> rows() {
                "DIR/model.lbm: file too short (0 bytes) for a LMBMODEL header"});
   r.push_back({"model.lbm", "a vocabulary file instead", model_with(good_vocab_file),
                "DIR/model.lbm: not a LMBMODEL file (wrong magic)"});
-  r.push_back({"model.lbm", "format version 5", model_with([] { return with_byte(good_model_file(), 8, 5); }),
-               "DIR/model.lbm: format version 5 is not supported (this build reads versions 1 to 4)"});
+  r.push_back({"model.lbm", "format version 6", model_with([] { return with_byte(good_model_file(), 8, 6); }),
+               "DIR/model.lbm: format version 6 is not supported (this build reads versions 1 to 5)"});
   r.push_back({"model.lbm", "NaN pose calibration bias (format version 3)", model_with([nan] {
                  ModelData d = good_model_data();
                  PoseCalibration c;

@@ -13,9 +13,12 @@ namespace lmb {
 constexpr const char* kModelMagic = "LMBMODEL";
 // Version 2 appends the descriptor-distance fusion (DescriptorFusion); version 3 an optional
 // fusion and the pose calibration (PoseCalibration); version 4 adds the walk calibration
-// (WalkCalibration). A model is written in the oldest version that holds it: without a walk
-// calibration as version 3, without a pose calibration as version 1 or 2. All four are read; a
-// model of version 1 or 2 is uncalibrated (Model::calibrated() false).
+// (WalkCalibration); version 5 the walk calibration's agreement and whether its walk rule adds
+// poses. A model is written in the oldest version that holds it: a walk calibration without
+// agreement that adds poses as version 4, without a walk calibration as version 3, without a pose
+// calibration as version 1 or 2. All five are read; a model of version 1 or 2 is uncalibrated
+// (Model::calibrated() false).
+constexpr uint32_t kModelVersionWithAgreement = 5;
 constexpr uint32_t kModelVersionWithWalk = 4;
 constexpr uint32_t kModelVersion = 3;
 constexpr uint32_t kModelVersionWithFusion = 2;
@@ -24,8 +27,8 @@ constexpr uint32_t kModelVersionWithoutFusion = 1;
 // The payload (cereal portable binary, see infer/model.h) and its inverse. parse throws
 // lmb::Error naming `what` for truncated or corrupt bytes, a count larger than the bytes left,
 // or contents that fail ModelData::check. The payload's version is model_file_version(data):
-// kModelVersionWithWalk with a walk calibration, kModelVersion with a calibration, else kModelVersionWithFusion with a
-// fusion, else kModelVersionWithoutFusion; parse reads each.
+// kModelVersionWithAgreement or kModelVersionWithWalk with a walk calibration, kModelVersion with a calibration, else
+// kModelVersionWithFusion with a fusion, else kModelVersionWithoutFusion; parse reads each.
 std::string serialize_model_data(const ModelData& data);
 ModelData parse_model_data(const std::string& payload, const std::string& what, uint32_t version = kModelVersion);
 uint32_t model_file_version(const ModelData& data);

@@ -663,7 +663,8 @@ finding a pose is result.success False.)");
   py::class_<WalkTracker>(m, "WalkTracker", R"(Judges the frames of one walk (a camera localized frame after frame):
 WalkTracker(model). A frame's pose is reported when the model's pose calibration reports it, or when it
 continues the walk (a small step from the last trusted pose) by the model's walk calibration
-(model.walk_calibrated). One tracker follows one camera.)")
+(model.walk_calibrated), and, when that calibration has an agreement, it agrees with the pose of the frame
+before. One tracker follows one camera.)")
       .def(py::init([](const std::shared_ptr<Model>& model) {
              if (!model->calibrated()) {
                LMB_FAIL("WalkTracker: the model has no pose calibration (lboost export or lboost calibrate)");
@@ -681,13 +682,17 @@ continues the walk (a small step from the last trusted pose) by the model's walk
             d["by_walk"] = v.by_walk;
             d["frame_confidence"] = v.frame_confidence;
             d["walk_confidence"] = v.walk_confidence;
+            d["agrees"] = v.compared ? py::cast(v.agrees) : py::none();
+            d["agreement_applies"] = v.agreement_applies;
             return d;
           },
           py::arg("result"),
           R"(Judges the walk's next frame (a LocalizeResult of Localizer.localize) and returns a dict: localized (the
 answer to act on), continues (the walk rule judged it: a trusted pose at most a few frames back), by_walk
-(reported by the walk rule alone), frame_confidence, walk_confidence.)")
-      .def("reset", &WalkTracker::reset, "Forgets the last trusted pose.")
+(reported by the walk rule alone), frame_confidence, walk_confidence, agrees (None when the pose was not
+compared with an earlier frame's, else whether it agreed), agreement_applies (the walk has moved like the map's
+walks so far: a pose that disagrees is then not reported).)")
+      .def("reset", &WalkTracker::reset, "Forgets the last trusted and estimated poses.")
       .def_property_readonly("last_trusted", [](const WalkTracker& t) -> py::object {
         if (!t.last_trusted()) return py::none();
         return py::cast(*t.last_trusted());

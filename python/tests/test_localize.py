@@ -244,8 +244,12 @@ def test_walk_tracker_reports_what_the_frame_rule_reports_and_more(tiny):
     for i, (f, frame) in enumerate(query_frames(m)):
         r = localize_frame(localizer, m, f)
         v = tracker.update(r)
-        # The frame rule's verdict is kept; the walk rule may add a pose that continues the walk.
-        assert v["localized"] == (r.success or v["by_walk"]), frame.name
+        # The frame rule's verdict is kept unless the pose disagrees with the frame before; the walk
+        # rule may add a pose that continues the walk.
+        refused = v["agreement_applies"] and v["agrees"] is False
+        assert v["localized"] == ((r.success or v["by_walk"]) and not refused), frame.name
+        if i == 0:
+            assert v["agrees"] is None
         assert v["frame_confidence"] == (r.confidence if r.pose_found else 0.0), frame.name
         if i == 0:
             assert not v["continues"]

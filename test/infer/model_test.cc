@@ -4,6 +4,7 @@
 #include "infer/detail/scoring_index.h"
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -195,6 +196,24 @@ TEST(ModelTest, CalibrationRoundTripBitForBitAndOlderVersionsLoadUncalibrated) {
   }
 }
 
+// The walk calibration of `d` after a round trip through its bytes, which are written as
+// `version` and come back bit for bit.
+WalkCalibration walk_round_trip(const ModelData& d, uint32_t version) {
+  const std::vector<uint8_t> bytes = Model(d).to_bytes();
+  EXPECT_EQ(bytes[8], version);
+  const auto back = Model::from_bytes(bytes.data(), bytes.size());
+  EXPECT_EQ(back->to_bytes(), bytes);
+  EXPECT_TRUE(back->walk_calibration().has_value());
+  return back->walk_calibration().value_or(WalkCalibration{});
+}
+
+// Every cut of `payload` in its last `tail` bytes fails to parse as `version`.
+void expect_cuts_rejected(const std::string& payload, size_t tail, uint32_t version) {
+  for (size_t size = payload.size() - tail; size < payload.size(); ++size) {
+    EXPECT_THROW(parse_model_data(payload.substr(0, size), "t", version), Error) << "cut at " << size;
+  }
+}
+
 // Version 4: the walk calibration round-trips bit for bit beside the pose calibration; without it
 // the model is written as version 3; a walk calibration without a pose calibration, a corrupt
 // field or a cut anywhere in it is an error.
@@ -213,11 +232,7 @@ TEST(ModelTest, WalkCalibrationRoundTripsAsVersion4) {
   w.num_positive = 22;
   w.target_precision = 0.95;
   d.walk_calibration = w;
-  const std::vector<uint8_t> bytes = Model(d).to_bytes();
-  EXPECT_EQ(bytes[8], kModelVersionWithWalk);
-  const auto back = Model::from_bytes(bytes.data(), bytes.size());
-  ASSERT_TRUE(back->walk_calibration().has_value());
-  const WalkCalibration& b = *back->walk_calibration();
+  const WalkCalibration b = walk_round_trip(d, kModelVersionWithWalk);
   EXPECT_EQ(std::memcmp(w.weights.data(), b.weights.data(), sizeof(w.weights)), 0);
   EXPECT_EQ(b.bias, w.bias);
   EXPECT_EQ(b.threshold, w.threshold);
@@ -226,11 +241,8 @@ TEST(ModelTest, WalkCalibrationRoundTripsAsVersion4) {
   EXPECT_EQ(b.max_gap, w.max_gap);
   EXPECT_EQ(b.num_samples, w.num_samples);
   EXPECT_EQ(b.num_positive, w.num_positive);
-  EXPECT_EQ(back->to_bytes(), bytes);
   const std::string payload = serialize_model_data(d);
-  for (size_t size = payload.size() - 90; size < payload.size(); ++size) {
-    EXPECT_THROW(parse_model_data(payload.substr(0, size), "t", kModelVersionWithWalk), Error) << "cut at " << size;
-  }
+  expect_cuts_rejected(payload, 90, kModelVersionWithWalk);
   // Read as version 3, the walk calibration is bytes after the model.
   EXPECT_THROW(parse_model_data(payload, "t", kModelVersion), Error);
   ModelData no_pose = d;
@@ -244,6 +256,48 @@ TEST(ModelTest, WalkCalibrationRoundTripsAsVersion4) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("rotation_scale_deg"), std::string::npos) << e.what();
   }
+}
+
+// Version 5: a walk calibration with agreement (or without a walk rule) round-trips bit for bit;
+// version 4 files read as a walk rule without agreement; a cut or a flag other than 0 or 1 is an
+// error.
+TEST(ModelTest, WalkAgreementRoundTripsAsVersion5) {
+  ModelData d = make_code_model_data(some_positions(6));
+  d.calibration = some_calibration();
+  WalkCalibration w;
+  w.translation_scale_m = 0.31;
+  w.rotation_scale_deg = 7.5;
+  w.adds = false;
+  w.threshold = 1.0;
+  w.agreement_noise_m = 0.076;
+  w.agreement_noise_deg = 1.96;
+  w.agreement_step_m = 0.015;
+  w.agreement_step_deg = 0.81;
+  d.walk_calibration = w;
+  const WalkCalibration b = walk_round_trip(d, kModelVersionWithAgreement);
+  EXPECT_FALSE(b.adds);
+  EXPECT_EQ(b.agreement_noise_m, w.agreement_noise_m);
+  EXPECT_EQ(b.agreement_noise_deg, w.agreement_noise_deg);
+  EXPECT_EQ(b.agreement_step_m, w.agreement_step_m);
+  EXPECT_EQ(b.agreement_step_deg, w.agreement_step_deg);
+  const std::string payload = serialize_model_data(d);
+  expect_cuts_rejected(payload, 40, kModelVersionWithAgreement);
+  // The adds flag is the byte after the version 4 fields: 2 is refused.
+  std::string flag = payload;
+  flag[payload.size() - 33] = 2;
+  EXPECT_THROW(parse_model_data(flag, "t", kModelVersionWithAgreement), Error);
+  // Read as version 4, the agreement is bytes after the model.
+  EXPECT_THROW(parse_model_data(payload, "t", kModelVersionWithWalk), Error);
+  // A version 4 payload reads as a walk rule that adds poses, without agreement.
+  d.walk_calibration->adds = true;
+  d.walk_calibration->agreement_noise_m = 0.0;
+  EXPECT_EQ(model_file_version(d), kModelVersionWithWalk);
+  const ModelData v4 = parse_model_data(serialize_model_data(d), "t", kModelVersionWithWalk);
+  EXPECT_TRUE(v4.walk_calibration->adds);
+  EXPECT_FALSE(v4.walk_calibration->has_agreement());
+  ModelData bad = d;
+  bad.walk_calibration->agreement_step_deg = std::nan("");
+  EXPECT_THROW(Model{bad}, Error);
 }
 
 // A corrupt calibration field fails with one line naming the file and the field.
@@ -388,7 +442,7 @@ TEST(ModelTest, RejectsWrongMagicVersionAndCrc) {
   bad[0] = 'X';
   EXPECT_NE(expect_rejected(bad).find("magic"), std::string::npos);
   bad = good;
-  bad[8] = 5;  // version 5
+  bad[8] = 6;  // version 6
   EXPECT_NE(expect_rejected(bad).find("version"), std::string::npos);
   bad = good;
   bad[kContainerHeaderBytes + 10] ^= 0x40;

@@ -1,7 +1,8 @@
 // The walk confidence (infer/walk_confidence.h): the evidence of a step against hand-worked
 // values, the fit's direction on synthetic walks (a continuing pose is trusted, a jump is not),
 // the tracker's rules (a right walk keeps reporting, a jump to a look-alike is refused on the jump,
-// a lost walk falls back to the frame rule) and monotonicity in the inlier support and the step.
+// a lost walk falls back to the frame rule; agreement refuses a pose that disagrees with the frame
+// before it whatever its own evidence) and monotonicity in the inlier support and the step.
 #include "infer/walk_confidence.h"
 
 #include <cmath>
@@ -183,6 +184,124 @@ TEST(WalkTracker, ALostWalkFallsBackToTheFrameRule) {
   v = frame_only.update(true, pose_at(0.1), evidence_with(20));
   EXPECT_FALSE(v.continues);
   EXPECT_FALSE(v.localized);
+}
+
+// Agreement alone (the walk rule not fitted): noise 0.02 m / 0.5 deg, step 0.05 m / 1 deg a frame.
+WalkCalibration agreement_only() {
+  WalkCalibration c;
+  c.adds = false;
+  c.threshold = 1.0;
+  c.agreement_noise_m = 0.02;
+  c.agreement_noise_deg = 0.5;
+  c.agreement_step_m = 0.05;
+  c.agreement_step_deg = 1.0;
+  return c;
+}
+
+TEST(WalkCalibration, AgreementToleranceGrowsWithTheFramesApart) {
+  const WalkCalibration c = agreement_only();
+  // One frame apart: sqrt(2) * 0.02 + 0.05 = 0.0783 m; two: 0.1283 m.
+  EXPECT_TRUE(c.agrees(pose_at(0.0), pose_at(0.078), 1));
+  EXPECT_FALSE(c.agrees(pose_at(0.0), pose_at(0.079), 1));
+  EXPECT_TRUE(c.agrees(pose_at(0.0), pose_at(0.128), 2));
+  EXPECT_FALSE(c.agrees(pose_at(0.0), pose_at(0.129), 2));
+  // Rotation: sqrt(2) * 0.5 + 1 = 1.707 deg a frame apart.
+  EXPECT_TRUE(c.agrees(pose_at(0.0), pose_at(0.0, 1.70), 1));
+  EXPECT_FALSE(c.agrees(pose_at(0.0), pose_at(0.0, 1.71), 1));
+  // Without agreement every pair agrees.
+  EXPECT_TRUE(WalkCalibration().agrees(pose_at(0.0), pose_at(50.0, 90.0), 1));
+  WalkCalibration bad = agreement_only();
+  bad.agreement_step_m = -1.0;
+  EXPECT_THROW(bad.check(), Error);
+}
+
+TEST(WalkTracker, AgreementRefusesAJumpTheFrameRuleWouldReport) {
+  // Every pose has the frame rule's support (80 inliers): without agreement each is reported.
+  const PoseCalibration frame = frame_calibration();
+  WalkTracker tracker(frame, agreement_only());
+  WalkVerdict v = tracker.update(true, pose_at(0.0), evidence_with(80));
+  EXPECT_FALSE(v.compared);  // the walk's first frame: the frame rule alone
+  EXPECT_TRUE(v.localized);
+  // A right walk, 4 cm a frame, keeps reporting; the test applies from its 4th comparison on.
+  for (int i = 1; i <= 5; ++i) {
+    v = tracker.update(true, pose_at(0.04 * i, 0.3 * i), evidence_with(80));
+    EXPECT_TRUE(v.compared && v.agrees) << "frame " << i;
+    EXPECT_EQ(v.agreement_applies, i > WalkTracker::kMinComparisons) << "frame " << i;
+    EXPECT_TRUE(v.localized) << "frame " << i;
+    EXPECT_FALSE(v.by_walk) << "frame " << i;
+  }
+  // A look-alike 1.2 m away, with the frame rule's support, is refused on the jump ...
+  v = tracker.update(true, pose_at(1.4), evidence_with(80));
+  EXPECT_TRUE(v.compared && v.agreement_applies);
+  EXPECT_FALSE(v.agrees);
+  EXPECT_FALSE(v.localized);
+  // ... and so is the right pose after it (it disagrees with the look-alike), until two
+  // neighbouring right poses agree again.
+  v = tracker.update(true, pose_at(0.28, 2.1), evidence_with(80));
+  EXPECT_FALSE(v.localized);
+  v = tracker.update(true, pose_at(0.32, 2.4), evidence_with(80));
+  EXPECT_TRUE(v.agrees);
+  EXPECT_TRUE(v.localized);
+  // A pose that wanders 0.15 m from one frame to the next is refused: a right pose does not.
+  v = tracker.update(true, pose_at(0.47, 2.4), evidence_with(80));
+  EXPECT_FALSE(v.localized);
+  // A frame with no pose in the max_gap (3) frames before it is judged by the frame rule alone.
+  for (int i = 0; i < 3; ++i) EXPECT_FALSE(tracker.update(false, Rigid3d(), PoseEvidence()).localized);
+  v = tracker.update(true, pose_at(5.0), evidence_with(80));
+  EXPECT_FALSE(v.compared);
+  EXPECT_TRUE(v.localized);
+  // Within max_gap frames the tolerance grows with the frames apart: after one frame without a
+  // pose, 0.12 m is within 2 frames' tolerance (0.128 m).
+  EXPECT_FALSE(tracker.update(false, Rigid3d(), PoseEvidence()).localized);
+  v = tracker.update(true, pose_at(5.12), evidence_with(80));
+  EXPECT_TRUE(v.compared && v.agrees);
+  EXPECT_TRUE(v.localized);
+  // reset() forgets the estimated poses too.
+  tracker.reset();
+  EXPECT_FALSE(tracker.update(true, pose_at(9.0), evidence_with(80)).compared);
+}
+
+TEST(WalkTracker, AgreementBindsTheWalkRuleToo) {
+  const PoseCalibration frame = frame_calibration();
+  WalkCalibration walk = fitted_walk();
+  walk.agreement_noise_m = 0.05;  // a frame apart: sqrt(2) * 0.05 + 0.05 = 0.1207 m
+  walk.agreement_noise_deg = 1.0;
+  walk.agreement_step_m = 0.05;
+  walk.agreement_step_deg = 1.0;
+  WalkTracker tracker(frame, walk);
+  ASSERT_TRUE(tracker.update(true, pose_at(0.0), evidence_with(80)).localized);
+  // 20 inliers: the walk rule reports poses that continue the walk and agree.
+  WalkVerdict v;
+  for (int i = 1; i <= 3; ++i) {
+    v = tracker.update(true, pose_at(0.1 * i), evidence_with(20));
+    EXPECT_TRUE(v.by_walk) << "frame " << i;
+  }
+  // A look-alike 3 m on: refused.
+  EXPECT_FALSE(tracker.update(true, pose_at(3.3), evidence_with(20)).localized);
+  // The next pose continues the trusted one (the walk rule's probability passes) but disagrees
+  // with the look-alike estimated just before it: refused.
+  v = tracker.update(true, pose_at(0.5), evidence_with(20));
+  EXPECT_TRUE(v.continues);
+  EXPECT_GE(v.walk_confidence, walk.threshold);
+  EXPECT_TRUE(v.agreement_applies);
+  EXPECT_FALSE(v.agrees);
+  EXPECT_FALSE(v.localized);
+  // The one after agrees with it and continues the walk: reported again.
+  v = tracker.update(true, pose_at(0.58), evidence_with(20));
+  EXPECT_TRUE(v.agrees);
+  EXPECT_TRUE(v.localized);
+}
+
+TEST(WalkTracker, PhotosMetresApartKeepTheFrameRule) {
+  // Right poses 2 m apart each frame disagree with each other: the walk does not move like the
+  // map's walks, so the agreement never applies and the frame rule reports every pose.
+  WalkTracker tracker(frame_calibration(), agreement_only());
+  for (int i = 0; i < 8; ++i) {
+    const WalkVerdict v = tracker.update(true, pose_at(2.0 * i), evidence_with(80));
+    EXPECT_EQ(v.compared, i > 0) << "frame " << i;
+    EXPECT_FALSE(v.agreement_applies) << "frame " << i;
+    EXPECT_TRUE(v.localized) << "frame " << i;
+  }
 }
 
 TEST(WalkCalibration, InvalidFieldsAreNamed) {

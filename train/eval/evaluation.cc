@@ -326,6 +326,13 @@ std::vector<WalkInput> query_walks(const LandmarkMap& map, const std::vector<Eva
   return walks;
 }
 
+std::string walk_calibration_words(const nlohmann::json& c) {
+  if (!c.at("fitted").get<bool>()) return "not fitted";
+  const bool adds = c.at("adds").get<bool>();
+  const bool agreement = !c.at("agreement").is_null();
+  return adds && agreement ? "fitted, with agreement" : adds ? "fitted" : "agreement only";
+}
+
 void log_walks(const std::string& name, const nlohmann::json& walk) {
   const nlohmann::json s = walk_summary(walk);
   const auto mean = [&](const char* rule, const char* field) { return s.at(rule).at(field).at("mean").get<double>(); };
@@ -333,7 +340,7 @@ void log_walks(const std::string& name, const nlohmann::json& walk) {
       "eval: {}: walks (mean over seeds): frame rule {:.1f} reported right, precision {:.3f}; walk rule {:.1f} "
       "reported right, precision {:.3f} (walk calibration {})",
       name, mean("frame_rule", "reported_right"), mean("frame_rule", "precision"), mean("walk_rule", "reported_right"),
-      mean("walk_rule", "precision"), walk.at("calibration").at("fitted").get<bool>() ? "fitted" : "not fitted");
+      mean("walk_rule", "precision"), walk_calibration_words(walk.at("calibration")));
 }
 
 // A method's precision@1 and MRR on the held-out map observations, its baselines searching the
@@ -547,7 +554,9 @@ MethodsOutcome run_methods(const EvalOptions& a, const std::shared_ptr<const Mod
         : a.training_set             ? std::string(" held out of training by the run")
                          : std::string(" the default training options hold out (--run RUN_DIR: the run's own)"),
         fit.num_poses, fit.num_right, fit.num_elsewhere,
-        fit.fitted ? fmt::format(", operating point {:.4f}", fit.calibration.threshold) : std::string(", not fitted"));
+        !fit.fitted            ? std::string(", not fitted")
+        : fit.saw_wrong_pose() ? fmt::format(", operating point {:.4f}", fit.calibration.threshold)
+                               : std::string(", none wrong: every pose the inlier rule finds is reported"));
     MethodRun run = evaluate_method(method, context, queries, query_session, num_sessions, fit);
     o.confidence[name] = pose_confidence_report(run.result, fit, a.pose.max_iterations);
     std::vector<std::vector<FrameOutcome>> outside_by_seed;

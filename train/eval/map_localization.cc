@@ -175,7 +175,7 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
                             bool localizer_calibrated) {
   std::vector<double> position_errors, rotation_errors;
   int localized = 0, pose_found = 0, pose_found_right = 0, within_5cm_1deg = 0, within_20cm_5deg = 0;
-  int walk_localized = 0, walk_right = 0, walk_added = 0;
+  int walk_localized = 0, walk_right = 0, walk_added = 0, walk_refused = 0;
   double total_ms = 0, embedding_ms = 0, classification_ms = 0, pose_ms = 0;
   std::vector<KeypointMatch> matches;
   for (size_t i = 0; i < frames.size(); ++i) {
@@ -188,6 +188,7 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
     const Rigid3d& truth = map.frames[frames[i]].cam_from_world;
     pose_found += r.pose.success;
     pose_found_right += r.pose.success && pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
+    walk_refused += walk[i].agreement_applies && !walk[i].agrees;
     if (walk[i].localized) {
       ++walk_localized;
       walk_right += pose_within(r.pose.cam_from_world, truth, PoseThresholds{0.20, 5.0});
@@ -214,6 +215,7 @@ nlohmann::json summary_json(const LandmarkMap& map, const std::vector<frame_t>& 
            {{"localized", walk_localized},
             {"within_20cm_5deg", walk_right},
             {"by_walk_rule", walk_added},
+            {"disagreeing", walk_refused},
             {"precision_20cm_5deg", walk_localized > 0 ? static_cast<double>(walk_right) / walk_localized : 0.0}}},
           {"median_position_error_m", median(position_errors)},
           {"median_rotation_error_deg", median(rotation_errors)},
@@ -261,11 +263,17 @@ nlohmann::json localize_map_frames(const std::shared_ptr<const Model>& model, co
     jf["walk"] = {{"localized", walk[i].localized},
                   {"by_walk_rule", walk[i].by_walk},
                   {"continues", walk[i].continues},
-                  {"walk_confidence", walk[i].walk_confidence}};
+                  {"walk_confidence", walk[i].walk_confidence},
+                  {"agrees", walk[i].compared ? nlohmann::json(walk[i].agrees) : nlohmann::json(nullptr)},
+                  {"agreement_applies", walk[i].agreement_applies}};
     jframes.push_back(std::move(jf));
   }
   out["frames"] = std::move(jframes);
   out["summary"] = summary_json(map, frames, outcomes, walk, model->calibrated());
+  // A calibration fitted on right poses only reports every pose found (the constant 0.5).
+  out["summary"]["calibration_saw_wrong_pose"] =
+      model->calibrated() ? nlohmann::json(model->calibration().num_positive < model->calibration().num_samples)
+                          : nlohmann::json(nullptr);
   out["calibration"] =
       model->calibrated()
           ? nlohmann::json{{"threshold", localizer.options().min_confidence >= 0 ? localizer.options().min_confidence
@@ -289,22 +297,24 @@ std::string map_localization_summary_line(const nlohmann::json& s, int threads) 
       line, sizeof(line),
       "localize: %d/%zu frames localized (%s; precision %.3f at 20 cm/5 deg; %d/%zu with >= min-inliers inliers, %d of "
       "them right), %d within 5 cm/1 deg, %d within 20 cm/5 deg; tracked as walks %d localized (%d by the walk "
-      "rule), precision %.3f; median error "
+      "rule, %d poses disagreeing with the frame before), precision %.3f; median error "
       "%.3f m %.2f deg (localized frames); match recall %.3f of %lld keypoints whose true landmark is a "
       "model class, match precision %.3f of %lld accepted matches, background rejection %.3f of %lld "
       "background keypoints; %.1f ms/frame (embedding %.1f, classification %.1f, pose %.1f, %d thread(s))",
       s.at("localized").get<int>(), s.at("frames").get<size_t>(),
-      s.at("calibrated").get<bool>() ? "calibrated confidence" : "uncalibrated model: inlier rule",
+      !s.at("calibrated").get<bool>()               ? "uncalibrated model: inlier rule"
+      : s.value("calibration_saw_wrong_pose", true) ? "calibrated confidence"
+                                                    : "a calibration that saw no wrong pose: every pose found",
       s.at("precision_20cm_5deg").get<double>(), s.at("pose_found").get<int>(), s.at("frames").get<size_t>(),
       s.at("pose_found_within_20cm_5deg").get<int>(), s.at("within_5cm_1deg").get<int>(),
       s.at("within_20cm_5deg").get<int>(), s.at("walk").at("localized").get<int>(),
-      s.at("walk").at("by_walk_rule").get<int>(), s.at("walk").at("precision_20cm_5deg").get<double>(),
-      s.at("median_position_error_m").get<double>(), s.at("median_rotation_error_deg").get<double>(),
-      s.at("match_recall").get<double>(), s.at("keypoints_with_class_truth").get<long long>(),
-      s.at("match_precision").get<double>(), s.at("accepted_matches").get<long long>(),
-      s.at("background_rejection_rate").get<double>(), s.at("background_keypoints").get<long long>(),
-      ms.at("total").get<double>(), ms.at("embedding").get<double>(), ms.at("classification").get<double>(),
-      ms.at("pose").get<double>(), threads);
+      s.at("walk").at("by_walk_rule").get<int>(), s.at("walk").at("disagreeing").get<int>(),
+      s.at("walk").at("precision_20cm_5deg").get<double>(), s.at("median_position_error_m").get<double>(),
+      s.at("median_rotation_error_deg").get<double>(), s.at("match_recall").get<double>(),
+      s.at("keypoints_with_class_truth").get<long long>(), s.at("match_precision").get<double>(),
+      s.at("accepted_matches").get<long long>(), s.at("background_rejection_rate").get<double>(),
+      s.at("background_keypoints").get<long long>(), ms.at("total").get<double>(), ms.at("embedding").get<double>(),
+      ms.at("classification").get<double>(), ms.at("pose").get<double>(), threads);
   return line;
 }
 

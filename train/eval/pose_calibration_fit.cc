@@ -119,6 +119,7 @@ nlohmann::json CalibrationFit::to_json() const {
                       {"poses_elsewhere_passed", elsewhere_passed},
                       {"poses_passed_right", passed_right}};
   if (fitted) {
+    j["saw_wrong_pose"] = saw_wrong_pose();
     nlohmann::json weights = nlohmann::json::object();
     for (int k = 0; k < PoseEvidence::kNumFeatures; ++k) {
       weights[PoseEvidence::feature_names()[k]] = calibration.weights[k];
@@ -176,6 +177,19 @@ CalibrationFit fit_calibration_on_poses(std::vector<CalibrationPose> poses, int6
   fit.num_poses = static_cast<int64_t>(evidence.size());
   fit.num_right = std::count(right.begin(), right.end(), 1);
   if (fit.num_poses < options.min_poses) return fit;
+  if (!fit.saw_wrong_pose()) {
+    // Nothing tells a wrong pose from a right one: a logistic fitted on one label is a constant
+    // near 1 whatever the evidence. Say so instead: every pose is 0.5 and reported.
+    fit.calibration = PoseCalibration{};
+    fit.calibration.threshold = 0.0;
+    fit.calibration.num_samples = fit.num_poses;
+    fit.calibration.num_positive = fit.num_right;
+    fit.calibration.target_precision = options.target_precision;
+    fit.passed = fit.passed_right = fit.num_poses;
+    fit.elsewhere_passed = fit.num_elsewhere;
+    fit.fitted = true;
+    return fit;
+  }
   fit.calibration = fit_pose_calibration(evidence, right);
   std::vector<double> p;
   for (const PoseEvidence& e : evidence) p.push_back(fit.calibration.probability(e));

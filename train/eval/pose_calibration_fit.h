@@ -103,6 +103,10 @@ struct CalibrationFit {
   int64_t passed = 0;                  // poses at or above the operating point
   int64_t passed_right = 0;            // of them right
   std::vector<CalibrationPose> poses;  // the poses fitted on (what the walk calibration reads)
+  // Whether a fitted pose is wrong. When none is, the calibration cannot tell a wrong pose from a
+  // right one: it is the constant 0.5 with operating point 0 (every pose the inlier rule finds is
+  // reported), and the walks' agreement (walk_calibration_fit.h) is what still refuses a pose.
+  bool saw_wrong_pose() const { return num_right < num_poses; }
   // Which frames: "cross_fitted" (each fold by the fold model without it), "held_out" (frames
   // the model's training held out) or "trained" (frames it trained on: a small map without folds).
   std::string frames_source = "trained";

@@ -1,5 +1,6 @@
 #include "train/eval/run_export.h"
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -89,6 +90,13 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
       fit.num_frames, how, fit.num_poses, fit.num_elsewhere, fit.num_right, fit.calibration.threshold,
       fit.calibration.target_precision, fit.precision_threshold, options.max_elsewhere_share, fit.elsewhere_threshold,
       fit.passed, fit.passed_right, fit.elsewhere_passed);
+  if (!fit.saw_wrong_pose()) {
+    spdlog::warn(
+        "export: pose calibration: none of the {} poses is wrong, so nothing tells a wrong pose from a right one: "
+        "every pose the inlier rule finds is reported (confidence 0.5); in a walk, the agreement of neighbouring "
+        "frames' poses still refuses a pose",
+        fit.num_poses);
+  }
   // The walk calibration on the same poses: the calibration frames in session order are walks.
   const WalkCalibrationFit walk = fit_walk_calibration_on_map(map, fit, options);
   if (!walk.fitted) {
@@ -99,12 +107,26 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
     return;
   }
   data.walk_calibration = walk.calibration;
-  spdlog::info(
-      "export: walk calibration on {} walk samples ({} right, {} elsewhere; median step {:.3f} m, {:.2f} deg): "
-      "operating point {:.4f}; either rule reports {} samples, {} right, {} of them elsewhere",
-      walk.num_samples, walk.num_right, walk.num_elsewhere, walk.calibration.translation_scale_m,
-      walk.calibration.rotation_scale_deg, walk.calibration.threshold, walk.passed, walk.passed_right,
-      walk.elsewhere_passed);
+  const WalkCalibration& w = walk.calibration;
+  if (w.adds) {
+    spdlog::info(
+        "export: walk calibration on {} walk samples ({} right, {} elsewhere; median step {:.3f} m, {:.2f} deg): "
+        "operating point {:.4f}; either rule reports {} samples, {} right, {} of them elsewhere",
+        walk.num_samples, walk.num_right, walk.num_elsewhere, w.translation_scale_m, w.rotation_scale_deg, w.threshold,
+        walk.passed, walk.passed_right, walk.elsewhere_passed);
+  } else {
+    spdlog::info(
+        "export: walk rule not fitted ({} walk samples, {} right): a tracked frame is judged by the pose "
+        "calibration and the agreement",
+        walk.num_samples, walk.num_right);
+  }
+  if (w.has_agreement()) {
+    spdlog::info(
+        "export: walk agreement: poses of frames g apart agree within {:.3f} m + g x {:.3f} m and {:.2f} deg + g x "
+        "{:.2f} deg (right calibration poses' error and the map walks' step per frame, {} quantiles)",
+        std::sqrt(2.0) * w.agreement_noise_m, w.agreement_step_m, std::sqrt(2.0) * w.agreement_noise_deg,
+        w.agreement_step_deg, options.target_precision);
+  }
 }
 
 std::filesystem::path fold_run_dir(const std::filesystem::path& run_dir, int32_t fold) {

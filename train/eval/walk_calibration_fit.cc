@@ -35,6 +35,39 @@ std::vector<std::vector<WalkFrame>> calibration_walks(const LandmarkMap& map, co
   return out;
 }
 
+// The agreement tolerances (infer/walk_confidence.h) measured on the map: noise, the
+// target_precision-quantile of the right "as is" calibration poses' errors against their map
+// poses; step, the same quantile of the truth's motion between consecutive frames of a map
+// session (every map-session frame, in map order). False when fewer than min_poses right poses or
+// no step are there to measure.
+bool fit_agreement(const LandmarkMap& map, const CalibrationFit& frame_fit, const PoseCalibrationOptions& options,
+                   WalkCalibration* out) {
+  std::vector<double> noise_m, noise_deg, step_m, step_deg;
+  for (const CalibrationPose& p : frame_fit.poses) {
+    if (p.elsewhere || !p.right) continue;
+    noise_m.push_back(position_error(p.cam_from_world, map.frames[p.frame].cam_from_world));
+    noise_deg.push_back(rotation_error_deg(p.cam_from_world, map.frames[p.frame].cam_from_world));
+  }
+  std::map<int32_t, const MapFrame*> previous;  // per map session, its latest frame so far
+  for (const MapFrame& f : map.frames) {
+    if (f.is_query) continue;
+    const auto it = previous.find(f.session);
+    if (it != previous.end()) {
+      step_m.push_back(position_error(it->second->cam_from_world, f.cam_from_world));
+      step_deg.push_back(rotation_error_deg(it->second->cam_from_world, f.cam_from_world));
+    }
+    previous[f.session] = &f;
+  }
+  if (static_cast<int64_t>(noise_m.size()) < options.min_poses || step_m.empty()) return false;
+  const double q = options.target_precision;
+  // Floors: a pose is never asked to agree more tightly than 1 mm and 0.01 degrees.
+  out->agreement_noise_m = std::max(1e-3, quantile(noise_m, q));
+  out->agreement_noise_deg = std::max(0.01, quantile(noise_deg, q));
+  out->agreement_step_m = quantile(step_m, q);
+  out->agreement_step_deg = quantile(step_deg, q);
+  return true;
+}
+
 }  // namespace
 
 nlohmann::json WalkCalibrationFit::to_json() const {
@@ -59,6 +92,12 @@ nlohmann::json WalkCalibrationFit::to_json() const {
     j["rotation_scale_deg"] = calibration.rotation_scale_deg;
     j["max_gap"] = calibration.max_gap;
     j["target_precision"] = calibration.target_precision;
+    j["adds"] = calibration.adds;
+    j["agreement"] = calibration.has_agreement() ? nlohmann::json{{"noise_m", calibration.agreement_noise_m},
+                                                                  {"noise_deg", calibration.agreement_noise_deg},
+                                                                  {"step_m", calibration.agreement_step_m},
+                                                                  {"step_deg", calibration.agreement_step_deg}}
+                                                 : nlohmann::json(nullptr);
   }
   return j;
 }
@@ -82,11 +121,23 @@ WalkCalibrationFit fit_walk_calibration_on_map(const LandmarkMap& map, const Cal
       steps_deg.push_back(rotation_error_deg(a->cam_from_world, b->cam_from_world));
     }
   }
-  if (steps_m.empty()) return fit;
   WalkCalibration scales;
+  scales.max_gap = max_gap;
+  const bool agreement = fit_agreement(map, frame_fit, options, &scales);
+  // Without a walk rule to fit, the calibration is the agreement alone (or nothing).
+  const auto agreement_only = [&](WalkCalibrationFit f) {
+    if (!agreement) return f;
+    f.calibration = scales;
+    f.calibration.adds = false;
+    f.calibration.threshold = 1.0;
+    f.calibration.target_precision = options.target_precision;
+    f.calibration.check("walk calibration");
+    f.fitted = true;
+    return f;
+  };
+  if (steps_m.empty()) return agreement_only(fit);
   scales.translation_scale_m = std::max(1e-3, median(steps_m));
   scales.rotation_scale_deg = std::max(0.05, median(steps_deg));
-  scales.max_gap = max_gap;
 
   std::vector<WalkEvidence> evidence;
   std::vector<char> right, is_elsewhere, frame_passes;
@@ -119,7 +170,9 @@ WalkCalibrationFit fit_walk_calibration_on_map(const LandmarkMap& map, const Cal
   fit.num_samples = static_cast<int64_t>(evidence.size());
   fit.num_right = std::count(right.begin(), right.end(), 1);
   fit.num_elsewhere = std::count(is_elsewhere.begin(), is_elsewhere.end(), 1);
-  if (fit.num_samples < options.min_poses || fit.num_right == fit.num_samples || fit.num_right == 0) return fit;
+  if (fit.num_samples < options.min_poses || fit.num_right == fit.num_samples || fit.num_right == 0) {
+    return agreement_only(fit);
+  }
   fit.calibration = fit_walk_calibration(evidence, right, scales);
   // The operating point is set on the samples the frame rule does not report: what the walk rule
   // adds must itself be right at the target precision, and add at most the allowed share of

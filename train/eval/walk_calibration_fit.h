@@ -14,9 +14,15 @@
 // the samples the frame rule does not report: the higher of precision_threshold at
 // target_precision over them and the smallest probability above which at most max_elsewhere_share
 // of all "elsewhere" samples are added (a walk that leaves the map stops reporting). "passed"
-// counts the samples either rule reports. Not fitted (the frame rule judges every frame) when
-// the frame calibration is not fitted, there are fewer than min_poses samples, or no sample is
-// wrong (nothing to tell a jump from).
+// counts the samples either rule reports (the agreement test aside).
+//
+// Agreement: noise is the target_precision-quantile of the right "as is" poses' distance to their
+// frames' map poses (position and rotation apart), step the same quantile of the motion between
+// consecutive frames of the map sessions' truth; measured when there are at least min_poses right
+// poses. The walk rule is not fitted (adds = false: it reports nothing) when there are fewer than
+// min_poses samples or no sample is wrong (nothing to tell a jump from); the calibration is then
+// the agreement alone. Not fitted at all (the frame rule judges every frame) when the frame
+// calibration is not fitted or neither part can be.
 //
 // Deterministic: a function of the frame calibration's poses, the map's sessions and the options.
 #pragma once

@@ -13,6 +13,7 @@ namespace {
 
 struct WalkFigures {
   int64_t frames = 0, right = 0, reported = 0, reported_right = 0;
+  int64_t disagreeing = 0;  // poses refused because they disagree with the frame before
   int64_t outside_frames = 0, outside_reported = 0, outside_reported_after_2 = 0;
   int64_t first_reported = -1;  // index of the first reported frame, -1: none
   double ms_to_first = -1.0;    // time of the frames up to and including it
@@ -23,6 +24,7 @@ struct WalkFigures {
     right += o.right;
     reported += o.reported;
     reported_right += o.reported_right;
+    disagreeing += o.disagreeing;
     outside_frames += o.outside_frames;
     outside_reported += o.outside_reported;
     outside_reported_after_2 += o.outside_reported_after_2;
@@ -35,6 +37,7 @@ struct WalkFigures {
                         {"frames_right", right},
                         {"reported", reported},
                         {"reported_right", reported_right},
+                        {"disagreeing", disagreeing},
                         {"precision", reported > 0 ? static_cast<double>(reported_right) / reported : 1.0},
                         {"recall", frames > 0 ? static_cast<double>(reported_right) / n : 0.0},
                         {"mean_ms", mean(ms)},
@@ -63,6 +66,7 @@ WalkFigures run_walk(WalkTracker tracker, const std::vector<FrameOutcome>& frame
     w.right += right;
     w.reported += v.localized;
     w.reported_right += v.localized && right;
+    w.disagreeing += v.agreement_applies && !v.agrees;
     if (v.localized && w.first_reported < 0) {
       w.first_reported = w.frames;
       w.ms_to_first = elapsed;

@@ -408,8 +408,8 @@ TEST_F(EvalCliTest, LocalizeAndEvalShareMetricNames) {
 
 // `lboost localize --map` tracks each query session as a walk after localizing its frames: the
 // walk verdicts and every pose are the same on 1 and 4 threads (timings aside); a frame the frame
-// rule reports is reported by the walk too, a frame only the walk rule reports continues a trusted
-// pose, and the summary counts what the frames say.
+// rule reports is reported by the walk too unless it disagrees with the frame before, a frame only
+// the walk rule reports continues a trusted pose, and the summary counts what the frames say.
 TEST_F(EvalCliTest, WalksAreTheSameOnOneAndFourThreads) {
   std::vector<nlohmann::json> frames;
   nlohmann::json summary;
@@ -426,12 +426,18 @@ TEST_F(EvalCliTest, WalksAreTheSameOnOneAndFourThreads) {
     summary = poses.at("summary");
   }
   ASSERT_EQ(frames[0], frames[1]);
-  int localized = 0, by_walk = 0;
+  int localized = 0, by_walk = 0, disagreeing = 0;
   for (const nlohmann::json& f : frames[0]) {
     const nlohmann::json& w = f.at("walk");
+    const bool refused = w.at("agreement_applies").get<bool>() && w.at("agrees") == false;
+    EXPECT_TRUE(!w.at("agreement_applies").get<bool>() || !w.at("agrees").is_null()) << f.at("name");
     if (f.at("success").get<bool>()) {
-      EXPECT_TRUE(w.at("localized").get<bool>()) << f.at("name");
+      EXPECT_EQ(w.at("localized").get<bool>(), !refused) << f.at("name");
     }
+    if (refused) {
+      EXPECT_FALSE(w.at("localized").get<bool>()) << f.at("name");
+    }
+    disagreeing += refused;
     if (w.at("by_walk_rule").get<bool>()) {
       EXPECT_FALSE(f.at("success").get<bool>()) << f.at("name");
       EXPECT_TRUE(w.at("continues").get<bool>()) << f.at("name");
@@ -445,7 +451,8 @@ TEST_F(EvalCliTest, WalksAreTheSameOnOneAndFourThreads) {
   }
   EXPECT_EQ(summary.at("walk").at("localized"), localized);
   EXPECT_EQ(summary.at("walk").at("by_walk_rule"), by_walk);
-  EXPECT_GE(localized, summary.at("localized").get<int>());
+  EXPECT_EQ(summary.at("walk").at("disagreeing"), disagreeing);
+  EXPECT_GE(localized + disagreeing, summary.at("localized").get<int>());
 }
 
 // Every field report.json carries is documented in docs/report.md, and every documented field is
@@ -563,8 +570,9 @@ TEST_F(EvalCliTest, PoseCalibrationIsDeterministicStoredAndCountedByEval) {
 
 // Walks: every calibrated method's query session is tracked with each seed of the sweep. The frame
 // rule over the walk is the calibrated rule the sweep counts at the default budget (the same poses);
-// the walk verdict keeps every pose the frame rule reports, so it reports at least as many; the
-// export stores the walk calibration eval fits for LandmarkBoost.
+// the walk verdict keeps every pose the frame rule reports unless it disagrees with the frame
+// before, so with the poses it refused it reports at least as many; the export stores the walk
+// calibration eval fits for LandmarkBoost.
 TEST_F(EvalCliTest, WalksCountTheFrameRuleAndTheWalkRule) {
   ASSERT_EQ(eval_.exit_code, 0) << eval_.err;
   const nlohmann::json report = nlohmann::json::parse(slurp(dir_ / "report.json"));
@@ -596,7 +604,10 @@ TEST_F(EvalCliTest, WalksCountTheFrameRuleAndTheWalkRule) {
       const nlohmann::json& swept = at_default->at("seeds")[s].at("calibrated_rule");
       EXPECT_EQ(frame_rule.at("reported"), swept.at("frames_localized")) << name << " seed " << s;
       EXPECT_EQ(frame_rule.at("reported_right"), swept.at("frames_correct")) << name << " seed " << s;
-      EXPECT_GE(walk_rule.at("reported").get<int64_t>(), frame_rule.at("reported").get<int64_t>()) << name;
+      EXPECT_GE(walk_rule.at("reported").get<int64_t>() + walk_rule.at("disagreeing").get<int64_t>(),
+                frame_rule.at("reported").get<int64_t>())
+          << name;
+      EXPECT_EQ(frame_rule.at("disagreeing"), 0) << name;
       EXPECT_EQ(walk_rule.at("frames_right"), frame_rule.at("frames_right")) << name;
       EXPECT_GT(walk_rule.at("mean_ms").get<double>(), 0.0) << name;
     }
@@ -608,6 +619,12 @@ TEST_F(EvalCliTest, WalksCountTheFrameRuleAndTheWalkRule) {
     ASSERT_TRUE(model->walk_calibration().has_value());
     EXPECT_EQ(model->walk_calibration()->threshold, lb.at("walk").at("calibration").at("threshold").get<double>());
     EXPECT_EQ(model->walk_calibration()->bias, lb.at("walk").at("calibration").at("bias").get<double>());
+    const nlohmann::json& agreement = lb.at("walk").at("calibration").at("agreement");
+    EXPECT_EQ(model->walk_calibration()->has_agreement(), !agreement.is_null());
+    if (!agreement.is_null()) {
+      EXPECT_EQ(model->walk_calibration()->agreement_noise_m, agreement.at("noise_m").get<double>());
+      EXPECT_EQ(model->walk_calibration()->agreement_step_deg, agreement.at("step_deg").get<double>());
+    }
   }
   EXPECT_NE(eval_.out.find("walks (each query session tracked"), std::string::npos) << eval_.out;
 }

@@ -1,7 +1,8 @@
 // The pose calibration's fit on map frames (train/eval/pose_calibration_fit.h): the landmarks in
 // view of a frame, the operating point's bound on the "elsewhere" frames, and the "elsewhere"
 // variant of a frame in a building with a copy of its room elsewhere: the method's matches to the
-// copy when the frame's own view is not in the map, a wrong pose as good as the right one.
+// copy when the frame's own view is not in the map, a wrong pose as good as the right one; a
+// calibration that saw no wrong pose says so, and its walks keep the agreement measured on the map.
 #include "train/eval/pose_calibration_fit.h"
 
 #include <algorithm>
@@ -15,6 +16,7 @@
 #include "common/random.h"
 #include "test/infer/test_models.h"
 #include "train/boost/training_set.h"
+#include "train/eval/walk_calibration_fit.h"
 
 namespace lmb {
 namespace {
@@ -204,6 +206,55 @@ TEST(FitMethodCalibrationTest, TheFramesTrainingHeldOutAreTheCalibrationFrames) 
   EXPECT_THROW(calibration_frames(map, bad), Error);
   bad.frames = {40};
   EXPECT_THROW(calibration_frames(map, bad), Error);
+}
+
+// Calibration poses that are all right: the fit cannot tell a wrong pose from a right one, so it
+// is the constant 0.5 reporting every pose, and the walk calibration is the agreement alone, its
+// noise the 0.95-quantile of the poses' errors and its step the map walk's motion a frame.
+TEST(FitMethodCalibrationTest, WithoutAWrongPoseTheWalksKeepTheAgreementAlone) {
+  const LandmarkMap map = room_and_copy(40);
+  PoseCalibrationOptions options;
+  std::vector<CalibrationPose> poses;
+  for (frame_t f = 0; f < 40; f += 2) {
+    options.frames.push_back(f);
+    CalibrationPose p;
+    p.frame = f;
+    p.right = true;
+    // Off by f / 2 mm along x: errors 0, 1, ..., 19 mm.
+    const Eigen::Vector3d centre = map.frames[f].cam_from_world.center() + Eigen::Vector3d(0.0005 * f, 0, 0);
+    p.cam_from_world = Rigid3d(Eigen::Quaterniond::Identity(), -centre);
+    p.evidence.num_inliers = 30 + f;
+    p.evidence.num_correspondences = 60;
+    p.evidence.num_keypoints = 80;
+    poses.push_back(p);
+  }
+  const CalibrationFit fit = fit_calibration_on_poses(poses, 20, options);
+  ASSERT_TRUE(fit.fitted);
+  EXPECT_FALSE(fit.saw_wrong_pose());
+  EXPECT_EQ(fit.calibration.threshold, 0.0);
+  EXPECT_EQ(fit.calibration.probability(poses[0].evidence), 0.5);
+  EXPECT_EQ(fit.calibration.probability(poses[19].evidence), 0.5);
+  EXPECT_EQ(fit.passed, 20);
+  EXPECT_FALSE(fit.to_json().at("saw_wrong_pose").get<bool>());
+
+  const WalkCalibrationFit walk = fit_walk_calibration_on_map(map, fit, options);
+  ASSERT_TRUE(walk.fitted);
+  EXPECT_FALSE(walk.calibration.adds);  // no wrong sample: no walk rule
+  ASSERT_TRUE(walk.calibration.has_agreement());
+  // The nearest-rank 0.95-quantile of 0..19 mm: rank round(0.95 * 19) = 18.
+  EXPECT_NEAR(walk.calibration.agreement_noise_m, 0.018, 1e-12);
+  EXPECT_NEAR(walk.calibration.agreement_noise_deg, 0.01, 1e-12);  // the floor: no rotation error
+  // The map walk moves (0.1, 0.05, 0) m a frame without turning.
+  EXPECT_NEAR(walk.calibration.agreement_step_m, std::sqrt(0.0125), 1e-9);
+  EXPECT_NEAR(walk.calibration.agreement_step_deg, 0.0, 1e-9);
+  EXPECT_FALSE(walk.to_json().at("adds").get<bool>());
+  EXPECT_NEAR(walk.to_json().at("agreement").at("noise_m").get<double>(), 0.018, 1e-12);
+
+  // Fewer right poses than min_poses: no agreement, and no walk calibration at all.
+  options.min_poses = 21;
+  const CalibrationFit few = fit_calibration_on_poses(poses, 20, options);
+  EXPECT_FALSE(few.fitted);
+  EXPECT_FALSE(fit_walk_calibration_on_map(map, few, options).fitted);
 }
 
 }  // namespace
