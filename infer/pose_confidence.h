@@ -81,6 +81,9 @@ struct LMB_INFER_EXPORT PoseCalibration {
 
   // sigma(bias + weights . features), in (0, 1); 0 when the evidence has no inlier.
   double probability(const PoseEvidence& evidence) const;
+  // Fitted on samples that were all right: nothing told a wrong pose from a right one (the fit is
+  // then the constant 0.5 with operating point 0, train/eval/pose_calibration_fit.h).
+  bool saw_no_wrong_pose() const { return num_samples > 0 && num_positive == num_samples; }
   // bias + weights . features: the log-odds of probability(); -infinity when the evidence has no
   // inlier.
   double logit(const PoseEvidence& evidence) const;

@@ -50,11 +50,18 @@ double WalkCalibration::probability(const WalkEvidence& e) const {
   return 1.0 / (1.0 + std::exp(-z));
 }
 
+double WalkCalibration::agreement_tolerance_m(int32_t g) const {
+  return std::sqrt(2.0) * agreement_noise_m + static_cast<double>(g) * agreement_step_m;
+}
+
+double WalkCalibration::agreement_tolerance_deg(int32_t g) const {
+  return std::sqrt(2.0) * agreement_noise_deg + static_cast<double>(g) * agreement_step_deg;
+}
+
 bool WalkCalibration::agrees(const Rigid3d& a, const Rigid3d& b, int32_t frames_apart) const {
   if (!has_agreement()) return true;
-  const double g = static_cast<double>(std::max(1, frames_apart));
-  return position_error(a, b) <= std::sqrt(2.0) * agreement_noise_m + g * agreement_step_m &&
-         rotation_error_deg(a, b) <= std::sqrt(2.0) * agreement_noise_deg + g * agreement_step_deg;
+  const int32_t g = std::max(1, frames_apart);
+  return position_error(a, b) <= agreement_tolerance_m(g) && rotation_error_deg(a, b) <= agreement_tolerance_deg(g);
 }
 
 void WalkCalibration::check(const std::string& where) const {
@@ -84,14 +91,11 @@ WalkCalibration fit_walk_calibration(const std::vector<WalkEvidence>& evidence, 
   LMB_CHECK(evidence.size() == right.size(),
             "fit_walk_calibration: " << evidence.size() << " poses but " << right.size() << " labels");
   LMB_CHECK(!evidence.empty(), "fit_walk_calibration: no sample");
-  WalkCalibration c;
-  c.translation_scale_m = scales.translation_scale_m;
-  c.rotation_scale_deg = scales.rotation_scale_deg;
-  c.max_gap = scales.max_gap;
-  c.agreement_noise_m = scales.agreement_noise_m;
-  c.agreement_noise_deg = scales.agreement_noise_deg;
-  c.agreement_step_m = scales.agreement_step_m;
-  c.agreement_step_deg = scales.agreement_step_deg;
+  // The scales, max_gap and agreement as given; the rule's own fields fitted below.
+  WalkCalibration c = scales;
+  c.threshold = 0.5;
+  c.adds = true;
+  c.target_precision = 0.0;
   c.check("fit_walk_calibration");
   std::vector<std::array<double, kW>> x;
   std::vector<double> y;

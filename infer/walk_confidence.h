@@ -97,6 +97,10 @@ struct LMB_INFER_EXPORT WalkCalibration {
   // sigma(bias + weights . features), in (0, 1).
   double probability(const WalkEvidence& e) const;
   bool has_agreement() const { return agreement_noise_m > 0.0; }
+  // The agreement's tolerance for poses g frames apart: sqrt(2) * noise + g * step, metres and
+  // degrees (g = 0: the noise part alone).
+  double agreement_tolerance_m(int32_t g) const;
+  double agreement_tolerance_deg(int32_t g) const;
   // Whether poses a and b of frames frames_apart (>= 1) apart agree (true without agreement).
   bool agrees(const Rigid3d& a, const Rigid3d& b, int32_t frames_apart) const;
   // Throws lmb::Error (prefixed by `where`) naming the field.

@@ -201,6 +201,8 @@ WalkCalibration agreement_only() {
 TEST(WalkCalibration, AgreementToleranceGrowsWithTheFramesApart) {
   const WalkCalibration c = agreement_only();
   // One frame apart: sqrt(2) * 0.02 + 0.05 = 0.0783 m; two: 0.1283 m.
+  EXPECT_NEAR(c.agreement_tolerance_m(1), 0.078284, 1e-6);
+  EXPECT_NEAR(c.agreement_tolerance_deg(0), 0.707107, 1e-6);
   EXPECT_TRUE(c.agrees(pose_at(0.0), pose_at(0.078), 1));
   EXPECT_FALSE(c.agrees(pose_at(0.0), pose_at(0.079), 1));
   EXPECT_TRUE(c.agrees(pose_at(0.0), pose_at(0.128), 2));

@@ -272,8 +272,7 @@ nlohmann::json localize_map_frames(const std::shared_ptr<const Model>& model, co
   out["summary"] = summary_json(map, frames, outcomes, walk, model->calibrated());
   // A calibration fitted on right poses only reports every pose found (the constant 0.5).
   out["summary"]["calibration_saw_wrong_pose"] =
-      model->calibrated() ? nlohmann::json(model->calibration().num_positive < model->calibration().num_samples)
-                          : nlohmann::json(nullptr);
+      model->calibrated() ? nlohmann::json(!model->calibration().saw_no_wrong_pose()) : nlohmann::json(nullptr);
   out["calibration"] =
       model->calibrated()
           ? nlohmann::json{{"threshold", localizer.options().min_confidence >= 0 ? localizer.options().min_confidence

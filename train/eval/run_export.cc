@@ -1,6 +1,5 @@
 #include "train/eval/run_export.h"
 
-#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -124,8 +123,8 @@ void add_pose_calibration(PoseCalibrationOptions options, const TrainingSetOptio
     spdlog::info(
         "export: walk agreement: poses of frames g apart agree within {:.3f} m + g x {:.3f} m and {:.2f} deg + g x "
         "{:.2f} deg (right calibration poses' error and the map walks' step per frame, {} quantiles)",
-        std::sqrt(2.0) * w.agreement_noise_m, w.agreement_step_m, std::sqrt(2.0) * w.agreement_noise_deg,
-        w.agreement_step_deg, options.target_precision);
+        w.agreement_tolerance_m(0), w.agreement_step_m, w.agreement_tolerance_deg(0), w.agreement_step_deg,
+        options.target_precision);
   }
 }
 

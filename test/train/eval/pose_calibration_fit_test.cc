@@ -154,6 +154,8 @@ TEST(FitMethodCalibrationTest, ElsewhereFramesMatchTheCopyAndTheOperatingPointBo
   EXPECT_EQ(fit.num_poses, 2 * fit.num_frames);
   EXPECT_EQ(fit.num_right, fit.num_frames);
   ASSERT_TRUE(fit.fitted);
+  EXPECT_TRUE(fit.saw_wrong_pose());
+  EXPECT_FALSE(fit.calibration.saw_no_wrong_pose());
   // Both kinds look alike to the evidence: at most floor(0.01 * 20) = 0 elsewhere poses pass.
   EXPECT_EQ(fit.elsewhere_passed, 0);
   EXPECT_GE(fit.calibration.threshold, fit.elsewhere_threshold);
@@ -231,6 +233,8 @@ TEST(FitMethodCalibrationTest, WithoutAWrongPoseTheWalksKeepTheAgreementAlone) {
   const CalibrationFit fit = fit_calibration_on_poses(poses, 20, options);
   ASSERT_TRUE(fit.fitted);
   EXPECT_FALSE(fit.saw_wrong_pose());
+  EXPECT_TRUE(fit.calibration.saw_no_wrong_pose());     // what a model file tells
+  EXPECT_FALSE(PoseCalibration{}.saw_no_wrong_pose());  // no samples recorded: not known
   EXPECT_EQ(fit.calibration.threshold, 0.0);
   EXPECT_EQ(fit.calibration.probability(poses[0].evidence), 0.5);
   EXPECT_EQ(fit.calibration.probability(poses[19].evidence), 0.5);
