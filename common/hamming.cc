@@ -19,4 +19,9 @@ void hamming_min_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* ro
   detail::hamming_kernels().min_lanes(queries, lanes, rows, n, num_bytes, out);
 }
 
+void hamming_ball_low_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                            int64_t n, int num_bytes, int32_t* out) {
+  detail::hamming_kernels().low_lanes(queries, lanes, rows, radius, n, num_bytes, out);
+}
+
 }  // namespace lmb

@@ -34,6 +34,13 @@ int hamming_min(const uint8_t* q, const uint8_t* rows, int64_t n, int num_bytes)
 void hamming_min_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, int64_t n, int num_bytes,
                        int32_t* out);
 
+// The least distance from each query of the set bits j of `lanes` to a point of n balls (centre
+// row i of `rows`, radius[i] bits): out[j] = min over i of max(0, d(query j, row i) - radius[i]),
+// 8 * num_bytes + 1 when n is 0; by the triangle inequality no descriptor within radius[i] of
+// row i is nearer the query. The same readability as hamming_min_lanes.
+void hamming_ball_low_lanes(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                            int64_t n, int num_bytes, int32_t* out);
+
 // Bit `bit` of a descriptor (LSB-first within each byte, as OpenCV packs BRISK/ORB).
 inline int descriptor_bit(const uint8_t* desc, int bit) { return (desc[bit >> 3] >> (bit & 7)) & 1; }
 

@@ -111,10 +111,12 @@ namespace {
 
 // One lane's goal (screen_goals).
 struct GoalRule {
-  double step, safe, min_margin, min_score;
+  // 1 / step is exact (step is a power of two), so target * per_step is target / step, bit for bit.
+  double step, per_step, safe, min_margin, min_score;
   bool options_safe;
   GoalRule(const Model& model, double margin, double score)
       : step(model.scoring().screen_step()),
+        per_step(1.0 / step),
         safe(step * double{ScoringIndex::kScreenUnitsLimit / 4}),  // 2^27 steps
         min_margin(margin),
         min_score(score) {
@@ -125,7 +127,7 @@ struct GoalRule {
     const double inf = std::numeric_limits<double>::infinity();
     const double target = std::max(min_margin == -inf ? -inf : background + min_margin, min_score) - lift;
     const bool usable = options_safe && std::fabs(background) <= safe && std::fabs(lift) <= safe && target != -inf;
-    return usable ? static_cast<int32_t>(std::floor(target / step)) : ScoringIndex::kScreenPassAll;
+    return usable ? static_cast<int32_t>(std::floor(target * per_step)) : ScoringIndex::kScreenPassAll;
   }
 };
 
@@ -206,6 +208,21 @@ namespace {
 constexpr int32_t kScreenProbe = 64;
 }  // namespace
 
+namespace {
+
+// Whether class cls's fusion terms in the lanes `bits` (two batches) cost less than the exact sums
+// they may spare: lanes x exemplars x descriptor words against 2 x stumps x 8-lane groups (a
+// stump's masked add costs about two popcounts of a word).
+bool terms_before_sums(const Model& m, int32_t cls, uint64_t bits) {
+  const int64_t exemplars = m.data().fusion.exemplar_begin[cls + 1] - m.data().fusion.exemplar_begin[cls];
+  const int64_t stumps = m.scoring().class_stump_begin()[cls + 1] - m.scoring().class_stump_begin()[cls];
+  int64_t groups = 0;
+  for (int32_t v = 0; v < 2 * Classifier::kBatch / 8; ++v) groups += ((bits >> (8 * v)) & 0xFFu) != 0;
+  return __builtin_popcountll(bits) * exemplars * ((m.descriptor_bytes() + 7) / 8) <= 2 * stumps * groups;
+}
+
+}  // namespace
+
 void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints,
                              const int32_t* ids) {
   const Model& m = *model_;
@@ -272,29 +289,30 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       if (bits == 0) continue;
       double terms[2][kBatch];
       // The terms now, and the second screening, when they cost less than the exact sums they may
-      // spare: lanes x exemplars x descriptor words against 2 x stumps x 8-lane groups (a stump's
-      // masked add costs about two popcounts of a word); else after the exact sums, only in the
-      // lanes where H + fusion_max() passes (finish_batch), as for a class with few stumps and many
-      // exemplars. Either way the same matches.
-      bool early = fusion;
+      // spare (terms_before_sums); else after the exact sums, only in the lanes where H plus a bound
+      // of the term passes (finish_batch). Either way the same matches.
+      const bool early = fusion && terms_before_sums(m, classes[i], bits);
+      // Else, with the screening's residues and fusion balls, an upper bound of the terms from the
+      // few ball centres' distances (detail::fusion_term_bounds) screens the class again, and
+      // finish_batch computes the terms only where H plus that bound passes.
+      bool bounded = false;
       if (fusion) {
-        const int32_t c = classes[i];
-        const int64_t exemplars = m.data().fusion.exemplar_begin[c + 1] - m.data().fusion.exemplar_begin[c];
-        const int64_t stumps = idx.class_stump_begin()[c + 1] - idx.class_stump_begin()[c];
-        int64_t groups = 0;
-        for (int32_t v = 0; v < 2 * kBatch / 8; ++v) groups += ((bits >> (8 * v)) & 0xFFu) != 0;
-        early = __builtin_popcountll(bits) * exemplars * ((bytes + 7) / 8) <= 2 * stumps * groups;
-      }
-      if (early) {
-        for (int32_t h = 0; h < pair; ++h) {
-          std::fill(terms[h], terms[h] + kBatch, 0.0);
+        int32_t distance[kBatch];
+        for (int32_t h = 0; h < pair && (early || have_residues); ++h) {
+          std::fill(terms[h], terms[h] + kBatch, early ? 0.0 : idx.fusion_max());
           const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
           if (lanes == 0) continue;
-          int32_t distance[kBatch];
-          detail::fusion_terms(m, classes[i], lane_descriptors_.data() + static_cast<size_t>((b + h) * kBatch * bytes),
-                               lanes, distance, terms[h]);
+          const uint8_t* lane_descriptors = lane_descriptors_.data() + static_cast<size_t>((b + h) * kBatch * bytes);
+          if (early) {
+            detail::fusion_terms(m, classes[i], lane_descriptors, lanes, distance, terms[h]);
+          } else {
+            bounded = options_.fusion_balls &&
+                      detail::fusion_term_bounds(m, classes[i], lane_descriptors, lanes, distance, terms[h]);
+            if (!bounded) break;
+          }
         }
-        if (have_residues) {  // the second screening: the end-of-list test with the goals lowered by the terms
+        if (have_residues && (early || bounded)) {
+          // The second screening: the end-of-list test with the goals lowered by the terms or bounds.
           uint64_t pass = 0;
           for (int32_t h = 0; h < pair; ++h) {
             const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
@@ -311,13 +329,47 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       for (int32_t h = 0; h < pair; ++h) {
         const auto lanes = static_cast<uint32_t>(bits >> (32 * h));
         if (lanes == 0) continue;
-        kept_[b + h].push_back({classes[i], lanes, early});
-        if (early) kept_terms_[b + h].insert(kept_terms_[b + h].end(), terms[h], terms[h] + kBatch);
+        kept_[b + h].push_back({classes[i], lanes, early, bounded});
+        if (early || bounded) kept_terms_[b + h].insert(kept_terms_[b + h].end(), terms[h], terms[h] + kBatch);
       }
     }
   }
   classes_screened_ += static_cast<int64_t>(num) * batches;
   for (int32_t b = 0; b < batches; ++b) classes_scored_ += static_cast<int64_t>(kept_[b].size());
+}
+
+// H + fusion_max(), or H + the ball bound of the term, bounds the fused score from above (rounding
+// is monotone): the descriptor distance is computed only in lanes where that bound passes
+// offer()'s tests.
+bool Classifier::add_terms_where_they_pass(int32_t cls, int32_t b, int32_t count, const double* bound, double* out) {
+  const Model& m = *model_;
+  const double* background = background_.data() + static_cast<size_t>(b) * kBatch;
+  double lifted[kBatch];
+  for (int32_t j = 0; j < kBatch; ++j) lifted[j] = out[j] + (bound != nullptr ? bound[j] : m.scoring().fusion_max());
+  if (!kernels_->any_lane_passes(lifted, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {
+    return false;
+  }
+  uint32_t pass = 0;
+  for (int32_t j = 0; j < count; ++j) {
+    const double s = lifted[j];
+    if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
+      pass |= 1u << j;
+    } else {
+      out[j] = -std::numeric_limits<double>::infinity();
+    }
+  }
+  // The terms of the passing lanes in one kernel call (the same values as fusion_term's).
+  if (pass != 0) {  // screen_word's copy of this batch's descriptors
+    int32_t distance[kBatch];
+    double terms[kBatch];
+    detail::fusion_terms(m, cls, lane_descriptors_.data() + static_cast<size_t>(b) * kBatch * m.descriptor_bytes(),
+                         pass, distance, terms);
+    for (uint32_t l = pass; l != 0; l &= l - 1) {
+      const int j = __builtin_ctz(l);
+      out[j] += terms[j];
+    }
+  }
+  return true;
 }
 
 void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
@@ -373,47 +425,22 @@ void Classifier::finish_batch(const int32_t* ids, int32_t count, int32_t b) {
   }
   kernels_->accumulate_groups(groups_.data(), static_cast<int32_t>(groups_.size()), stumps.data(), fire);
   const bool fusion = m.has_fusion();
-  const double fusion_max = idx.fusion_max();
   size_t next_terms = 0;  // kept_terms_[b] holds kBatch terms of each class with terms
   for (int32_t i = 0; i < num; ++i) {
     const int32_t c = kept[i].cls;
     double* out = kept_out_.data() + static_cast<size_t>(i) * kBatch;
+    const double* stored = nullptr;  // screen_word's terms or bounds of this class
+    if (kept[i].terms || kept[i].bounded) {
+      stored = kept_terms_[b].data() + next_terms;
+      next_terms += kBatch;
+    }
     if (fusion && kept[i].terms) {
       // The terms screen_word computed in the lanes it kept; the other lanes cannot pass.
-      const double* terms = kept_terms_[b].data() + next_terms;
-      next_terms += kBatch;
       for (int32_t j = 0; j < kBatch; ++j) {
-        out[j] = (kept[i].lanes >> j) & 1 ? out[j] + terms[j] : -std::numeric_limits<double>::infinity();
+        out[j] = (kept[i].lanes >> j) & 1 ? out[j] + stored[j] : -std::numeric_limits<double>::infinity();
       }
-    } else if (fusion) {
-      // H + fusion_max() bounds the fused score from above (rounding is monotone): the descriptor
-      // distance is computed only in lanes where that bound passes offer()'s tests.
-      double lifted[kBatch];
-      for (int32_t j = 0; j < kBatch; ++j) lifted[j] = out[j] + fusion_max;
-      if (!kernels_->any_lane_passes(lifted, background, cutoff_score_.data(), options_.min_margin,
-                                     options_.min_score)) {
-        continue;
-      }
-      uint32_t pass = 0;
-      for (int32_t j = 0; j < count; ++j) {
-        const double s = lifted[j];
-        if (s - background[j] > options_.min_margin && s >= options_.min_score && s >= cutoff_[j].score) {
-          pass |= 1u << j;
-        } else {
-          out[j] = -std::numeric_limits<double>::infinity();
-        }
-      }
-      // The terms of the passing lanes in one kernel call (the same values as fusion_term's).
-      if (pass != 0) {  // screen_word's copy of this batch's descriptors
-        int32_t distance[kBatch];
-        double terms[kBatch];
-        detail::fusion_terms(m, c, lane_descriptors_.data() + static_cast<size_t>(b) * kBatch * m.descriptor_bytes(),
-                             pass, distance, terms);
-        for (uint32_t l = pass; l != 0; l &= l - 1) {
-          const int j = __builtin_ctz(l);
-          out[j] += terms[j];
-        }
-      }
+    } else if (fusion && !add_terms_where_they_pass(c, b, count, stored, out)) {
+      continue;
     }
     if (!kernels_->any_lane_passes(out, background, cutoff_score_.data(), options_.min_margin, options_.min_score)) {
       continue;

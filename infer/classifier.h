@@ -37,8 +37,12 @@
 // ScoringIndex::fusion_max() in place of the term (no distance computed), then, in the lanes a
 // class kept, with its own terms, so that only classes whose fused score could pass are summed
 // exactly (with a large fusion weight the first pass keeps nearly every class; the second keeps
-// about as few as the screening of a model without fusion). dense_scores() and class_score() stay
-// the stump sums (add detail::fusion_term for the fused one).
+// about as few as the screening of a model without fusion). A class with many exemplars and few
+// stumps would pay more for its terms than for its exact sum: its second screening uses upper
+// bounds of the terms from the distances to a few balls that cover its exemplars
+// (ScoringIndex::fusion_ball_begin, hamming_ball_low_lanes), and its exact terms are computed after
+// the exact sum, only in the lanes where the sum plus the bound passes. dense_scores() and
+// class_score() stay the stump sums (add detail::fusion_term for the fused one).
 //
 // Ranking and rejection: the landmark classes (never the background) whose score exceeds the
 // background's score by more than min_margin and is at least min_score, best first (ties: smaller
@@ -121,6 +125,11 @@ class Classifier {
   void prepare_batch(int32_t b, const uint8_t* values, size_t stride);
   void screen_word(const int32_t* classes, int32_t num, int32_t batches, int32_t keypoints, const int32_t* ids);
   void finish_batch(const int32_t* ids, int32_t count, int32_t b);
+  // finish_batch's terms after the exact sums: class cls's sums `out` (batch b's lanes, `count` of
+  // them keypoints) get their fusion terms in the lanes where the sum plus `bound` (per lane, an
+  // upper bound of the term; null: fusion_max()) passes offer()'s tests, -inf in the others; false
+  // (nothing computed) when no lane can pass.
+  bool add_terms_where_they_pass(int32_t cls, int32_t b, int32_t count, const double* bound, double* out);
   // Offers class `cls` with `score` to keypoint lane j (background score bg).
   void offer(int32_t j, int32_t cls, double score, double bg);
   // With per_keypoint > 1, assigned_word_[k * per_keypoint + i]: keypoint k's i-th word (its own
@@ -150,9 +159,10 @@ class Classifier {
     int32_t cls;
     uint32_t lanes;  // lanes where its screening bound passed
     bool terms;      // with the fusion: its terms are in kept_terms_ (else finish_batch computes them)
+    bool bounded;    // with the fusion: upper bounds of its terms are in kept_terms_ (fusion balls)
   };
   std::vector<std::vector<Kept>> kept_;          // per batch of the group: classes kept by screening
-  std::vector<std::vector<double>> kept_terms_;  // with the fusion: kBatch terms of each kept class
+  std::vector<std::vector<double>> kept_terms_;  // with the fusion: kBatch terms or bounds of such a kept class
   std::vector<uint8_t> lane_descriptors_;        // with the fusion: each batch's kBatch descriptors (rows)
   std::vector<double> kept_out_;                 // kBatch exact scores of each kept class of a batch
   std::vector<detail::GroupItem> groups_;

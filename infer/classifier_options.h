@@ -25,6 +25,10 @@ struct LMB_INFER_EXPORT ClassifierOptions {
   // (the bound is never below the exact score); false = score every class exactly (tests,
   // benchmarks).
   bool screening = true;
+  // With the descriptor-distance fusion and screening: a class with many exemplars is screened again
+  // with an upper bound of its terms from its fusion balls before its exact sum (infer/classifier.h).
+  // The matches are the same either way; false = only the largest term bounds it (benchmarks).
+  bool fusion_balls = true;
   // With the inverted file: the candidates of the keypoint's word and of its next-nearest words
   // (Hamming distance to the model's vocabulary, ties: smaller word), this many words in all
   // (multiple assignment: a descriptor near a word boundary keeps the classes across it). 1 = the

@@ -18,5 +18,10 @@ void hamming_min_lanes_avx2(const uint8_t* queries, uint32_t lanes, const uint8_
   min_lanes_dispatch(queries, lanes, rows, n, num_bytes, out);
 }
 
+void hamming_low_lanes_avx2(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                            int64_t n, int32_t num_bytes, int32_t* out) {
+  low_lanes_dispatch(queries, lanes, rows, radius, n, num_bytes, out);
+}
+
 }  // namespace lmb::detail
 #endif

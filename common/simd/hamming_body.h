@@ -103,5 +103,39 @@ inline void min_lanes_dispatch(const uint8_t* queries, uint32_t lanes, const uin
   }
 }
 
+// The least distance from each query of the set bits of `lanes` to a point of the balls (centre
+// row i, radius[i]): min over i of max(0, distance - radius[i]); 8 bytes + 1 when n is 0.
+template <int kWords>
+inline void low_lanes_body(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                           int64_t n, int32_t bytes, int32_t* out) {
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const int j = __builtin_ctz(lanes);
+    const uint8_t* q = queries + int64_t{j} * bytes;
+    uint64_t qw[kWords > 0 ? kWords : 1];
+    if constexpr (kWords > 0) std::memcpy(qw, q, sizeof(qw));
+    int32_t best = 8 * bytes + 1;
+    for (int64_t i = 0; i < n; ++i) {
+      int32_t d;
+      if constexpr (kWords > 0) {
+        d = words_distance<kWords>(qw, rows + i * bytes) - radius[i];
+      } else {
+        d = distance_bytes(q, rows + i * bytes, bytes) - radius[i];
+      }
+      d = d < 0 ? 0 : d;
+      best = d < best ? d : best;
+    }
+    out[j] = best;
+  }
+}
+
+inline void low_lanes_dispatch(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                               int64_t n, int32_t bytes, int32_t* out) {
+  switch (bytes) {
+    case 32: return low_lanes_body<4>(queries, lanes, rows, radius, n, bytes, out);
+    case 64: return low_lanes_body<8>(queries, lanes, rows, radius, n, bytes, out);
+    default: return low_lanes_body<0>(queries, lanes, rows, radius, n, bytes, out);
+  }
+}
+
 }  // namespace
 }  // namespace lmb::detail

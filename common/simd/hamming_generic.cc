@@ -17,6 +17,11 @@ void hamming_min_lanes_generic(const uint8_t* queries, uint32_t lanes, const uin
   min_lanes_dispatch(queries, lanes, rows, n, num_bytes, out);
 }
 
+void hamming_low_lanes_generic(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                               int64_t n, int32_t num_bytes, int32_t* out) {
+  low_lanes_dispatch(queries, lanes, rows, radius, n, num_bytes, out);
+}
+
 namespace {
 
 HammingKernels make_table(SimdLevel level) {
@@ -25,18 +30,24 @@ HammingKernels make_table(SimdLevel level) {
   k.rows = hamming_rows_generic;
   k.min = hamming_min_generic;
   k.min_lanes = hamming_min_lanes_generic;
+  k.low_lanes = hamming_low_lanes_generic;
 #if defined(__x86_64__)
   if (level == SimdLevel::kAvx2 || level == SimdLevel::kAvx512) {
     k.rows = hamming_rows_avx2;
     k.min = hamming_min_avx2;
     k.min_lanes = hamming_min_lanes_avx2;
-    if (level == SimdLevel::kAvx512 && cpu_has_avx512_vpopcntdq()) k.min_lanes = hamming_min_lanes_avx512;
+    k.low_lanes = hamming_low_lanes_avx2;
+    if (level == SimdLevel::kAvx512 && cpu_has_avx512_vpopcntdq()) {
+      k.min_lanes = hamming_min_lanes_avx512;
+      k.low_lanes = hamming_low_lanes_avx512;
+    }
   }
 #elif defined(__aarch64__)
   if (level == SimdLevel::kNeon) {
     k.rows = hamming_rows_neon;
     k.min = hamming_min_neon;
     k.min_lanes = hamming_min_lanes_neon;
+    k.low_lanes = hamming_low_lanes_neon;
   }
 #endif
   return k;

@@ -70,5 +70,10 @@ void hamming_min_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_
   }
 }
 
+void hamming_low_lanes_neon(const uint8_t* queries, uint32_t lanes, const uint8_t* rows, const int32_t* radius,
+                            int64_t n, int32_t num_bytes, int32_t* out) {
+  low_lanes_dispatch(queries, lanes, rows, radius, n, num_bytes, out);
+}
+
 }  // namespace lmb::detail
 #endif

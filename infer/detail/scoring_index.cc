@@ -73,8 +73,67 @@ ScoringIndex::ScoringIndex(const ModelData& data) : layout_(layout_of(data)) {
   used_plan_ = DimPlan(data.regions, layout_, used_dims_);
   if (data.fusion.enabled()) {
     fusion_max_ = *std::max_element(data.fusion.distance_score.begin(), data.fusion.distance_score.end());
+    build_fusion_balls(data);
   }
   build_screen(data);
+}
+
+void ScoringIndex::build_fusion_balls(const ModelData& data) {
+  const DescriptorFusion& f = data.fusion;
+  const int32_t bytes = data.descriptor_bytes;
+  const std::vector<double>& score = f.distance_score;
+  fusion_term_bound_.assign(score.size(), 0.0);
+  double best = -std::numeric_limits<double>::infinity();
+  for (size_t d = score.size(); d-- > 0;) fusion_term_bound_[d] = best = std::max(best, score[d]);
+  const int32_t C = data.num_classes;
+  fusion_ball_begin_.assign(static_cast<size_t>(C) + 1, 0);
+  std::vector<int32_t> nearest, owner;
+  for (int32_t c = 0; c < C; ++c) {
+    const int64_t first = f.exemplar_begin[c], n = f.exemplar_begin[c + 1] - first;
+    fusion_ball_begin_[c + 1] = fusion_ball_begin_[c];
+    if (n < kMinBallExemplars) continue;
+    const auto balls = static_cast<int64_t>(std::ceil(std::sqrt(2.0 * static_cast<double>(n))));
+    const uint8_t* rows = f.exemplars.data() + first * bytes;
+    nearest.assign(static_cast<size_t>(n), std::numeric_limits<int32_t>::max());
+    owner.assign(static_cast<size_t>(n), 0);
+    const auto ball0 = static_cast<int32_t>(fusion_ball_radius_.size());
+    int64_t next = 0;  // the first centre: the class's first exemplar; then the farthest from the centres
+    for (int32_t b = 0; b < balls; ++b) {
+      fusion_ball_centres_.insert(fusion_ball_centres_.end(), rows + next * bytes, rows + (next + 1) * bytes);
+      fusion_ball_radius_.push_back(0);
+      const uint8_t* centre = rows + next * bytes;
+      int64_t farthest = 0;
+      for (int64_t i = 0; i < n; ++i) {
+        const int32_t d = hamming_distance(rows + i * bytes, centre, bytes);
+        if (d < nearest[i]) {
+          nearest[i] = d;
+          owner[i] = b;
+        }
+        if (nearest[i] > nearest[farthest]) farthest = i;
+      }
+      next = farthest;
+    }
+    for (int64_t i = 0; i < n; ++i) {
+      int32_t& radius = fusion_ball_radius_[static_cast<size_t>(ball0 + owner[i])];
+      radius = std::max(radius, nearest[i]);
+    }
+    fusion_ball_begin_[c + 1] += balls;
+  }
+}
+
+bool fusion_term_bounds(const Model& model, int32_t cls, const uint8_t* descriptors, uint32_t lanes, int32_t* distance,
+                        double* out) {
+  const ScoringIndex& idx = model.scoring();
+  const int64_t begin = idx.fusion_ball_begin()[cls], end = idx.fusion_ball_begin()[cls + 1];
+  if (begin == end) return false;
+  const int32_t bytes = model.descriptor_bytes();
+  hamming_ball_low_lanes(descriptors, lanes, idx.fusion_ball_centres().data() + begin * bytes,
+                         idx.fusion_ball_radius().data() + begin, end - begin, bytes, distance);
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const int j = __builtin_ctz(lanes);
+    out[j] = idx.fusion_term_bound()[distance[j]];
+  }
+  return true;
 }
 
 double fusion_term(const Model& model, int32_t cls, const uint8_t* descriptor) {

@@ -28,6 +28,12 @@ double fusion_term(const Model& model, int32_t cls, const uint8_t* descriptor);
 // set bits j of `lanes`: out[j] (the other entries untouched); distance: 32 scratch entries.
 void fusion_terms(const Model& model, int32_t cls, const uint8_t* descriptors, uint32_t lanes, int32_t* distance,
                   double* out);
+// An upper bound of fusion_term of class cls for the descriptors of the set bits j of `lanes`
+// (out[j], the other entries untouched), from the distances to the class's fusion balls
+// (ScoringIndex::fusion_ball_begin) instead of to every exemplar; false (out untouched) when the
+// class has no balls. distance: 32 scratch entries.
+bool fusion_term_bounds(const Model& model, int32_t cls, const uint8_t* descriptors, uint32_t lanes, int32_t* distance,
+                        double* out);
 
 class ScoringIndex {
  public:
@@ -72,6 +78,20 @@ class ScoringIndex {
   // The largest fusion term any descriptor can get (0 without fusion; the screening adds it to
   // every bound).
   double fusion_max() const { return fusion_max_; }
+  // Fusion balls: class c's n exemplars, when it has at least kMinBallExemplars of them, are
+  // covered by ceil(sqrt(2 n)) balls (greedy k-centre in Hamming space from its first exemplar, each
+  // exemplar in the ball of its nearest centre): balls [fusion_ball_begin()[c],
+  // fusion_ball_begin()[c + 1]) (C + 1 offsets; none for a class with fewer exemplars), centre b
+  // the row b of fusion_ball_centres() (descriptor_bytes each), every exemplar of the ball within
+  // fusion_ball_radius()[b] bits of it. So a descriptor q is at least
+  // min_b max(0, d(q, centre_b) - radius_b) from every exemplar of c (the triangle inequality), and
+  // its term is at most fusion_term_bound()[that] (the largest distance_score at that distance or
+  // beyond: 8 * descriptor_bytes + 1 entries). Empty without fusion.
+  static constexpr int64_t kMinBallExemplars = 8;
+  const std::vector<int64_t>& fusion_ball_begin() const { return fusion_ball_begin_; }
+  const std::vector<uint8_t>& fusion_ball_centres() const { return fusion_ball_centres_; }
+  const std::vector<int32_t>& fusion_ball_radius() const { return fusion_ball_radius_; }
+  const std::vector<double>& fusion_term_bound() const { return fusion_term_bound_; }
 
   // Screening (an upper bound of a landmark class's score from 16-bit integer sums, so that the
   // classifier skips, without computing its exact score, a class that cannot be a match):
@@ -134,6 +154,10 @@ class ScoringIndex {
   DimPlan used_plan_;
   std::vector<DimPlan> word_plans_;
   double fusion_max_ = 0.0;
+  std::vector<int64_t> fusion_ball_begin_;
+  std::vector<uint8_t> fusion_ball_centres_;
+  std::vector<int32_t> fusion_ball_radius_;
+  std::vector<double> fusion_term_bound_;
   double screen_step_ = 1.0;
   std::vector<int16_t> screen_q_;
   std::vector<double> screen_offset_;
@@ -145,6 +169,7 @@ class ScoringIndex {
   std::vector<int32_t> screen_check_add_;
 
   void build_screen(const ModelData& data);
+  void build_fusion_balls(const ModelData& data);
 };
 
 }  // namespace lmb::detail

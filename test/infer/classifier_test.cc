@@ -91,7 +91,11 @@ double reference_fusion(const ModelData& d, const uint8_t* desc, int32_t c) {
 
 // A random fusion: 1..max_rows exemplars a class, some of them copies of the frame's descriptors
 // with a few bits flipped (so that small distances occur), a table falling from about +3 to -2.
-void add_random_fusion(ModelData* d, const test::TestFrame& frame, uint64_t seed, int max_rows = 4) {
+// Each class gets 1..max_rows exemplars: near copies (at most 11 bits flipped) of frame descriptors
+// or random rows; clustered: near copies of 3 random descriptors only (tight fusion balls far from
+// the frame's descriptors).
+void add_random_fusion(ModelData* d, const test::TestFrame& frame, uint64_t seed, int max_rows = 4,
+                       bool clustered = false) {
   Rng rng(seed);
   const int32_t bytes = d->descriptor_bytes;
   const int64_t n = static_cast<int64_t>(frame.keypoints.size());
@@ -99,11 +103,14 @@ void add_random_fusion(ModelData* d, const test::TestFrame& frame, uint64_t seed
   f.exemplar_begin = {0};
   for (int32_t c = 0; c < d->num_classes; ++c) {
     const int rows = 1 + static_cast<int>(rng.below(static_cast<uint64_t>(max_rows)));
+    std::vector<uint8_t> prototypes(static_cast<size_t>(3 * bytes));
+    for (auto& b : prototypes) b = static_cast<uint8_t>(rng.below(256));
     for (int r = 0; r < rows; ++r) {
       std::vector<uint8_t> e(static_cast<size_t>(bytes));
-      if (rng.uniform() < 0.6) {
+      if (clustered || rng.uniform() < 0.6) {
         const uint8_t* src =
-            frame.descriptors.data() + static_cast<int64_t>(rng.below(static_cast<uint64_t>(n))) * bytes;
+            clustered ? prototypes.data() + static_cast<int64_t>(rng.below(3)) * bytes
+                      : frame.descriptors.data() + static_cast<int64_t>(rng.below(static_cast<uint64_t>(n))) * bytes;
         std::copy(src, src + bytes, e.begin());
         const int flips = static_cast<int>(rng.below(12));
         for (int i = 0; i < flips; ++i) {
@@ -563,13 +570,15 @@ TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
   struct Case {
     double shift, scale;
     int max_rows;
+    bool clustered;
   };
-  for (const Case& cs : {Case{16.0, 1.0, 4}, Case{-16.0, 1.0, 4}, Case{16.0, 8.0, 4}, Case{16.0, 8.0, 60}}) {
+  for (const Case& cs : {Case{16.0, 1.0, 4, false}, Case{-16.0, 1.0, 4, false}, Case{16.0, 8.0, 4, false},
+                         Case{16.0, 8.0, 60, false}, Case{16.0, 8.0, 60, true}}) {
     const double shift = cs.shift, scale = cs.scale;
     const test::TestWorld world = test::make_test_world(200, 150, 150, 9);
     ModelData data = random_model_data(200, 300, 33);
     data.bias[200] += shift;
-    add_random_fusion(&data, world.frame, 34, cs.max_rows);
+    add_random_fusion(&data, world.frame, 34, cs.max_rows, cs.clustered);
     for (double& v : data.fusion.distance_score) v = scale > 1.0 ? scale * (v - 1.0) : v;
     const auto model = std::make_shared<const Model>(std::move(data));
     ASSERT_TRUE(model->has_fusion());
@@ -596,14 +605,20 @@ TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
             EXPECT_GT(expect_classify_matches_reference(model, world.frame, o), 0);
           }
           Classifier screened(model, o);
+          o.fusion_balls = false;
+          Classifier without_balls(model, o);
           o.screening = false;
           Classifier plain(model, o);
           const KeypointMatches a = screened.classify(frame, world.frame.descriptors.data());
           const KeypointMatches b = plain.classify(frame, world.frame.descriptors.data());
+          const KeypointMatches c = without_balls.classify(frame, world.frame.descriptors.data());
           ASSERT_EQ(a.begin, b.begin);
+          ASSERT_EQ(c.begin, b.begin);
           for (size_t i = 0; i < a.matches.size(); ++i) {
             EXPECT_EQ(a.matches[i].cls, b.matches[i].cls);
             EXPECT_EQ(a.matches[i].score, b.matches[i].score);
+            EXPECT_EQ(c.matches[i].cls, b.matches[i].cls);
+            EXPECT_EQ(c.matches[i].score, b.matches[i].score);
           }
           for (int32_t k = 0; k < a.num_keypoints(); ++k) {
             if (a.count(k) == 0) continue;
@@ -616,13 +631,96 @@ TEST(Fusion, ClassifyEqualsTheReferenceWithAndWithoutScreening) {
           if (margin == 0.0 && scale > 1.0 && cs.max_rows == 4) {
             EXPECT_LT(2 * screened.classes_scored(), screened.classes_screened()) << "top_k " << top_k;
           }
-          if (margin == 0.0 && scale > 1.0 && cs.max_rows == 60) {  // no second screening
+          if (margin == 0.0 && scale > 1.0 && cs.max_rows == 60 && !cs.clustered) {
+            // Many exemplars, spread out: the terms come after the exact sums and the balls are
+            // too wide to screen again.
             EXPECT_GT(2 * screened.classes_scored(), screened.classes_screened()) << "top_k " << top_k;
+          }
+          if (margin == 0.0 && scale > 1.0 && cs.clustered) {  // the tight balls screen again
+            EXPECT_LT(2 * screened.classes_scored(), screened.classes_screened()) << "top_k " << top_k;
+            EXPECT_LT(2 * screened.classes_scored(), without_balls.classes_scored()) << "top_k " << top_k;
           }
         }
       }
     }
     EXPECT_GT(near, 0);
+  }
+}
+
+// The fusion balls: ceil(sqrt(2 n)) a class with at least kMinBallExemplars exemplars, none below;
+// each exemplar within its nearest centre's radius; the bound at least the term for any
+// descriptor; and, for a class whose exemplars are one descriptor repeated (radius 0) and a
+// non-increasing table, the term itself.
+TEST(Fusion, BallBoundsCoverTheExemplarsAndBoundTheTerm) {
+  const test::TestWorld world = test::make_test_world(200, 150, 150, 9);
+  ModelData data = random_model_data(60, 80, 35);
+  add_random_fusion(&data, world.frame, 36, 40, true);
+  DescriptorFusion& f = data.fusion;
+  const int32_t bytes = data.descriptor_bytes;
+  const int64_t last = f.exemplar_begin[59];  // class 59: its first exemplar, 9 times
+  const std::vector<uint8_t> one(f.exemplars.begin() + last * bytes, f.exemplars.begin() + (last + 1) * bytes);
+  f.exemplars.resize(static_cast<size_t>(last) * bytes);
+  for (int r = 0; r < 9; ++r) f.exemplars.insert(f.exemplars.end(), one.begin(), one.end());
+  f.exemplar_begin[60] = last + 9;
+  const auto model = std::make_shared<const Model>(std::move(data));
+  const ModelData& d = model->data();
+  const detail::ScoringIndex& idx = model->scoring();
+  ASSERT_EQ(idx.fusion_ball_begin().size(), 61u);
+  int with_balls = 0;
+  for (int32_t c = 0; c < 60; ++c) {
+    const int64_t first = d.fusion.exemplar_begin[c], n = d.fusion.exemplar_begin[c + 1] - first;
+    const int64_t b0 = idx.fusion_ball_begin()[c], b1 = idx.fusion_ball_begin()[c + 1];
+    const int64_t want = n < detail::ScoringIndex::kMinBallExemplars
+                             ? 0
+                             : static_cast<int64_t>(std::ceil(std::sqrt(2.0 * static_cast<double>(n))));
+    ASSERT_EQ(b1 - b0, want) << "class " << c << " with " << n << " exemplars";
+    with_balls += b1 > b0;
+    for (int64_t i = 0; i < n && b1 > b0; ++i) {
+      const uint8_t* row = d.fusion.exemplars.data() + (first + i) * bytes;
+      bool covered = false;
+      for (int64_t b = b0; b < b1; ++b) {
+        covered = covered || hamming_distance(row, idx.fusion_ball_centres().data() + b * bytes, bytes) <=
+                                 idx.fusion_ball_radius()[b];
+      }
+      EXPECT_TRUE(covered) << "class " << c << " exemplar " << i;
+    }
+  }
+  EXPECT_GT(with_balls, 20);
+  Rng rng(37);
+  std::vector<uint8_t> queries(static_cast<size_t>(32) * bytes);
+  for (int trial = 0; trial < 20; ++trial) {
+    for (int32_t j = 0; j < 32; ++j) {  // half near an exemplar (up to 31 bits flipped), half random
+      uint8_t* q = queries.data() + static_cast<size_t>(j) * bytes;
+      if (j % 2 == 0) {
+        const uint8_t* src =
+            d.fusion.exemplars.data() +
+            static_cast<int64_t>(rng.below(static_cast<uint64_t>(d.fusion.exemplar_begin[60]))) * bytes;
+        std::copy(src, src + bytes, q);
+        for (uint64_t flips = rng.below(32); flips > 0; --flips) {
+          const auto bit = static_cast<int32_t>(rng.below(static_cast<uint64_t>(8 * bytes)));
+          q[bit / 8] ^= static_cast<uint8_t>(1 << (bit % 8));
+        }
+      } else {
+        for (int32_t k = 0; k < bytes; ++k) q[k] = static_cast<uint8_t>(rng.below(256));
+      }
+    }
+    const auto lanes = static_cast<uint32_t>(rng.below(1ull << 32)) | 1u;
+    for (int32_t c = 0; c < 60; ++c) {
+      double bound[32], term[32];
+      int32_t distance[32];
+      if (!detail::fusion_term_bounds(*model, c, queries.data(), lanes, distance, bound)) {
+        EXPECT_EQ(idx.fusion_ball_begin()[c], idx.fusion_ball_begin()[c + 1]);
+        continue;
+      }
+      detail::fusion_terms(*model, c, queries.data(), lanes, distance, term);
+      for (uint32_t l = lanes; l != 0; l &= l - 1) {
+        const int j = __builtin_ctz(l);
+        EXPECT_GE(bound[j], term[j]) << "class " << c << " lane " << j;
+        if (c == 59) {  // one point, radius 0
+          EXPECT_EQ(bound[j], term[j]) << "lane " << j;
+        }
+      }
+    }
   }
 }
 

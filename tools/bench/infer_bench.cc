@@ -255,7 +255,17 @@ EndToEnd time_end_to_end(const BenchInferArgs& a, const BenchData& d, const Loca
 struct StageCpu {
   double embedding = 0, scoring = 0, pose = 0, unscreened = 0;
   double scored_share = 0;  // candidate classes scored exactly / screened
+  // Dense scoring (classify() less its embedding), with and without the fusion balls.
+  double dense_scoring = 0, dense_without_balls = 0;
 };
+
+// Thread CPU of classify() less its own embedding time.
+double scoring_cpu_ms(Classifier& classifier, const FrameKeypoints& fk, const uint8_t* desc, int64_t& checksum) {
+  double embedding_ms = 0;
+  const double t0 = thread_cpu_ms();
+  checksum += static_cast<int64_t>(classifier.classify(fk, desc, "bench", &embedding_ms).matches.size());
+  return thread_cpu_ms() - t0 - embedding_ms;
+}
 
 StageCpu time_stages(const BenchInferArgs& a, const std::shared_ptr<const Model>& model, const BenchData& d,
                      const Localizer& inverted, int64_t& checksum) {
@@ -265,6 +275,11 @@ StageCpu time_stages(const BenchInferArgs& a, const std::shared_ptr<const Model>
   ClassifierOptions unscreened_options = options.classifier;
   unscreened_options.screening = false;
   Classifier unscreened(model, unscreened_options);
+  ClassifierOptions dense_options = options.classifier;
+  dense_options.use_inverted_file = false;
+  Classifier dense(model, dense_options);
+  dense_options.fusion_balls = false;
+  Classifier dense_without_balls(model, dense_options);
   for (int rep = 0; rep < a.repeats; ++rep) {
     for (const BenchFrame& f : d.frames) {
       const int n = static_cast<int>(f.keypoints.size());
@@ -281,6 +296,8 @@ StageCpu time_stages(const BenchInferArgs& a, const std::shared_ptr<const Model>
       const double t3 = thread_cpu_ms();
       checksum += static_cast<int64_t>(unscreened.classify(fk, desc, "bench", &unscreened_embedding_ms).matches.size());
       s.unscreened += thread_cpu_ms() - t3 - unscreened_embedding_ms;
+      s.dense_scoring += scoring_cpu_ms(dense, fk, desc, checksum);
+      s.dense_without_balls += scoring_cpu_ms(dense_without_balls, fk, desc, checksum);
       std::vector<Eigen::Vector2d> pixels;
       std::vector<Eigen::Vector3d> points;
       for (size_t i = 0; i < r.correspondence_keypoint.size(); ++i) {
@@ -392,6 +409,11 @@ void print_bench(const BenchInferArgs& a, const Model& m, const BenchFigures& b)
       "  screening: %.2f%% of the candidate classes scored exactly; scoring without screening %.2f ms "
       "(%.1fx)\n",
       100.0 * b.stages.scored_share, b.stages.unscreened / nr, b.stages.unscreened / b.stages.scoring);
+  if (m.has_fusion()) {
+    std::printf("  dense scoring with the fusion balls %.2f ms, without them %.2f ms (%.1fx)\n",
+                b.stages.dense_scoring / nr, b.stages.dense_without_balls / nr,
+                b.stages.dense_without_balls / b.stages.dense_scoring);
+  }
   std::printf(
       "  matching (embedding + classification) / BFMatcher 1-NN: dense %.4f (1/%.1f), inverted file %.4f "
       "(1/%.1f) (checksum %lld)\n",
@@ -435,7 +457,9 @@ nlohmann::json bench_json(const BenchInferArgs& a, const Model& m, const BenchFi
              {{"embedding", b.stages.embedding / nr},
               {"scoring", b.stages.scoring / nr},
               {"pose", b.stages.pose / nr},
-              {"scoring_unscreened", b.stages.unscreened / nr}}}}},
+              {"scoring_unscreened", b.stages.unscreened / nr}}},
+            {"dense_scoring", b.stages.dense_scoring / nr},
+            {"dense_scoring_without_fusion_balls", b.stages.dense_without_balls / nr}}},
           {"screening_scored_share", b.stages.scored_share},
           {"unbatched_scoring_ms", {{"dense", b.unbatched.dense_ms}, {"inverted_file", b.unbatched.inverted_ms}}},
           {"bfmatcher_ms", bf},

@@ -100,6 +100,52 @@ TEST(HammingKernels, MinLanesEqualsTheMinOfEachSelectedQueryAtEveryLevel) {
   EXPECT_GT(checked, 0);
 }
 
+// The balls' lower bound: min over rows of max(0, distance - radius) at every level, against the
+// brute force; a query inside a ball gets 0, and no query is nearer a point of a ball than it says.
+TEST(HammingKernels, BallLowLanesEqualsTheBruteForceAtEveryLevel) {
+  Rng rng(12);
+  int checked = 0;
+  for (int32_t bytes : {0, 5, 32, 33, 64}) {
+    for (int64_t n : {0, 1, 6}) {
+      for (uint32_t lanes : {0u, 1u, 0x80000003u, 0xFFFFFFFFu, 0x0F0F00F0u}) {
+        std::vector<uint8_t> queries(static_cast<size_t>(32 * bytes)), rows(static_cast<size_t>(n * bytes));
+        for (uint8_t& b : queries) b = static_cast<uint8_t>(rng.below(256));
+        for (uint8_t& b : rows) b = static_cast<uint8_t>(rng.below(256));
+        std::vector<int32_t> radius(static_cast<size_t>(n));
+        for (int32_t& r : radius) r = static_cast<int32_t>(rng.below(static_cast<uint64_t>(4 * bytes + 2)));
+        // Query 0 equals the last row: inside its ball, bound 0.
+        if (n > 0) std::copy_n(rows.data() + (n - 1) * bytes, bytes, queries.data());
+        std::vector<int32_t> want(32, -7);
+        for (int32_t j = 0; j < 32; ++j) {
+          if (((lanes >> j) & 1) == 0) continue;
+          int32_t best = 8 * bytes + 1;
+          for (int64_t i = 0; i < n; ++i) {
+            const int32_t d = hamming_distance(queries.data() + j * bytes, rows.data() + i * bytes, bytes);
+            best = std::min(best, std::max(0, d - radius[static_cast<size_t>(i)]));
+          }
+          want[j] = best;
+        }
+        if ((lanes & 1) && n > 0) {
+          ASSERT_EQ(want[0], 0);
+        }
+        for (SimdLevel level : compiled_simd_levels()) {
+          const detail::HammingKernels* k = detail::hamming_kernels(level);
+          if (k == nullptr) continue;
+          std::vector<int32_t> got(32, -7);
+          k->low_lanes(queries.data(), lanes, rows.data(), radius.data(), n, bytes, got.data());
+          ASSERT_EQ(got, want) << simd_level_name(level) << ", " << bytes << " bytes, " << n << " rows, lanes "
+                               << lanes;
+          ++checked;
+        }
+        std::vector<int32_t> got(32, -7);
+        hamming_ball_low_lanes(queries.data(), lanes, rows.data(), radius.data(), n, bytes, got.data());
+        ASSERT_EQ(got, want);
+      }
+    }
+  }
+  EXPECT_GT(checked, 0);
+}
+
 TEST(HammingKernels, HammingRowsUsesTheProcessLevel) {
   EXPECT_EQ(detail::hamming_kernels().level, simd_level());
   const std::vector<uint8_t> q(64, 0x0F), rows(128, 0xFF);
