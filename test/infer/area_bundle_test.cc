@@ -275,7 +275,7 @@ TEST_F(AreaBundleTest, ADamagedOrMissingAreaFailsAloneWithOneLine) {
 // The pool that scores a frame's areas: every task of a batch runs once, on up to threads()
 // threads at a time, run() returns when all have finished and rethrows the first failure in task
 // order; batches of several callers run at once.
-TEST(TaskPool, RunsEveryTaskOnceAndRethrowsTheFirstFailure) {
+TEST(TaskPool, ThreadsRunEveryTaskOnceAndRethrowTheFirstFailure) {
   detail::TaskPool pool(3);
   EXPECT_EQ(pool.threads(), 3);
   std::vector<std::atomic<int>> runs(50);
