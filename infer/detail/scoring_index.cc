@@ -72,8 +72,8 @@ ScoringIndex::ScoringIndex(const ModelData& data) : layout_(layout_of(data)) {
   }
   used_plan_ = DimPlan(data.regions, layout_, used_dims_);
   if (data.fusion.enabled()) {
-    fusion_max_ = *std::max_element(data.fusion.distance_score.begin(), data.fusion.distance_score.end());
     build_fusion_balls(data);
+    fusion_max_ = fusion_term_bound_.front();  // the largest term at any distance
   }
   build_screen(data);
 }

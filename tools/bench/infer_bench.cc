@@ -291,11 +291,10 @@ StageCpu time_stages(const BenchInferArgs& a, const std::shared_ptr<const Model>
       const FrameKeypoints fk =
           frame_keypoints_from_detections(f.camera, f.keypoints.data(), words.data(), n, f.gravity_in_cam, "bench");
       const double t1 = thread_cpu_ms();
-      double embedding_ms = 0, unscreened_embedding_ms = 0;
+      double embedding_ms = 0;
       checksum += static_cast<int64_t>(classifier.classify(fk, desc, "bench", &embedding_ms).matches.size());
       const double t3 = thread_cpu_ms();
-      checksum += static_cast<int64_t>(unscreened.classify(fk, desc, "bench", &unscreened_embedding_ms).matches.size());
-      s.unscreened += thread_cpu_ms() - t3 - unscreened_embedding_ms;
+      s.unscreened += scoring_cpu_ms(unscreened, fk, desc, checksum);
       s.dense_scoring += scoring_cpu_ms(dense, fk, desc, checksum);
       s.dense_without_balls += scoring_cpu_ms(dense_without_balls, fk, desc, checksum);
       std::vector<Eigen::Vector2d> pixels;
