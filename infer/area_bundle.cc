@@ -23,6 +23,7 @@ std::shared_ptr<AreaBundle> AreaBundle::create(const std::filesystem::path& inde
   bundle->reach_ = index.reach;
   bundle->map_fingerprint_ = index.map_fingerprint;
   bundle->calibration_ = std::move(index.calibration);
+  bundle->walk_calibration_ = std::move(index.walk_calibration);
   bundle->areas_ = std::move(index.areas);
   bundle->models_.resize(bundle->areas_.size());
   bundle->last_use_.assign(bundle->areas_.size(), 0);

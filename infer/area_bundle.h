@@ -66,6 +66,10 @@ class LMB_INFER_EXPORT AreaBundle {
   // bundle's evidence (BundleLocalizeResult::evidence).
   bool calibrated() const { return calibration_.has_value(); }
   const PoseCalibration& calibration() const { return *calibration_; }
+  // The walk calibration of BundleLocalizer::track (version 4 indexes fitted by `lboost bundle
+  // --map`): the walk rule and the agreement of a walk's poses (infer/walk_confidence.h) over the
+  // bundle's calibrated confidence. Absent: track() judges each frame alone.
+  const std::optional<WalkCalibration>& walk_calibration() const { return walk_calibration_; }
   const std::filesystem::path& index_path() const { return index_; }
 
   // Ids of the areas a prior selects (cell within radius + reach), ascending; every id without one.
@@ -120,6 +124,7 @@ class LMB_INFER_EXPORT AreaBundle {
   double reach_ = 0.0;
   uint64_t map_fingerprint_ = 0;
   std::optional<PoseCalibration> calibration_;
+  std::optional<WalkCalibration> walk_calibration_;
   std::vector<BundleArea> areas_;
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<const Model>> models_;  // per area, null until loaded

@@ -149,6 +149,10 @@ void check_bundle_index(const BundleIndex& index, const std::string& where) {
             where << ": reach " << index.reach << " must be finite and >= 0");
   LMB_CHECK(!index.areas.empty(), where << ": a bundle needs at least one area");
   if (index.calibration) index.calibration->check(where + ": calibration");
+  if (index.walk_calibration) {
+    LMB_CHECK(index.calibration, where << ": a walk calibration needs the bundle's calibration");
+    index.walk_calibration->check(where + ": walk calibration");
+  }
   std::set<std::string> files;
   for (size_t i = 0; i < index.areas.size(); ++i) {
     const BundleArea& a = index.areas[i];
@@ -177,6 +181,22 @@ void write_bundle_index(const std::filesystem::path& path, const BundleIndex& in
     for (double w : c.weights) os << " " << exact_number_text(w);
     os << " " << exact_number_text(c.bias) << " " << exact_number_text(c.threshold) << " " << c.num_samples << " "
        << c.num_positive << " " << exact_number_text(c.target_precision) << "\n";
+  }
+  if (index.walk_calibration) {
+    const WalkCalibration& c = *index.walk_calibration;
+    os << "# walk_calibration W0..W" << WalkEvidence::kNumFeatures - 1
+       << " BIAS THRESHOLD TRANSLATION_SCALE_M ROTATION_SCALE_DEG MAX_GAP ADDS NOISE_M NOISE_DEG STEP_M STEP_DEG "
+          "SAMPLES POSITIVE TARGET_PRECISION (infer/walk_confidence.h)\n";
+    os << "walk_calibration";
+    for (double w : c.weights) os << " " << exact_number_text(w);
+    for (double v : {c.bias, c.threshold, c.translation_scale_m, c.rotation_scale_deg}) {
+      os << " " << exact_number_text(v);
+    }
+    os << " " << c.max_gap << " " << (c.adds ? 1 : 0);
+    for (double v : {c.agreement_noise_m, c.agreement_noise_deg, c.agreement_step_m, c.agreement_step_deg}) {
+      os << " " << exact_number_text(v);
+    }
+    os << " " << c.num_samples << " " << c.num_positive << " " << exact_number_text(c.target_precision) << "\n";
   }
   os << "areas " << index.areas.size() << "\n";
   for (const BundleArea& a : index.areas) {
@@ -241,6 +261,33 @@ BundleArea parse_area(const std::vector<std::string>& t, const std::string& w, i
   return a;
 }
 
+// A `walk_calibration` line's tokens (the key first).
+WalkCalibration parse_walk_calibration(const std::vector<std::string>& t, const std::string& w,
+                                       const std::string& line) {
+  constexpr size_t kF = WalkEvidence::kNumFeatures;
+  LMB_CHECK(t.size() == kF + 14,
+            w << ": expected 'walk_calibration' and " << kF + 13 << " value(s), found '" << line << "'");
+  WalkCalibration c;
+  size_t at = 1;
+  const auto number = [&](const char* what) { return parse_finite_number(t[at++], w, what); };
+  for (double& x : c.weights) x = number("walk calibration weight");
+  c.bias = number("walk calibration bias");
+  c.threshold = number("walk calibration threshold");
+  c.translation_scale_m = number("walk calibration translation scale");
+  c.rotation_scale_deg = number("walk calibration rotation scale");
+  c.max_gap = static_cast<int32_t>(parse_unsigned(t[at++], w, "walk calibration max_gap", 10, 1000));
+  c.adds = parse_unsigned(t[at++], w, "walk calibration adds", 10, 1) == 1;
+  c.agreement_noise_m = number("walk calibration agreement noise");
+  c.agreement_noise_deg = number("walk calibration agreement noise");
+  c.agreement_step_m = number("walk calibration agreement step");
+  c.agreement_step_deg = number("walk calibration agreement step");
+  c.num_samples = static_cast<int64_t>(parse_unsigned(t[at++], w, "walk calibration samples", 10, INT64_MAX));
+  c.num_positive = static_cast<int64_t>(parse_unsigned(t[at++], w, "walk calibration positives", 10, INT64_MAX));
+  c.target_precision = number("walk calibration target precision");
+  c.check(w + ": walk calibration");
+  return c;
+}
+
 }  // namespace
 
 BundleIndex read_bundle_index(const std::filesystem::path& path) {
@@ -249,8 +296,8 @@ BundleIndex read_bundle_index(const std::filesystem::path& path) {
   const auto expect = [&in](const char* key, size_t count) { return in.expect(key, count); };
   {
     const auto t = expect("lmb-bundle", 1);
-    LMB_CHECK(t[0] == "1" || t[0] == "2" || t[0] == "3",
-              in.where() << ": format version " << t[0] << " is not supported (this build reads 1 to 3)");
+    LMB_CHECK(t[0] == "1" || t[0] == "2" || t[0] == "3" || t[0] == "4",
+              in.where() << ": format version " << t[0] << " is not supported (this build reads 1 to 4)");
     index.version = t[0][0] - '0';
   }
   // (Each line's tokens are read before in.where() names it: argument order is unspecified.)
@@ -281,6 +328,10 @@ BundleIndex read_bundle_index(const std::filesystem::path& path) {
     c.check(w + ": calibration");
     index.calibration = c;
     LMB_CHECK(in.next(), path.string() << ": ends before the 'areas' line");
+    if (index.version >= 4 && !in.tokens().empty() && in.tokens().front() == "walk_calibration") {
+      index.walk_calibration = parse_walk_calibration(in.tokens(), in.where(), in.line());
+      LMB_CHECK(in.next(), path.string() << ": ends before the 'areas' line");
+    }
   }
   const std::vector<std::string> t = in.tokens();
   LMB_CHECK(t.size() == 2 && t[0] == "areas", in.where()

@@ -2,11 +2,14 @@
 // area, how to check that file, and where the area lies. Read and written here; AreaBundle
 // (infer/area_bundle.h) loads the areas it names.
 //
-//   lmb-bundle 3
+//   lmb-bundle 4
 //   reach 5.0558576932189325        metres: how far cameras see (the areas file's reach)
 //   map 0123456789abcdef            fingerprint_map of the map the areas split (common/feature_space.h)
 //   calibration W0 .. W6 BIAS THRESHOLD SAMPLES POSITIVE PRECISION   (optional: the bundle's pose
 //                                   calibration, PoseCalibration's fields, fitted by `lboost bundle --map`)
+//   walk_calibration W0 .. W3 BIAS THRESHOLD TRANSLATION_SCALE_M ROTATION_SCALE_DEG MAX_GAP ADDS NOISE_M
+//                    NOISE_DEG STEP_M STEP_DEG SAMPLES POSITIVE PRECISION   (optional, version 4, after
+//                                   `calibration`: the walk calibration of track(), WalkCalibration's fields)
 //   areas 21
 //   area 0 file area-0.lbm bytes 6246098 crc32 1a2b3c4d landmarks 6866 first_landmark 0 last_landmark 9120
 //          classes 0123456789abcdef cell LO_X LO_Y LO_Z HI_X HI_Y HI_Z            (one line)
@@ -18,9 +21,9 @@
 // when its size and CRC-32 were copied into the index. Cell ends may be -inf / inf. Lines starting
 // with '#' are comments.
 //
-// Versions 1 and 2 (no `map` line, areas without the landmark range and classes; 2 has a
-// calibration) are still read: their map is unknown (map_fingerprint 0) and their areas are checked
-// by class count only.
+// Versions 1 to 3 are still read (no `walk_calibration`). Versions 1 and 2 (no `map` line, areas
+// without the landmark range and classes; 2 has a calibration): their map is unknown
+// (map_fingerprint 0) and their areas are checked by class count only.
 #pragma once
 
 #include <cstdint>
@@ -34,6 +37,7 @@
 #include "common/types.h"
 #include "infer/export.h"
 #include "infer/pose_confidence.h"
+#include "infer/walk_confidence.h"
 
 namespace lmb {
 
@@ -55,12 +59,14 @@ struct LMB_INFER_EXPORT BundleArea {
 };
 
 struct LMB_INFER_EXPORT BundleIndex {
-  static constexpr int kVersion = 3;  // the version write_bundle_index writes
+  static constexpr int kVersion = 4;  // the version write_bundle_index writes
   int version = kVersion;             // as read
   double reach = 0.0;
   // fingerprint_map of the map the areas split; 0 = unknown (versions 1 and 2).
   uint64_t map_fingerprint = 0;
   std::optional<PoseCalibration> calibration;
+  // The walk calibration of BundleLocalizer::track (version 4; only beside `calibration`).
+  std::optional<WalkCalibration> walk_calibration;
   std::vector<BundleArea> areas;
 };
 

@@ -36,6 +36,19 @@ void BundleLocalizer::set_options(const BundleLocalizerOptions& options) {
     pool_ = std::make_shared<detail::TaskPool>(options.area_threads);
   }
   options_ = options;
+  if (bundle_->calibrated() && bundle_->walk_calibration()) {
+    PoseCalibration frame = bundle_->calibration();
+    if (options.localizer.min_confidence >= 0.0) frame.threshold = options.localizer.min_confidence;
+    if (!walk_ || walk_frame_threshold_ != frame.threshold) {
+      walk_.emplace(frame, bundle_->walk_calibration());
+      walk_frame_threshold_ = frame.threshold;
+    }
+  }
+}
+
+void BundleLocalizer::reset_tracking() {
+  set_last_pose(std::nullopt);
+  if (walk_) walk_->reset();
 }
 
 BundleLocalizeResult BundleLocalizer::localize(const Camera& camera, const std::vector<Keypoint>& keypoints,
@@ -133,7 +146,16 @@ BundleLocalizeResult BundleLocalizer::track(const Camera& camera, const std::vec
     }
     r.errors = std::move(errors);
   }
-  if (r.tracked || trusted(r)) {
+  r.frame_localized = r.localized;
+  const bool frame_trusted = trusted(r);
+  if (walk_) {
+    r.walk = walk_->update(r.area >= 0, r.result.pose.cam_from_world, r.evidence);
+    r.walk_judged = true;
+    r.localized = r.walk.localized;
+  }
+  // The next frame's prior: a gated pose, or one that is reported (by the walk's verdict when the
+  // bundle has a walk calibration: a pose the walk refuses does not move the search).
+  if (r.tracked || (walk_ ? r.localized : frame_trusted)) {
     set_last_pose(r.result.pose.cam_from_world);
   } else if (last_position_) {
     ++frames_since_pose_;

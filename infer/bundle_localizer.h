@@ -30,6 +30,7 @@
 #include "infer/area_bundle.h"
 #include "infer/export.h"
 #include "infer/localizer.h"
+#include "infer/walk_confidence.h"
 
 namespace lmb {
 
@@ -69,6 +70,13 @@ struct LMB_INFER_EXPORT BundleLocalizeResult {
   // track(): the winning pose lies within the motion gate of the last tracked pose
   // (BundleLocalizer::track). The tracker's own evidence, apart from `localized`.
   bool tracked = false;
+  // track() with a bundle that has a walk calibration (AreaBundle::walk_calibration): the walk's
+  // verdict on the winning pose (infer/walk_confidence.h), and `localized` is walk.localized: the
+  // frame rule (confidence >= confidence_threshold) or the walk rule reports the pose, and it agrees
+  // with the walk's pose before. frame_localized keeps the frame rule's verdict alone.
+  bool walk_judged = false;
+  WalkVerdict walk;
+  bool frame_localized = false;
   double total_ms = 0.0;  // the whole call, steady clock (loads included)
 };
 
@@ -79,7 +87,9 @@ enum class AreaSearch : int32_t {
   // the search stops as soon as the bundle's verdict over the areas scored so far is localized
   // (the winner by AreaWinner, its confidence at the operating point) and the rest are not scored.
   // Without one, the first area whose model is calibrated and whose pose is localized (its
-  // confidence reaches the operating point) wins and the rest are not scored; an uncalibrated
+  // confidence reaches the operating point) wins and the rest are not scored. A calibration that
+  // saw no wrong pose (PoseCalibration::saw_no_wrong_pose: it reports every pose) stops nothing,
+  // the bundle's or an area's; an uncalibrated
   // model's pose never stops the search (its inlier count alone is not trusted: wrong poses with
   // dozens of inliers are common where areas cut a view). When nothing stops it, every selected
   // area has been scored and the rule of kAll decides. Without a prior: kAll.
@@ -167,13 +177,17 @@ class LMB_INFER_EXPORT BundleLocalizer {
   // set, every area is scored (result.prior_used false; with a last pose, a winner that passes the
   // gate is tracked too). A tracked pose, or a trusted one (with a calibrated bundle `localized`,
   // without one any winning pose), becomes the last pose. A look-alike pose can pass the gate:
-  // tracking_areas > 1 lets a second area's matches reject most of them (docs/areas.md).
+  // tracking_areas > 1 lets a second area's matches reject most of them (docs/areas.md). With a
+  // walk calibration in the bundle, `localized` is the walk's verdict (result.walk): a pose that
+  // continues the walk is reported on weaker evidence of its own, one that disagrees with the walk's
+  // pose before is refused; a pose the walk reports (not one it refuses) becomes the last pose.
   // `relocalization_prior` (optional, e.g. a GPS fix): a relocalization scores the areas it selects,
   // nearest first (AreaSearch), instead of every area.
   BundleLocalizeResult track(const Camera& camera, const std::vector<Keypoint>& keypoints, const uint8_t* descriptors,
                              const Eigen::Vector3d& gravity_in_cam,
                              const PositionPrior* relocalization_prior = nullptr);
-  void reset_tracking() { set_last_pose(std::nullopt); }
+  // Forgets the last pose and the walk (the next frame is judged as a first frame).
+  void reset_tracking();
   // Sets the last tracked pose (cam_from_world), e.g. predicted by odometry, or none.
   void set_last_pose(const std::optional<Rigid3d>& cam_from_world);
   // Sets the last tracked camera centre without an orientation (areas then by distance), or none.
@@ -185,7 +199,8 @@ class LMB_INFER_EXPORT BundleLocalizer {
   // The last tracked pose and camera centre (world frame), if any.
   const std::optional<Rigid3d>& last_pose() const { return last_pose_; }
   const std::optional<Eigen::Vector3d>& last_position() const { return last_position_; }
-  // New options (checked; throws lmb::Error naming the field); the tracking state is kept.
+  // New options (checked; throws lmb::Error naming the field); the tracking state is kept (the
+  // walk's too, unless localizer.min_confidence changes the frame rule's operating point).
   void set_options(const BundleLocalizerOptions& options);
   AreaBundle& bundle() const { return *bundle_; }
   const std::shared_ptr<AreaBundle>& shared_bundle() const { return bundle_; }
@@ -200,6 +215,9 @@ class LMB_INFER_EXPORT BundleLocalizer {
   std::optional<Rigid3d> last_pose_;  // set with last_position_, or absent (a position only)
   std::optional<Eigen::Vector3d> last_position_;
   int64_t frames_since_pose_ = 0;  // track() calls since the last pose was set
+  // The walk's verdicts in track(): with a calibrated bundle that has a walk calibration.
+  std::optional<WalkTracker> walk_;
+  double walk_frame_threshold_ = -1.0;  // the frame rule's operating point walk_ was made with
 };
 
 }  // namespace lmb

@@ -54,6 +54,7 @@ class BundleSearch {
         pool_(pool),
         candidates_(keypoints.size()),
         calibrated_(bundle.calibrated()),
+        confidence_stops_(calibrated_ && !bundle.calibration().saw_no_wrong_pose()),
         threshold_(!calibrated_                    ? -1.0
                    : options.min_confidence >= 0.0 ? options.min_confidence
                                                    : bundle.calibration().threshold) {
@@ -90,6 +91,9 @@ class BundleSearch {
   std::vector<LocalizeResult> posed_;  // per scored area with a pose: its result
   std::vector<size_t> posed_index_;    // per scored area: index into posed_, or kNone
   const bool calibrated_;
+  // The bundle's confidence may stop a nearest-first search: a calibration that saw no wrong pose
+  // (every pose it is 0.5, reported) would stop at the first area with any pose.
+  const bool confidence_stops_;
   const double threshold_;
   std::vector<int32_t> order_;        // the search's order (re-ranked with the view prior)
   std::map<int32_t, AreaRun> ahead_;  // areas a wave ran that the order has not reached yet
@@ -257,7 +261,8 @@ BundleLocalizeResult BundleSearch::run(std::chrono::steady_clock::time_point sta
       out_.errors.push_back(std::move(run.error));
       continue;
     }
-    const bool area_stops = !calibrated_ && plan_.nearest_first && run.result.calibrated && run.result.localized;
+    const bool area_stops = !calibrated_ && plan_.nearest_first && run.result.calibrated && run.result.localized &&
+                            !run.model->calibration().saw_no_wrong_pose();
     add_scored(order_[next], std::move(run));
     verdict_current = false;
     // With a gate, the gate and the bundle's calibration decide, not an area's own calibration.
@@ -267,13 +272,13 @@ BundleLocalizeResult BundleSearch::run(std::chrono::steady_clock::time_point sta
     if (area_stops && plan_.gate == nullptr) {
       stopped = true;
       forced = out_.scored.size() - 1;
-    } else if ((calibrated_ && plan_.nearest_first) || gate_open || plan_.view_prior != nullptr) {
+    } else if ((confidence_stops_ && plan_.nearest_first) || gate_open || plan_.view_prior != nullptr) {
       // A calibrated bundle stops at the first point where its verdict is localized; the motion
       // gate where the verdict's winner lies within it.
       verdict = judge(kNone);
       verdict_current = true;
       stopped = (gate_open && passes_gate(verdict)) ||
-                (calibrated_ && plan_.nearest_first && verdict.best != kNone && verdict.confidence >= threshold_);
+                (confidence_stops_ && plan_.nearest_first && verdict.best != kNone && verdict.confidence >= threshold_);
     }
     if (!stopped && plan_.view_prior != nullptr && verdict_current && verdict.best != kNone &&
         verdict.best != ranked_by_ && next + 2 < order_.size()) {

@@ -370,9 +370,11 @@ lmb_status bundle_call(const char* fn, lmb_bundle* bundle, const lmb_camera* cam
       return fail(LMB_ERROR_MODEL_FILE, message);
     }
     const lmb::PoseResult& pose = r.result.pose;
-    // A calibrated bundle's answer to act on; an uncalibrated one's: a pose was found; and when
-    // tracking, a pose that passed the motion gate (r.tracked is false outside track()).
-    out_pose->success = (r.tracked || (r.calibrated ? r.localized : r.area >= 0 && pose.success)) ? 1 : 0;
+    // Tracking with a walk-calibrated bundle: the walk's verdict. Else a calibrated bundle's answer
+    // to act on; an uncalibrated one's: a pose was found; and when tracking, a pose that passed the
+    // motion gate (r.tracked is false outside track()).
+    out_pose->success =
+        (r.walk_judged ? r.localized : r.tracked || (r.calibrated ? r.localized : r.area >= 0 && pose.success)) ? 1 : 0;
     const Eigen::Quaterniond& q = pose.cam_from_world.rotation;
     out_pose->rotation[0] = q.w();
     out_pose->rotation[1] = q.x();

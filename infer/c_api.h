@@ -240,8 +240,10 @@ LMB_INFER_EXPORT lmb_status lmb_bundle_localize(lmb_bundle* bundle, const lmb_ca
 /* Tracking (BundleLocalizer::track, docs/areas.md): the areas near the last tracked pose, those that
  * see most of its view first, until the winning pose lies within tracking_radius metres of it (a
  * camera's motion between two frames); the first frame, and a frame those areas do not localize,
- * are localized in every area. out_pose->success: as lmb_bundle_localize, or the pose passed that
- * motion gate (tracked). */
+ * are localized in every area. out_pose->success: with a bundle that has a walk calibration
+ * (lboost bundle --map), the walk's verdict (the frame's confidence or the walk's continuation,
+ * and agreement with the walk's pose before: docs/walks.md); else as lmb_bundle_localize, or the
+ * pose passed that motion gate (tracked). */
 LMB_INFER_EXPORT lmb_status lmb_bundle_track(lmb_bundle* bundle, const lmb_camera* camera,
                                              const lmb_keypoint* keypoints, int n, const uint8_t* descriptors,
                                              int descriptor_bytes, const double gravity_in_cam[3],

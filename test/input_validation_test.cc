@@ -571,8 +571,8 @@ std::vector<Row> rows() {
       {"COLMAP binary", "trailing bytes", colmap_binary_with({}, "points3D.bin", [](std::string& b) { b += "xyz"; }),
        "DIR/sparse/points3D.bin: 3 trailing bytes after the last record (wrong count?) (at byte offset 75 of 78)"});
   // bundle.txt (infer/bundle_index.h)
-  r.push_back({"bundle.txt", "format version 4", bundle_with(replaced("lmb-bundle 3", "lmb-bundle 4")),
-               "DIR/bundle.txt line 1: format version 4 is not supported (this build reads 1 to 3)"});
+  r.push_back({"bundle.txt", "format version 5", bundle_with(replaced("lmb-bundle 4", "lmb-bundle 5")),
+               "DIR/bundle.txt line 1: format version 5 is not supported (this build reads 1 to 4)"});
   r.push_back({"bundle.txt", "reach not a number", bundle_with(replaced("reach 1", "reach x")),
                "DIR/bundle.txt line 3: reach is not a number: 'x'"});
   r.push_back({"bundle.txt", "map fingerprint not 16 hex digits",
@@ -585,6 +585,11 @@ std::vector<Row> rows() {
   r.push_back({"bundle.txt", "calibration threshold 1.5",
                bundle_with(replaced("areas 1", "calibration 0 0 0 0 0 0 0 0 1.5 10 5 0.95\nareas 1")),
                "DIR/bundle.txt line 5: calibration: threshold 1.5 is outside [0, 1]"});
+  r.push_back({"bundle.txt", "walk calibration max_gap 0",
+               bundle_with(replaced("areas 1",
+                                    "calibration 0 0 0 0 0 0 0 0 0.5 10 5 0.95\nwalk_calibration 0 0 0 0 1 "
+                                    "0.5 0.01 1 0 1 0.01 0.5 0.01 1 10 5 0.95\nareas 1")),
+               "DIR/bundle.txt line 6: walk calibration: max_gap 0 is outside 1..1000"});
   r.push_back({"bundle.txt", "an area file outside the bundle folder",
                bundle_with(replaced("file area-0.lbm", "file ../area-0.lbm")),
                "DIR/bundle.txt line 6: file '../area-0.lbm' must be a file name in the bundle's folder (no folder, no "

@@ -244,6 +244,19 @@ struct BundleResult {
   BundleLocalizeResult r;  // r.result moved into `result`
 };
 
+// A walk's verdict on a frame, as WalkTracker.update returns it.
+py::dict verdict_dict(const WalkVerdict& v) {
+  py::dict d;
+  d["localized"] = v.localized;
+  d["continues"] = v.continues;
+  d["by_walk"] = v.by_walk;
+  d["frame_confidence"] = v.frame_confidence;
+  d["walk_confidence"] = v.walk_confidence;
+  d["agrees"] = v.compared ? py::cast(v.agrees) : py::none();
+  d["agreement_applies"] = v.agreement_applies;
+  return d;
+}
+
 std::shared_ptr<BundleResult> bundle_result(BundleLocalizeResult&& r) {
   auto out = std::make_shared<BundleResult>();
   if (r.area >= 0) {
@@ -675,16 +688,7 @@ before. One tracker follows one camera.)")
       .def(
           "update",
           [](WalkTracker& t, const Result& r) {
-            const WalkVerdict v = t.update(r.r.pose.success, r.r.pose.cam_from_world, r.r.evidence);
-            py::dict d;
-            d["localized"] = v.localized;
-            d["continues"] = v.continues;
-            d["by_walk"] = v.by_walk;
-            d["frame_confidence"] = v.frame_confidence;
-            d["walk_confidence"] = v.walk_confidence;
-            d["agrees"] = v.compared ? py::cast(v.agrees) : py::none();
-            d["agreement_applies"] = v.agreement_applies;
-            return d;
+            return verdict_dict(t.update(r.r.pose.success, r.r.pose.cam_from_world, r.r.evidence));
           },
           py::arg("result"),
           R"(Judges the walk's next frame (a LocalizeResult of Localizer.localize) and returns a dict: localized (the
@@ -802,6 +806,17 @@ prior_used, total_ms.)")
       .def_property_readonly(
           "tracked", [](const BundleResult& b) { return b.r.tracked; },
           "track(): the pose passed the motion gate of the last tracked pose.")
+      .def_property_readonly(
+          "frame_localized", [](const BundleResult& b) { return b.r.frame_localized; },
+          "The frame rule's verdict alone (localized is the walk's in track() with a walk-calibrated bundle).")
+      .def_property_readonly(
+          "walk",
+          [](const BundleResult& b) -> py::object {
+            if (!b.r.walk_judged) return py::none();
+            return verdict_dict(b.r.walk);
+          },
+          "track() with a walk-calibrated bundle: the walk's verdict, the dict WalkTracker.update returns; else "
+          "None.")
       .def_property_readonly("total_ms", [](const BundleResult& b) { return b.r.total_ms; })
       .def("__repr__", [](const BundleResult& b) {
         return "<landmarkboost.BundleLocalizeResult: area " + std::to_string(b.r.area) + ", " +

@@ -144,6 +144,8 @@ def test_winner_rules_and_tracking(tiny, tmp_path):
             assert np.allclose(gated.last_position, first.cam_from_world.center())
             again = gated.track(*frame_args(m, frames[0]))
             assert again.prior_used and again.tracked and again.localized == again.result.success
+            # An uncalibrated bundle has no walk calibration: the frame rule's verdict alone.
+            assert again.walk is None and again.frame_localized == again.localized
             assert again.selected == 2 and len(again.scored) == areas
             assert np.allclose(gated.last_pose.translation, first.cam_from_world.translation)
         # What track() orders the areas by: two copies of one model see the same from the frame's

@@ -483,13 +483,36 @@ TEST_F(AreaBundleTest, RejectsMalformedIndexesNamingTheLine) {
     const std::string last = good.substr(last_at, good.find(' ', last_at) - last_at);
     expect_rejected(" last_landmark " + last + " ", " last_landmark " + first + " ", "cannot hold");
   }
-  // The calibration line is optional; one value short is refused; version 4 is refused.
+  // The calibration line is optional; one value short is refused; version 5 is refused.
+  const std::string calibration = "calibration 0 0 0 0 0 0 0 0 0.5 1 1 0.9\n";
   expect_rejected("areas 1", "calibration 0 0 0 0 0 0 0 0 0.5 1 1\nareas 1",
                   "bad.txt line 5: expected 'calibration' and 12 value(s)");
   expect_rejected("areas 1", "calibration 0 0 0 0 0 0 0 0 1.5 1 1 0.9\nareas 1", "bad.txt line 5: calibration");
-  std::string v4 = good;
-  v4.replace(v4.find("lmb-bundle 3"), 12, "lmb-bundle 4");
-  expect_text_rejected(v4, "bad.txt line 1: format version 4 is not supported");
+  // The walk calibration: after the calibration only, 17 values, each field checked.
+  const std::string walk = "walk_calibration 0 0 0 0 1 0.5 0.01 1 3 1 0.01 0.5 0.01 1 10 5 0.95\n";
+  write_file_atomically(dir_ / "walk.txt",
+                        good.substr(0, good.find("areas 1")) + calibration + walk + good.substr(good.find("areas 1")));
+  EXPECT_EQ(AreaBundle::open(dir_ / "walk.txt")->walk_calibration()->max_gap, 3);
+  expect_rejected("areas 1", walk + "areas 1", "bad.txt line 5: expected 'areas'");
+  expect_rejected("areas 1", calibration + "walk_calibration 0 0 0 0 1 0.5 0.01 1 3 1\nareas 1",
+                  "bad.txt line 6: expected 'walk_calibration' and 17 value(s)");
+  expect_rejected("areas 1",
+                  calibration + "walk_calibration 0 0 0 0 1 0.5 0.01 1 0 1 0.01 0.5 0.01 1 10 5 0.95\nareas 1",
+                  "bad.txt line 6: walk calibration");
+  expect_rejected("areas 1",
+                  calibration + "walk_calibration 0 0 0 0 1 0.5 0.01 1 3 2 0.01 0.5 0.01 1 10 5 0.95\nareas 1",
+                  "bad.txt line 6: walk calibration adds");
+  expect_rejected("areas 1", calibration + "walk_calibration 0 0 0 0 1 0.5 -1 1 3 1 0.01 0.5 0.01 1 10 5 0.95\nareas 1",
+                  "bad.txt line 6: walk calibration");
+  std::string v3 = good;
+  v3.replace(v3.find("lmb-bundle 4"), 12, "lmb-bundle 3");
+  write_file_atomically(dir_ / "v3.txt", v3);
+  EXPECT_FALSE(AreaBundle::open(dir_ / "v3.txt")->walk_calibration().has_value());
+  std::string v3_walk = v3.substr(0, v3.find("areas 1")) + calibration + walk + v3.substr(v3.find("areas 1"));
+  expect_text_rejected(v3_walk, "bad.txt line 6: expected 'areas'");  // a version 3 index has no walk line
+  std::string v5 = good;
+  v5.replace(v5.find("lmb-bundle 4"), 12, "lmb-bundle 5");
+  expect_text_rejected(v5, "bad.txt line 1: format version 5 is not supported");
   EXPECT_THROW(AreaBundle::open(dir_ / "missing.txt"), Error);
 }
 
@@ -772,6 +795,34 @@ TEST_F(AreaBundleTest, NearestFirstStopsAtTheFirstCalibratedLocalizedArea) {
   EXPECT_EQ(none.scored, (std::vector<int32_t>{0, 1}));
   EXPECT_EQ(none.area, all_winner);
   EXPECT_THROW(run(8.0, 8.0, in_own, static_cast<AreaSearch>(7)), Error);
+
+  // A calibration that saw no wrong pose (it reports every pose) stops nothing: the areas' own, and
+  // the bundle's; a bundle calibration that saw wrong poses stops at the first localized verdict.
+  PoseCalibration all_right = constant_calibration(8.0);
+  all_right.num_samples = all_right.num_positive = 20;
+  ASSERT_TRUE(all_right.saw_no_wrong_pose());
+  ModelData own_all_right = own_data, far_all_right = far_data;
+  own_all_right.calibration = far_all_right.calibration = all_right;
+  PoseCalibration discriminating = all_right;
+  discriminating.num_positive = 15;
+  const std::vector<const PoseCalibration*> bundle_calibrations = {nullptr, &all_right, &discriminating};
+  for (const PoseCalibration* bundle_calibration : bundle_calibrations) {
+    const fs::path folder = dir_ / ("case-" + std::to_string(case_id++));
+    fs::create_directories(folder);
+    test::write_test_bundle(
+        folder / "bundle.txt", 1.0,
+        {add(Model(far_all_right), 0, 25.0, kInf, folder), add(Model(own_all_right), 1, -kInf, 25.0, folder)},
+        bundle_calibration);
+    const auto two = AreaBundle::open(folder / "bundle.txt");
+    PositionPrior prior;
+    prior.position = in_own;
+    prior.radius = 30.0;
+    const BundleLocalizeResult r = detail::localize_in_bundle(*two, f.camera, f.keypoints, f.descriptors.data(),
+                                                              f.gravity_in_cam, &prior, {}, AreaSearch::kNearestFirst);
+    const bool stops = bundle_calibration == &discriminating;
+    EXPECT_EQ(r.scored, stops ? std::vector<int32_t>{1} : (std::vector<int32_t>{1, 0})) << case_id;
+    EXPECT_EQ(r.area, stops ? 1 : all_winner) << case_id;
+  }
 }
 
 // Any number of area threads gives the one-thread result, the nearest-first stop included (the
@@ -1173,6 +1224,85 @@ TEST_F(AreaBundleTest, TrackingScoresTheAreasTheLastPoseSeesFirstAndStopsAtTheMo
   EXPECT_THROW(localizer.set_options(options), Error);
   options.tracking_areas = 257;
   EXPECT_THROW(options.check(), Error);
+}
+
+// With a walk calibration in the bundle, track()'s `localized` is the walk's verdict: poses that
+// continue the walk are reported on support the frame rule alone refuses, a pose that jumps 1.5 m
+// is refused although the frame rule reports it, and without the walk calibration the same frames
+// get the frame rule's verdicts.
+TEST_F(AreaBundleTest, TrackingWithAWalkCalibrationReportsTheWalkAndRefusesAJump) {
+  const test::TestWorld world = test::make_test_world(101, 60, 140, 21);
+  const Model model(test::make_code_model_data(world.positions));
+  const PoseCalibration frame = test::walk_test_frame_calibration();
+  const WalkCalibration walk = test::walk_test_walk_calibration();
+  BundleIndex index;
+  index.reach = 50.0;
+  index.map_fingerprint = test::kTestMapFingerprint;
+  index.areas = {add(model, 0, -kInf, kInf)};
+  index.calibration = frame;
+  index.walk_calibration = walk;
+  write_bundle_index(dir_ / "walk.txt", index);
+  EXPECT_NE(read_file(dir_ / "walk.txt").find("lmb-bundle 4\n"), std::string::npos);
+  const auto bundle = AreaBundle::open(dir_ / "walk.txt");
+  ASSERT_TRUE(bundle->walk_calibration().has_value());
+  const WalkCalibration& read = *bundle->walk_calibration();
+  EXPECT_EQ(read.weights, walk.weights);
+  EXPECT_EQ(read.agreement_step_deg, walk.agreement_step_deg);
+  EXPECT_EQ(read.translation_scale_m, walk.translation_scale_m);
+  EXPECT_EQ(read.adds, true);
+  index.walk_calibration->adds = false;
+  write_bundle_index(dir_ / "agreement.txt", index);
+  EXPECT_FALSE(AreaBundle::open(dir_ / "agreement.txt")->walk_calibration()->adds);
+  // A walk calibration without the bundle's calibration is refused.
+  BundleIndex bad = index;
+  bad.calibration.reset();
+  EXPECT_THROW(write_bundle_index(dir_ / "bad.txt", bad), Error);
+  index.walk_calibration.reset();
+  write_bundle_index(dir_ / "frames.txt", index);
+
+  const std::vector<test::TestFrame> frames = test::walk_test_frames(world);
+  ASSERT_EQ(frames.back().keypoints.size(), world.frame.keypoints.size());
+  BundleLocalizerOptions options;
+  options.tracking_radius = 1.0;
+  std::vector<BundleLocalizeResult> walked, alone;
+  BundleLocalizer walking(bundle, options);
+  BundleLocalizer framing(AreaBundle::open(dir_ / "frames.txt"), options);
+  for (const test::TestFrame& f : frames) {
+    walked.push_back(walking.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam));
+    alone.push_back(framing.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam));
+  }
+  for (size_t i = 0; i < frames.size(); ++i) {
+    ASSERT_EQ(walked[i].area, 0) << i;
+    EXPECT_LT(position_error(walked[i].result.pose.cam_from_world, frames[i].cam_from_world), 1e-3) << i;
+    EXPECT_TRUE(walked[i].walk_judged) << i;
+    EXPECT_FALSE(alone[i].walk_judged) << i;
+    EXPECT_EQ(walked[i].frame_localized, alone[i].localized) << i;  // the frame rule's verdict, the same
+    EXPECT_EQ(alone[i].frame_localized, alone[i].localized) << i;
+    EXPECT_EQ(walked[i].localized, walked[i].walk.localized) << i;
+  }
+  EXPECT_TRUE(walked[0].localized);
+  EXPECT_FALSE(walked[0].walk.continues);
+  for (size_t i = 1; i <= 4; ++i) {
+    EXPECT_FALSE(alone[i].localized) << i;  // 30 keypoints: the frame rule refuses
+    EXPECT_TRUE(walked[i].walk.continues) << i;
+    EXPECT_TRUE(walked[i].walk.by_walk) << i;
+    EXPECT_TRUE(walked[i].localized) << i;
+  }
+  // The jump: the frame rule reports it; the walk's agreement refuses it.
+  EXPECT_TRUE(alone[5].localized);
+  EXPECT_TRUE(walked[5].frame_localized);
+  EXPECT_TRUE(walked[5].walk.agreement_applies);
+  EXPECT_FALSE(walked[5].walk.agrees);
+  EXPECT_FALSE(walked[5].localized);
+  // The refused pose did not become the last pose: the walk's last reported one is kept.
+  ASSERT_TRUE(walking.last_pose().has_value());
+  EXPECT_LT(position_error(*walking.last_pose(), frames[4].cam_from_world), 1e-3);
+  // reset_tracking() forgets the walk: the same frame is judged as a first frame, by the frame rule.
+  walking.reset_tracking();
+  const test::TestFrame& f = frames.back();
+  const BundleLocalizeResult fresh = walking.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+  EXPECT_FALSE(fresh.walk.compared);
+  EXPECT_TRUE(fresh.localized);
 }
 
 // Tracking on area threads: the same areas scored, winners and gate verdicts as on one thread

@@ -629,6 +629,43 @@ TEST(CApiTest, BundleLocalizesAndTracksLikeTheCppApi) {
   }
 }
 
+// With a bundle that has a walk calibration, lmb_bundle_track's success is the walk's verdict, as
+// BundleLocalizer::track's `localized`: a jump the frame rule reports is refused.
+TEST(CApiTest, BundleTrackingReportsTheWalksVerdict) {
+  CBundleFixture fx;
+  BundleIndex index = read_bundle_index(fx.index);
+  index.calibration = test::walk_test_frame_calibration();
+  index.walk_calibration = test::walk_test_walk_calibration();
+  const std::filesystem::path walk_index = fx.dir / "walk.txt";
+  write_bundle_index(walk_index, index);
+  lmb::BundleLocalizerOptions options;
+  options.tracking_radius = 1.0;
+  lmb::BundleLocalizer reference(lmb::AreaBundle::open(walk_index), options);
+  lmb_bundle* tracking = nullptr;
+  ASSERT_EQ(lmb_bundle_open(walk_index.c_str(), &tracking), LMB_OK) << lmb_last_error();
+  const std::vector<test::TestFrame> frames = test::walk_test_frames(fx.world);
+  std::vector<int> success;
+  for (const test::TestFrame& f : frames) {
+    std::vector<lmb_keypoint> keypoints;
+    for (const Keypoint& k : f.keypoints) keypoints.push_back({k.x, k.y, k.scale, k.angle});
+    const double gravity[3] = {f.gravity_in_cam.x(), f.gravity_in_cam.y(), f.gravity_in_cam.z()};
+    lmb_pose pose;
+    int area = -2;
+    ASSERT_EQ(lmb_bundle_track(tracking, &fx.camera, keypoints.data(), static_cast<int>(keypoints.size()),
+                               f.descriptors.data(), test::kCodeDescriptorBytes, gravity, 1.0, nullptr, &pose, &area),
+              LMB_OK)
+        << lmb_last_error();
+    const lmb::BundleLocalizeResult r = reference.track(f.camera, f.keypoints, f.descriptors.data(), f.gravity_in_cam);
+    ASSERT_TRUE(r.walk_judged);
+    EXPECT_EQ(area, r.area);
+    EXPECT_EQ(pose.success, r.localized ? 1 : 0);
+    success.push_back(pose.success);
+    EXPECT_TRUE(&f != &frames.back() || r.frame_localized);  // the jump: the frame rule reports it
+  }
+  EXPECT_EQ(success, (std::vector<int>{1, 1, 1, 1, 1, 0}));
+  lmb_bundle_free(tracking);
+}
+
 TEST(CApiTest, BundleErrorsAreStatusesWithMessages) {
   CBundleFixture fx;
   lmb_bundle* bundle = reinterpret_cast<lmb_bundle*>(0x1);

@@ -9,6 +9,8 @@
 // the background with equal a and b, exercise the context path without changing the ranking.
 #pragma once
 
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <vector>
@@ -22,6 +24,7 @@
 #include "common/types.h"
 #include "infer/bundle_index.h"
 #include "infer/model.h"
+#include "infer/walk_confidence.h"
 
 namespace lmb::test {
 
@@ -159,6 +162,76 @@ inline TestWorld make_test_world(int32_t num_classes, int32_t num_inliers, int32
     f.keypoint_class.push_back(cls);
   }
   return w;
+}
+
+// `world`'s frame seen from its camera moved by `shift` (world frame): its first `inliers`
+// landmark keypoints reprojected (those that stay in front of the camera and inside the image),
+// then its other keypoints as they are.
+inline TestFrame moved_frame(const TestWorld& world, const Eigen::Vector3d& shift, size_t inliers) {
+  const TestFrame& f = world.frame;
+  TestFrame out = f;
+  out.cam_from_world =
+      Rigid3d(f.cam_from_world.rotation, f.cam_from_world.translation - f.cam_from_world.rotation * shift);
+  out.keypoints.clear();
+  out.descriptors.clear();
+  out.keypoint_class.clear();
+  const size_t bytes = f.descriptors.size() / f.keypoints.size();
+  size_t kept = 0;
+  for (size_t k = 0; k < f.keypoints.size(); ++k) {
+    Keypoint kp = f.keypoints[k];
+    const int32_t c = f.keypoint_class[k];
+    if (c >= 0) {
+      const Eigen::Vector3d p = out.cam_from_world * world.positions[static_cast<size_t>(c)];
+      if (kept == inliers || p.z() <= 0.1) continue;
+      const Eigen::Vector2d px = out.camera.img_from_cam(p.hnormalized());
+      if (px.x() < 0 || px.y() < 0 || px.x() >= out.camera.width || px.y() >= out.camera.height) continue;
+      kp.x = static_cast<float>(px.x());
+      kp.y = static_cast<float>(px.y());
+      ++kept;
+    }
+    out.keypoints.push_back(kp);
+    out.descriptors.insert(out.descriptors.end(), f.descriptors.begin() + static_cast<std::ptrdiff_t>(k * bytes),
+                           f.descriptors.begin() + static_cast<std::ptrdiff_t>((k + 1) * bytes));
+    out.keypoint_class.push_back(c);
+  }
+  return out;
+}
+
+// The walk of the bundle walk tests, on make_test_world(101, 60, 140, 21): the first frame with
+// every landmark keypoint, four 5 mm steps sideways with 30 of them, then a frame 1.5 m behind the
+// camera with every one (a jump).
+inline std::vector<TestFrame> walk_test_frames(const TestWorld& world) {
+  const Eigen::Matrix3d world_from_cam = world.frame.cam_from_world.rotation.inverse().toRotationMatrix();
+  std::vector<TestFrame> frames = {moved_frame(world, Eigen::Vector3d::Zero(), 60)};
+  for (int i = 1; i <= 4; ++i) frames.push_back(moved_frame(world, 0.005 * i * world_from_cam.col(0), 30));
+  frames.push_back(moved_frame(world, -1.5 * world_from_cam.col(2), 60));
+  return frames;
+}
+
+// The frame rule of the walk tests: a pose explaining 60 keypoints is reported, one explaining 30
+// is not.
+inline PoseCalibration walk_test_frame_calibration() {
+  PoseCalibration frame;
+  frame.weights[0] = 10.0;  // log(1 + support)
+  frame.bias = -10.0 * std::log(46.0);
+  frame.threshold = 0.5;
+  return frame;
+}
+
+// The walk rule of the walk tests: a step of a few millimetres a frame continues the walk, metres
+// do not; poses agree within sqrt(2) x 1 cm + g x 1 cm.
+inline WalkCalibration walk_test_walk_calibration() {
+  WalkCalibration walk;
+  walk.weights = {0.0, -5.0, 0.0, 0.0};
+  walk.bias = 5.0;
+  walk.threshold = 0.5;
+  walk.translation_scale_m = 0.01;
+  walk.rotation_scale_deg = 1.0;
+  walk.agreement_noise_m = 0.01;
+  walk.agreement_noise_deg = 0.5;
+  walk.agreement_step_m = 0.01;
+  walk.agreement_step_deg = 1.0;
+  return walk;
 }
 
 // The map fingerprint the tests' bundle indexes record (their models come from no map file).

@@ -104,16 +104,19 @@ void run_bundle(const BundleArgs& args) {
     LMB_CHECK(fingerprint_map(map) == file.map_fingerprint,
               "--map " << args.map << " is not the map " << args.areas << " splits (fingerprints differ)");
     check_area_file_map(file, args.areas, map);
-    PoseCalibration calibration;
-    if (args.calibration_frames > 0 &&
-        fit_bundle_calibration({args.calibration_frames, args.inverted_file, args.seed, args.target_precision},
-                               AreaBundle::create(out, index), file, map, &calibration)) {
-      index.calibration = calibration;
+    if (args.calibration_frames > 0) {
+      if (const std::optional<BundleCalibration> fit =
+              fit_bundle_calibration({args.calibration_frames, args.inverted_file, args.seed, args.target_precision},
+                                     AreaBundle::create(out, index), file, map)) {
+        index.calibration = fit->calibration;
+        index.walk_calibration = fit->walk;
+      }
     }
   }
   write_bundle_index(out, index);
   std::printf("bundle: %zu areas, %.1f MB of models, reach %.2f m%s -> %s\n", index.areas.size(),
-              static_cast<double>(total) / 1048576.0, index.reach, index.calibration ? ", calibrated" : "",
+              static_cast<double>(total) / 1048576.0, index.reach,
+              index.calibration ? (index.walk_calibration ? ", calibrated (frames and walks)" : ", calibrated") : "",
               out.string().c_str());
 }
 
@@ -128,7 +131,7 @@ void add_bundle_command(CLI::App& app) {
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--out", args->out, "the index, in the --models folder (default MODELS/bundle.txt)");
   cmd->add_option("--map", args->map,
-                  "the map the areas split (map.h5): fit the bundle's pose calibration on its map frames")
+                  "the map the areas split (map.h5): fit the bundle's pose and walk calibrations on its map frames")
       ->check(CLI::ExistingFile);
   cmd->add_option("--calibration-frames", args->calibration_frames,
                   "--map: map frames localized for the calibration at most (0 = no calibration)")

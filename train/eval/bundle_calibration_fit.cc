@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -13,18 +14,17 @@
 #include "train/eval/landmarkboost_matcher.h"
 #include "train/eval/metrics.h"
 #include "train/eval/pose_calibration_fit.h"
+#include "train/eval/walk_calibration_fit.h"
 
 namespace lmb {
 
-bool fit_bundle_calibration(const BundleCalibrationOptions& args, const std::shared_ptr<AreaBundle>& bundle,
-                            const AreaFile& file, const LandmarkMap& map, PoseCalibration* out) {
-  // The frames the areas' training held out (default training options), else every n-th map frame.
-  PoseCalibrationOptions frame_options;
-  frame_options.max_frames = args.max_frames;
-  TrainingSetOptions areas_training;  // the areas' training: default options, no fold models
-  areas_training.calibration_folds = 0;
-  frame_options = with_holdout_frames(frame_options, map, areas_training);
-  const std::vector<frame_t> frames = calibration_frames(map, frame_options);
+namespace {
+
+// The bundle's poses of `frames`, each localized in every area and once more "elsewhere" (in the
+// areas that hold none of its view), with the areas' fusion without the frames' own exemplars.
+std::vector<CalibrationPose> bundle_calibration_poses(const BundleCalibrationOptions& args,
+                                                      const std::shared_ptr<AreaBundle>& bundle, const AreaFile& file,
+                                                      const LandmarkMap& map, const std::vector<frame_t>& frames) {
   // The areas' descriptor fusion without the frames' own descriptors among its exemplars (else each
   // keypoint finds itself at distance 0), as `lboost export` fits a model's calibration.
   const std::vector<int64_t> own = calibration_frame_keypoints(map, frames);
@@ -42,8 +42,7 @@ bool fit_bundle_calibration(const BundleCalibrationOptions& args, const std::sha
   lo.winner = AreaWinner::kSupport;
   const BundleLocalizer localizer(bundle, lo);
   const PoseThresholds thresholds;
-  std::vector<PoseEvidence> evidence;
-  std::vector<char> right, elsewhere;
+  std::vector<CalibrationPose> poses;
   const auto started = std::chrono::steady_clock::now();
   auto last_line = started;
   for (size_t i = 0; i < frames.size(); ++i) {
@@ -66,9 +65,13 @@ bool fit_bundle_calibration(const BundleCalibrationOptions& args, const std::sha
                                                            map.descriptor(frame.first_keypoint), frame.gravity_in_cam);
       LMB_CHECK(r.errors.empty(), "bundle calibration: " << r.errors.front());
       if (r.area < 0) continue;
-      evidence.push_back(r.evidence);
-      right.push_back(pose_within(r.result.pose.cam_from_world, frame.cam_from_world, thresholds) ? 1 : 0);
-      elsewhere.push_back(static_cast<char>(variant));
+      CalibrationPose p;
+      p.frame = frames[i];
+      p.elsewhere = variant == 1;
+      p.cam_from_world = r.result.pose.cam_from_world;
+      p.evidence = r.evidence;
+      p.right = pose_within(r.result.pose.cam_from_world, frame.cam_from_world, thresholds);
+      poses.push_back(p);
     }
     const auto now = std::chrono::steady_clock::now();
     if (now - last_line >= std::chrono::seconds(30) || i + 1 == frames.size()) {
@@ -85,44 +88,76 @@ bool fit_bundle_calibration(const BundleCalibrationOptions& args, const std::sha
     exemplars += file_rows[id];
     left_out += file_rows[id] - rows(*bundle->model(static_cast<int32_t>(id)));
   }
-  const int64_t num_right = std::count(right.begin(), right.end(), 1);
-  const int64_t num_wrong = static_cast<int64_t>(right.size()) - num_right;
-  if (num_right < 5 || num_wrong < 5) {
-    spdlog::warn(
-        "bundle: no calibration: {} map frames gave {} poses, {} right and {} wrong (at least 5 of each "
-        "are needed); the index is written without one",
-        frames.size(), right.size(), num_right, num_wrong);
-    return false;
-  }
-  PoseCalibration c = fit_pose_calibration(evidence, right);
-  std::vector<double> p;
-  for (const PoseEvidence& e : evidence) p.push_back(c.probability(e));
-  const double for_precision = precision_threshold(p, right, args.target_precision);
-  std::vector<double> p_elsewhere;
-  for (size_t i = 0; i < p.size(); ++i) {
-    if (elsewhere[i]) p_elsewhere.push_back(p[i]);
-  }
-  const double for_elsewhere = pass_share_threshold(p_elsewhere, static_cast<int64_t>(frames.size()), 0.01);
-  c.threshold = std::max(for_precision, for_elsewhere);
-  c.target_precision = args.target_precision;
-  c.check("bundle calibration");
-  int64_t kept = 0, kept_right = 0, kept_elsewhere = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    kept += p[i] >= c.threshold;
-    kept_right += p[i] >= c.threshold && right[i];
-    kept_elsewhere += p[i] >= c.threshold && elsewhere[i];
-  }
   spdlog::info(
-      "bundle: calibration on {} map frames{}: {} poses ({} of them elsewhere), {} right; the areas' fusion "
-      "without the frames' own {} of {} exemplars; operating point {:.4f} (precision {}: {:.4f}; at most 1% of the "
-      "frames elsewhere: {:.4f}) keeps {} poses, {} right, {} of them elsewhere",
+      "bundle: calibration poses of {} map frames, the areas' fusion without the frames' own {} of {} "
+      "exemplars",
+      frames.size(), left_out, exemplars);
+  return poses;
+}
+
+}  // namespace
+
+std::optional<BundleCalibration> fit_bundle_calibration(const BundleCalibrationOptions& args,
+                                                        const std::shared_ptr<AreaBundle>& bundle, const AreaFile& file,
+                                                        const LandmarkMap& map) {
+  // The frames the areas' training held out (default training options), else every n-th map frame.
+  PoseCalibrationOptions frame_options;
+  frame_options.max_frames = args.max_frames;
+  frame_options.target_precision = args.target_precision;
+  TrainingSetOptions areas_training;  // the areas' training: default options, no fold models
+  areas_training.calibration_folds = 0;
+  frame_options = with_holdout_frames(frame_options, map, areas_training);
+  const std::vector<frame_t> frames = calibration_frames(map, frame_options);
+  std::vector<CalibrationPose> poses = bundle_calibration_poses(args, bundle, file, map, frames);
+  const int64_t num_right = std::count_if(poses.begin(), poses.end(), [](const CalibrationPose& p) { return p.right; });
+  const int64_t num_wrong = static_cast<int64_t>(poses.size()) - num_right;
+  // A logistic needs both kinds; with right poses only, the calibration says it saw no wrong pose
+  // (fit_calibration_on_poses: every pose reported, the walk's agreement still refuses one).
+  if (num_right < 5 || (num_wrong > 0 && num_wrong < 5)) {
+    spdlog::warn(
+        "bundle: no calibration: {} map frames gave {} poses, {} right and {} wrong (at least 5 right, and none "
+        "or at least 5 wrong, are needed); the index is written without one",
+        frames.size(), poses.size(), num_right, num_wrong);
+    return std::nullopt;
+  }
+  const CalibrationFit fit =
+      fit_calibration_on_poses(std::move(poses), static_cast<int64_t>(frames.size()), frame_options);
+  LMB_CHECK(fit.fitted, "bundle calibration: " << fit.num_poses << " poses did not give a calibration");
+  spdlog::info(
+      "bundle: calibration on {} map frames{}: {} poses ({} of them elsewhere), {} right; operating point {:.4f} "
+      "(precision {}: {:.4f}; at most 1% of the frames elsewhere: {:.4f}) keeps {} poses, {} right, {} of them "
+      "elsewhere",
       frames.size(),
       frame_options.frames.empty() ? " (the default training options hold none out)"
                                    : " (the ones the default training options hold out of training)",
-      right.size(), p_elsewhere.size(), num_right, left_out, exemplars, c.threshold, args.target_precision,
-      for_precision, for_elsewhere, kept, kept_right, kept_elsewhere);
-  *out = c;
-  return true;
+      fit.num_poses, fit.num_elsewhere, fit.num_right, fit.calibration.threshold, args.target_precision,
+      fit.precision_threshold, fit.elsewhere_threshold, fit.passed, fit.passed_right, fit.elsewhere_passed);
+  if (!fit.saw_wrong_pose()) {
+    spdlog::warn(
+        "bundle: calibration: none of the {} poses is wrong, so nothing tells a wrong pose from a right one: every "
+        "winning pose is reported (confidence 0.5); in tracking, the agreement of neighbouring frames' poses still "
+        "refuses a pose",
+        fit.num_poses);
+  }
+  BundleCalibration out;
+  out.calibration = fit.calibration;
+  // The walk calibration of track(): walks through the same frames in session order.
+  const WalkCalibrationFit walk = fit_walk_calibration_on_map(map, fit, frame_options);
+  if (walk.fitted) {
+    out.walk = walk.calibration;
+    const WalkCalibration& w = walk.calibration;
+    spdlog::info(
+        "bundle: walk calibration on {} walk samples ({} right, {} elsewhere): walk rule {} (operating point "
+        "{:.4f}); agreement within {:.3f} m + g x {:.3f} m and {:.2f} deg + g x {:.2f} deg",
+        walk.num_samples, walk.num_right, walk.num_elsewhere, w.adds ? "fitted" : "not fitted (no wrong sample)",
+        w.threshold, std::sqrt(2.0) * w.agreement_noise_m, w.agreement_step_m, std::sqrt(2.0) * w.agreement_noise_deg,
+        w.agreement_step_deg);
+  } else {
+    spdlog::warn(
+        "bundle: no walk calibration (too few right poses to measure the agreement); track() judges "
+        "each frame alone");
+  }
+  return out;
 }
 
 }  // namespace lmb

@@ -68,6 +68,8 @@ struct Outcome {
   bool localized = false;                    // the answer to act on (BundleLocalizeResult::localized)
   double confidence = -1.0;                  // the calibrated confidence (-1: uncalibrated)
   bool tracked = false, prior_used = false;  // tracking modes (BundleLocalizeResult)
+  // Tracking with a walk calibration: the frame rule's verdict alone, and the walk's (WalkVerdict).
+  bool walk_judged = false, frame_localized = false, by_walk = false, disagrees = false;
   std::vector<std::string> errors;
   double wall_ms = 0.0, cpu_ms = 0.0;
 };
@@ -212,6 +214,10 @@ Outcome localize_frame(const ModeContext& c, const Mode& mode, frame_t f, const 
     o.scored_inliers = std::move(r.inliers);
     o.rival_support = r.rival_support;
     o.localized = r.localized;
+    o.frame_localized = r.frame_localized;
+    o.walk_judged = r.walk_judged;
+    o.by_walk = r.walk.by_walk;
+    o.disagrees = r.walk.agreement_applies && !r.walk.agrees;
     o.confidence = r.confidence;
     o.scored_support = std::move(r.support);
     o.loaded = r.loaded;
@@ -240,6 +246,9 @@ nlohmann::json frame_json(const MapFrame& frame, const Mode& mode, const Outcome
     if (mode.tracking_radius > 0.0) {
       jf["tracked"] = o.tracked;
       jf["relocalized"] = !o.prior_used;
+      if (o.walk_judged) {
+        jf["walk"] = {{"frame_rule_localized", o.frame_localized}, {"by_walk", o.by_walk}, {"disagrees", o.disagrees}};
+      }
     }
     if (!o.errors.empty()) jf["errors"] = o.errors;
   }
@@ -264,6 +273,62 @@ std::optional<BundleLocalizer> seed_localizer(const ModeContext& c, const Mode& 
   return std::optional<BundleLocalizer>(std::in_place, c.bundle, bo);
 }
 
+// A tracking mode's own figures over its frames and seeds.
+struct TrackingTally {
+  int64_t relocalized = 0;
+  std::vector<int> tracked_per_seed, tracked_correct_per_seed;
+  std::vector<double> tracked_cpu;  // thread CPU ms of the tracked frames, every seed
+  // With a walk calibration: the frame rule alone's reported frames and right ones per seed, and
+  // over every seed the poses the walk rule added and the ones refused for disagreeing.
+  std::vector<int> frame_rule_per_seed, frame_rule_correct_per_seed;
+  int64_t by_walk = 0, disagreeing = 0;
+  bool walk_judged = false;
+
+  void start_seed() {
+    for (auto* v : {&tracked_per_seed, &tracked_correct_per_seed, &frame_rule_per_seed, &frame_rule_correct_per_seed}) {
+      v->push_back(0);
+    }
+  }
+  void add(const Outcome& o, bool ok) {
+    if (o.tracked) tracked_cpu.push_back(o.cpu_ms);
+    relocalized += !o.prior_used;
+    tracked_per_seed.back() += o.tracked;
+    tracked_correct_per_seed.back() += o.tracked && ok;
+    frame_rule_per_seed.back() += o.frame_localized;
+    frame_rule_correct_per_seed.back() += o.frame_localized && ok;
+    walk_judged = walk_judged || o.walk_judged;
+    by_walk += o.by_walk;
+    disagreeing += o.disagrees;
+  }
+  static int sum(const std::vector<int>& v) { return std::accumulate(v.begin(), v.end(), 0); }
+  void report(double runs, nlohmann::json* jm) const {
+    (*jm)["tracked_per_frame"] = static_cast<double>(tracked_cpu.size()) / runs;
+    (*jm)["cpu_ms_per_tracked_frame"] = {{"mean", mean(tracked_cpu)}, {"median", median(tracked_cpu)}};
+    (*jm)["relocalized_per_frame"] = static_cast<double>(relocalized) / runs;
+    // The frames whose pose passed the motion gate, and of them correct, per seed.
+    (*jm)["tracked_frames_per_seed"] = tracked_per_seed;
+    (*jm)["tracked_correct_per_seed"] = tracked_correct_per_seed;
+    if (walk_judged) {
+      // `localized` is the walk's verdict; what the frame rule alone reports, beside it.
+      (*jm)["walk"] = {{"frame_rule_localized_per_seed", frame_rule_per_seed},
+                       {"frame_rule_localized_correct_per_seed", frame_rule_correct_per_seed},
+                       {"by_walk", by_walk},
+                       {"disagreeing", disagreeing}};
+    }
+  }
+  std::string text() const {
+    std::string t = "  tracked " + std::to_string(tracked_cpu.size()) + " (" +
+                    std::to_string(sum(tracked_correct_per_seed)) + " right), relocalized " +
+                    std::to_string(relocalized) + " (all seeds)";
+    if (walk_judged) {
+      t += "; frame rule alone " + std::to_string(sum(frame_rule_per_seed)) + " (" +
+           std::to_string(sum(frame_rule_correct_per_seed)) + " right), by walk " + std::to_string(by_walk) +
+           ", disagreeing " + std::to_string(disagreeing);
+    }
+    return t;
+  }
+};
+
 // One mode over every frame and seed: its report entry, and its line of the table.
 nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::vector<frame_t>& frames,
                              std::string* table) {
@@ -286,26 +351,22 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     spdlog::info("eval --bundle: {}: seed {}/{}, {} of {} frame runs, {:.0f} s, ETA {:.0f} s", mode.name, seed + 1,
                  c.options.seeds, runs, total_runs, elapsed, eta);
   };
-  int64_t relocalized = 0;
-  std::vector<int> tracked_per_seed, tracked_correct_per_seed;
-  std::vector<double> tracked_cpu;  // thread CPU ms of the tracked frames, every seed
+  TrackingTally tracking;
   for (int s = 0; s < c.options.seeds; ++s) {
     LocalizerOptions lo = c.options.localizer;
     lo.pose.seed = c.options.localizer.pose.seed + static_cast<uint64_t>(s);
-    int correct = 0, trusted = 0, trusted_correct = 0, seed_tracked = 0, seed_tracked_correct = 0;
+    int correct = 0, trusted = 0, trusted_correct = 0;
+    tracking.start_seed();
     std::optional<BundleLocalizer> localizer = seed_localizer(c, mode, lo);
     for (frame_t f : frames) {
       const MapFrame& frame = c.map.frames[f];
       const Outcome o = localize_frame(c, mode, f, lo, localizer ? &*localizer : nullptr);
       if (!mode.single) c.tally->add(o);
-      if (o.tracked) tracked_cpu.push_back(o.cpu_ms);
-      relocalized += mode.tracking_radius > 0.0 && !o.prior_used;
       const bool ok = o.success && pose_within(o.pose, frame.cam_from_world, c.options.thresholds);
+      if (mode.tracking_radius > 0.0) tracking.add(o, ok);
       correct += ok;
       trusted += o.localized;
       trusted_correct += o.localized && ok;
-      seed_tracked += o.tracked;
-      seed_tracked_correct += o.tracked && ok;
       cpu.push_back(o.cpu_ms);
       wall.push_back(o.wall_ms);
       selected += o.selected;
@@ -320,8 +381,6 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
     correct_per_seed.push_back(correct);
     trusted_per_seed.push_back(trusted);
     trusted_correct_per_seed.push_back(trusted_correct);
-    tracked_per_seed.push_back(seed_tracked);
-    tracked_correct_per_seed.push_back(seed_tracked_correct);
     progress(s, true);
   }
   const double nf = static_cast<double>(frames.size());
@@ -348,23 +407,13 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
       jm["tracking_radius_m"] = mode.tracking_radius;
       jm["tracking_areas"] = c.options.tracking_areas;
       if (c.options.track_prior_noise >= 0.0) jm["relocalization_prior_noise_m"] = c.options.track_prior_noise;
-      jm["tracked_per_frame"] = static_cast<double>(tracked_cpu.size()) / n;
-      jm["cpu_ms_per_tracked_frame"] = {{"mean", mean(tracked_cpu)}, {"median", median(tracked_cpu)}};
-      jm["relocalized_per_frame"] = static_cast<double>(relocalized) / n;
-      // The frames whose pose passed the motion gate, and of them correct, per seed.
-      jm["tracked_frames_per_seed"] = tracked_per_seed;
-      jm["tracked_correct_per_seed"] = tracked_correct_per_seed;
+      tracking.report(n, &jm);
     }
     jm["area_loads"] = c.bundle->loads() - loads_before;
     jm["areas_loaded_at_end"] = c.bundle->loaded_ids().size();
     jm["loaded_bytes_at_end"] = c.bundle->loaded_bytes();
     areas_text = number_text(selected / n) + " / " + number_text(scored / n) + " / " + number_text(loaded / n);
-    if (mode.tracking_radius > 0.0) {
-      const size_t t = tracked_cpu.size();
-      const int t_right = std::accumulate(tracked_correct_per_seed.begin(), tracked_correct_per_seed.end(), 0);
-      areas_text += "  tracked " + std::to_string(t) + " (" + std::to_string(t_right) + " right), relocalized " +
-                    std::to_string(relocalized) + " (all seeds)";
-    }
+    if (mode.tracking_radius > 0.0) areas_text += tracking.text();
   }
   jm["frames"] = std::move(jframes);
   std::string seeds_text;

@@ -604,6 +604,39 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
       localized += fr["localized"].get<bool>();
     }
     EXPECT_EQ(cj["modes"][0]["localized_frames_per_seed"][0].get<int>(), localized);
+    // The walk calibration of track(), fitted on walks through the same frames: a tracking mode's
+    // `localized` is the walk's verdict, which differs from the frame rule's only where the walk
+    // rule adds a pose or the agreement refuses one.
+    ASSERT_TRUE(calibrated->walk_calibration().has_value()) << c.err;
+    EXPECT_TRUE(calibrated->walk_calibration()->has_agreement());
+    EXPECT_NE((c.out + c.err).find("bundle: walk calibration on "), std::string::npos) << c.out << c.err;
+    ASSERT_EQ(run("localize --bundle " + (cal / "bundle.txt").string() + " --map " + map_.string() +
+                      " --track 1 --out " + cal_out.string(),
+                  dir_)
+                  .exit_code,
+              0);
+    const nlohmann::json tj = nlohmann::json::parse(slurp(cal_out));
+    const nlohmann::json& tracking = tj["modes"][0];
+    ASSERT_TRUE(tracking.contains("walk")) << tracking.dump();
+    int frame_rule = 0, walk_localized = 0, by_walk = 0, disagreeing = 0, refused_by_frame = 0;
+    for (const nlohmann::json& fr : tracking["frames"]) {
+      const nlohmann::json& w = fr["walk"];
+      const bool by_frame = w["frame_rule_localized"].get<bool>();
+      const bool reported = fr["localized"].get<bool>();
+      frame_rule += by_frame;
+      walk_localized += reported;
+      by_walk += w["by_walk"].get<bool>();
+      disagreeing += w["disagrees"].get<bool>();
+      refused_by_frame += by_frame && w["disagrees"].get<bool>();
+      EXPECT_TRUE(!reported || by_frame || w["by_walk"].get<bool>()) << fr.dump();
+      EXPECT_TRUE(reported || !by_frame || w["disagrees"].get<bool>()) << fr.dump();
+      EXPECT_FALSE(reported && w["disagrees"].get<bool>()) << fr.dump();
+    }
+    EXPECT_EQ(tracking["walk"]["frame_rule_localized_per_seed"][0].get<int>(), frame_rule);
+    EXPECT_EQ(tracking["localized_frames_per_seed"][0].get<int>(), walk_localized);
+    EXPECT_EQ(tracking["walk"]["by_walk"].get<int>(), by_walk);  // one seed
+    EXPECT_EQ(tracking["walk"]["disagreeing"].get<int>(), disagreeing);
+    EXPECT_EQ(walk_localized, frame_rule - refused_by_frame + by_walk);
     const fs::path other_map = dir_ / "other_map.h5";
     LandmarkMap moved = read_map_h5(map_);
     moved.landmarks.front().position.x() += 1.0;
