@@ -283,13 +283,29 @@ struct TrackingTally {
   std::vector<int> frame_rule_per_seed, frame_rule_correct_per_seed;
   int64_t by_walk = 0, disagreeing = 0;
   bool walk_judged = false;
+  // Per seed: the first frame reported localized (-1: none) and the thread CPU ms of the frames up
+  // to and including it (-1: none): the time to the first trusted pose.
+  std::vector<int64_t> first_localized;
+  std::vector<double> cpu_to_first;
+  int64_t seed_frames = 0;
+  double seed_cpu = 0.0;
 
   void start_seed() {
     for (auto* v : {&tracked_per_seed, &tracked_correct_per_seed, &frame_rule_per_seed, &frame_rule_correct_per_seed}) {
       v->push_back(0);
     }
+    first_localized.push_back(-1);
+    cpu_to_first.push_back(-1.0);
+    seed_frames = 0;
+    seed_cpu = 0.0;
   }
   void add(const Outcome& o, bool ok) {
+    seed_cpu += o.cpu_ms;
+    if (o.localized && first_localized.back() < 0) {
+      first_localized.back() = seed_frames;
+      cpu_to_first.back() = seed_cpu;
+    }
+    ++seed_frames;
     if (o.tracked) tracked_cpu.push_back(o.cpu_ms);
     relocalized += !o.prior_used;
     tracked_per_seed.back() += o.tracked;
@@ -308,6 +324,8 @@ struct TrackingTally {
     // The frames whose pose passed the motion gate, and of them correct, per seed.
     (*jm)["tracked_frames_per_seed"] = tracked_per_seed;
     (*jm)["tracked_correct_per_seed"] = tracked_correct_per_seed;
+    (*jm)["first_localized_frame_per_seed"] = first_localized;
+    (*jm)["cpu_ms_to_first_localized_per_seed"] = cpu_to_first;
     if (walk_judged) {
       // `localized` is the walk's verdict; what the frame rule alone reports, beside it.
       (*jm)["walk"] = {{"frame_rule_localized_per_seed", frame_rule_per_seed},
@@ -386,17 +404,18 @@ nlohmann::json evaluate_mode(const ModeContext& c, const Mode& mode, const std::
   const double nf = static_cast<double>(frames.size());
   const double recall = std::accumulate(correct_per_seed.begin(), correct_per_seed.end(), 0.0) / (nf * c.options.seeds);
   const double n = static_cast<double>(runs);
-  nlohmann::json jm = {{"mode", mode.name},
-                       {"pose_recall", recall},
-                       {"frames_correct_per_seed", correct_per_seed},
-                       // The frames reported localized (the answer to act on: a calibrated
-                       // confidence at its operating point) and of them correct, per seed.
-                       {"localized_frames_per_seed", trusted_per_seed},
-                       {"localized_correct_per_seed", trusted_correct_per_seed},
-                       {"localized_per_frame", localized / n},
-                       {"median_position_error_m", median(pos_err)},
-                       {"cpu_ms_per_frame", {{"mean", mean(cpu)}, {"median", median(cpu)}}},
-                       {"wall_ms_per_frame", {{"mean", mean(wall)}, {"median", median(wall)}}}};
+  nlohmann::json jm = {
+      {"mode", mode.name},
+      {"pose_recall", recall},
+      {"frames_correct_per_seed", correct_per_seed},
+      // The frames reported localized (the answer to act on: a calibrated
+      // confidence at its operating point) and of them correct, per seed.
+      {"localized_frames_per_seed", trusted_per_seed},
+      {"localized_correct_per_seed", trusted_correct_per_seed},
+      {"localized_per_frame", localized / n},
+      {"median_position_error_m", median(pos_err)},
+      {"cpu_ms_per_frame", {{"mean", mean(cpu)}, {"median", median(cpu)}, {"p95", quantile(cpu, 0.95)}}},
+      {"wall_ms_per_frame", {{"mean", mean(wall)}, {"median", median(wall)}, {"p95", quantile(wall, 0.95)}}}};
   if (mode.has_prior) jm["prior_noise_m"] = mode.noise;
   std::string areas_text = "-";
   if (!mode.single) {

@@ -634,6 +634,16 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
     }
     EXPECT_EQ(tracking["walk"]["frame_rule_localized_per_seed"][0].get<int>(), frame_rule);
     EXPECT_EQ(tracking["localized_frames_per_seed"][0].get<int>(), walk_localized);
+    // The walk's first trusted pose and the time until it; the 95th percentile of a frame's time.
+    int64_t first = -1;
+    double cpu_to_first = 0.0;
+    for (size_t i = 0; i < tracking["frames"].size() && first < 0; ++i) {
+      cpu_to_first += tracking["frames"][i]["cpu_ms"].get<double>();
+      if (tracking["frames"][i]["localized"].get<bool>()) first = static_cast<int64_t>(i);
+    }
+    EXPECT_EQ(tracking["first_localized_frame_per_seed"][0].get<int64_t>(), first);
+    EXPECT_NEAR(tracking["cpu_ms_to_first_localized_per_seed"][0].get<double>(), first < 0 ? -1.0 : cpu_to_first, 1e-6);
+    EXPECT_GE(tracking["cpu_ms_per_frame"]["p95"].get<double>(), tracking["cpu_ms_per_frame"]["median"].get<double>());
     EXPECT_EQ(tracking["walk"]["by_walk"].get<int>(), by_walk);  // one seed
     EXPECT_EQ(tracking["walk"]["disagreeing"].get<int>(), disagreeing);
     EXPECT_EQ(walk_localized, frame_rule - refused_by_frame + by_walk);
