@@ -33,7 +33,7 @@ def main():
                                  tracking_radius=args.radius, tracking_areas=args.tracking_areas)
     frames = sorted(m.query_frames, key=lambda f: m.frames[f].name)  # capture order
     rng = np.random.default_rng(1)
-    tracked = right = 0
+    tracked = right = reported = reported_right = 0
     times = []
     for f in frames:
         frame = m.frames[f]
@@ -50,13 +50,18 @@ def main():
         if r.pose_found:
             error = np.linalg.norm(r.cam_from_world.center() - frame.cam_from_world.center())
             right += error <= 0.2
-            print(f"{frame.name}: {how}, area {r.area} of {len(r.scored)} scored, error {error:.3f} m, "
+            # `localized` is the answer to act on: with a walk-calibrated bundle, the walk's verdict.
+            reported += r.localized
+            reported_right += r.localized and error <= 0.2
+            verdict = "localized" if r.localized else "not localized"
+            print(f"{frame.name}: {how}, area {r.area} of {len(r.scored)} scored, error {error:.3f} m, {verdict}, "
                   f"{times[-1]:.1f} ms")
         else:
             print(f"{frame.name}: {how}, no pose, {times[-1]:.1f} ms")
         tracked += r.tracked
     n = len(frames)
-    print(f"tracked {tracked}/{n} query frames, {right} within 0.2 m; "
+    print(f"tracked {tracked}/{n} query frames, {right} within 0.2 m, {reported} localized ({reported_right} within "
+          f"0.2 m); "
           f"{np.median(times) if times else 0:.1f} ms a frame (median), {np.mean(times) if times else 0:.1f} (mean)")
 
 

@@ -102,5 +102,6 @@ def test_track_queries_tracks_as_lboost_localize_track(tiny, tmp_path):
         if frame["success"]:
             assert f"area {frame['area']} of {frame['areas_scored']} scored" in line, line
             assert f"error {frame['position_error_m']:.3f} m" in line, line
+            assert (", localized," if frame["localized"] else ", not localized,") in line, line
     tracked = sum(f["tracked"] for f in frames)
     assert tracked > 0 and lines[-1].startswith(f"tracked {tracked}/{len(frames)} query frames"), lines[-1]
