@@ -498,6 +498,19 @@ BundleEvalResult evaluate_bundle(const BundleEvalOptions& options) {
   report["area_threads"] = options.area_threads;
   report["tracking_areas"] = options.tracking_areas;
   report["reach_m"] = bundle->reach();
+  // The bundle's calibrations: what `localized` means in each mode (docs/areas.md).
+  report["calibration"] = {
+      {"calibrated", bundle->calibrated()},
+      {"saw_wrong_pose", bundle->calibrated() && !bundle->calibration().saw_no_wrong_pose()},
+      {"walk_calibrated", bundle->walk_calibration().has_value()},
+      {"walk_rule", bundle->walk_calibration() && bundle->walk_calibration()->adds},
+      {"walk_agreement", bundle->walk_calibration() && bundle->walk_calibration()->has_agreement()}};
+  if (!bundle->calibrated()) {
+    spdlog::info("eval --bundle: an uncalibrated bundle: an area's own calibrated verdict is its answer");
+  } else if (bundle->calibration().saw_no_wrong_pose()) {
+    spdlog::warn("eval --bundle: the bundle's calibration saw no wrong pose: every winning pose is reported{}",
+                 bundle->walk_calibration() ? "; tracking's walk agreement still refuses a pose" : "");
+  }
   report["thresholds"] = {{"position_m", options.thresholds.max_position_error_m},
                           {"rotation_deg", options.thresholds.max_rotation_error_deg}};
   report["cache"] = {{"max_areas", options.cache.max_areas}, {"max_bytes", options.cache.max_bytes}};

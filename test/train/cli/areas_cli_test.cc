@@ -616,6 +616,11 @@ TEST_F(AreasCliTest, ABundleOfEveryAreaSelectsByPriorAndFailsAreaByArea) {
                   .exit_code,
               0);
     const nlohmann::json tj = nlohmann::json::parse(slurp(cal_out));
+    EXPECT_EQ(tj["calibration"]["calibrated"], true);
+    EXPECT_EQ(tj["calibration"]["saw_wrong_pose"], !calibrated->calibration().saw_no_wrong_pose());
+    EXPECT_EQ(tj["calibration"]["walk_calibrated"], true);
+    EXPECT_EQ(tj["calibration"]["walk_agreement"], true);
+    EXPECT_EQ(tj["calibration"]["walk_rule"], calibrated->walk_calibration()->adds);
     const nlohmann::json& tracking = tj["modes"][0];
     ASSERT_TRUE(tracking.contains("walk")) << tracking.dump();
     int frame_rule = 0, walk_localized = 0, by_walk = 0, disagreeing = 0, refused_by_frame = 0;
