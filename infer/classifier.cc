@@ -205,10 +205,8 @@ void Classifier::prepare_batch(int32_t b, const uint8_t* values, size_t stride) 
 }
 
 namespace {
-constexpr int32_t kScreenProbe = 64;
-}  // namespace
 
-namespace {
+constexpr int32_t kScreenProbe = 64;
 
 // Whether class cls's fusion terms in the lanes `bits` (two batches) cost less than the exact sums
 // they may spare: lanes x exemplars x descriptor words against 2 x stumps x 8-lane groups (a
@@ -289,12 +287,11 @@ void Classifier::screen_word(const int32_t* classes, int32_t num, int32_t batche
       if (bits == 0) continue;
       double terms[2][kBatch];
       // The terms now, and the second screening, when they cost less than the exact sums they may
-      // spare (terms_before_sums); else after the exact sums, only in the lanes where H plus a bound
-      // of the term passes (finish_batch). Either way the same matches.
+      // spare (terms_before_sums). Else, with the screening's residues and fusion balls, upper
+      // bounds of the terms from the ball centres' distances (detail::fusion_term_bounds) screen the
+      // class again; finish_batch computes the terms after the exact sums, only in the lanes where
+      // H plus a bound of the term passes. Either way the same matches.
       const bool early = fusion && terms_before_sums(m, classes[i], bits);
-      // Else, with the screening's residues and fusion balls, an upper bound of the terms from the
-      // few ball centres' distances (detail::fusion_term_bounds) screens the class again, and
-      // finish_batch computes the terms only where H plus that bound passes.
       bool bounded = false;
       if (fusion) {
         int32_t distance[kBatch];

@@ -71,10 +71,7 @@ ScoringIndex::ScoringIndex(const ModelData& data) : layout_(layout_of(data)) {
         std::vector<int32_t>(word_used_dims_.begin() + word_used_begin_[w], word_used_dims_.end()));
   }
   used_plan_ = DimPlan(data.regions, layout_, used_dims_);
-  if (data.fusion.enabled()) {
-    build_fusion_balls(data);
-    fusion_max_ = fusion_term_bound_.front();  // the largest term at any distance
-  }
+  if (data.fusion.enabled()) build_fusion_balls(data);
   build_screen(data);
 }
 

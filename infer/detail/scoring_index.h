@@ -77,7 +77,7 @@ class ScoringIndex {
 
   // The largest fusion term any descriptor can get (0 without fusion; the screening adds it to
   // every bound).
-  double fusion_max() const { return fusion_max_; }
+  double fusion_max() const { return fusion_term_bound_.empty() ? 0.0 : fusion_term_bound_.front(); }
   // Fusion balls: class c's n exemplars, when it has at least kMinBallExemplars of them, are
   // covered by ceil(sqrt(2 n)) balls (greedy k-centre in Hamming space from its first exemplar, each
   // exemplar in the ball of its nearest centre): balls [fusion_ball_begin()[c],
@@ -153,7 +153,6 @@ class ScoringIndex {
   std::vector<int32_t> word_used_dims_;
   DimPlan used_plan_;
   std::vector<DimPlan> word_plans_;
-  double fusion_max_ = 0.0;
   std::vector<int64_t> fusion_ball_begin_;
   std::vector<uint8_t> fusion_ball_centres_;
   std::vector<int32_t> fusion_ball_radius_;

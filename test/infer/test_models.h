@@ -181,10 +181,11 @@ inline TestFrame moved_frame(const TestWorld& world, const Eigen::Vector3d& shif
     Keypoint kp = f.keypoints[k];
     const int32_t c = f.keypoint_class[k];
     if (c >= 0) {
-      const Eigen::Vector3d p = out.cam_from_world * world.positions[static_cast<size_t>(c)];
-      if (kept == inliers || p.z() <= 0.1) continue;
-      const Eigen::Vector2d px = out.camera.img_from_cam(p.hnormalized());
-      if (px.x() < 0 || px.y() < 0 || px.x() >= out.camera.width || px.y() >= out.camera.height) continue;
+      Eigen::Vector2d px;
+      if (kept == inliers || !out.camera.project(out.cam_from_world * world.positions[static_cast<size_t>(c)], &px) ||
+          px.x() < 0 || px.y() < 0 || px.x() >= out.camera.width || px.y() >= out.camera.height) {
+        continue;
+      }
       kp.x = static_cast<float>(px.x());
       kp.y = static_cast<float>(px.y());
       ++kept;

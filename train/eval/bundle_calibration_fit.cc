@@ -113,16 +113,17 @@ std::optional<BundleCalibration> fit_bundle_calibration(const BundleCalibrationO
   const int64_t num_wrong = static_cast<int64_t>(poses.size()) - num_right;
   // A logistic needs both kinds; with right poses only, the calibration says it saw no wrong pose
   // (fit_calibration_on_poses: every pose reported, the walk's agreement still refuses one).
-  if (num_right < 5 || (num_wrong > 0 && num_wrong < 5)) {
+  const bool enough = num_right >= 5 && (num_wrong == 0 || num_wrong >= 5);
+  const CalibrationFit fit =
+      enough ? fit_calibration_on_poses(std::move(poses), static_cast<int64_t>(frames.size()), frame_options)
+             : CalibrationFit{};
+  if (!fit.fitted) {
     spdlog::warn(
-        "bundle: no calibration: {} map frames gave {} poses, {} right and {} wrong (at least 5 right, and none "
-        "or at least 5 wrong, are needed); the index is written without one",
-        frames.size(), poses.size(), num_right, num_wrong);
+        "bundle: no calibration: {} map frames gave {} right and {} wrong poses (at least 5 right, none or at least "
+        "5 wrong, and {} in all are needed); the index is written without one",
+        frames.size(), num_right, num_wrong, frame_options.min_poses);
     return std::nullopt;
   }
-  const CalibrationFit fit =
-      fit_calibration_on_poses(std::move(poses), static_cast<int64_t>(frames.size()), frame_options);
-  LMB_CHECK(fit.fitted, "bundle calibration: " << fit.num_poses << " poses did not give a calibration");
   spdlog::info(
       "bundle: calibration on {} map frames{}: {} poses ({} of them elsewhere), {} right; operating point {:.4f} "
       "(precision {}: {:.4f}; at most 1% of the frames elsewhere: {:.4f}) keeps {} poses, {} right, {} of them "

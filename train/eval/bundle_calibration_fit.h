@@ -41,7 +41,8 @@ struct BundleCalibration {
 // the walk rule and the agreement of neighbouring poses, measured on the map). No query frame is
 // read. When every pose is right the calibration says so (fit_calibration_on_poses: constant 0.5,
 // operating point 0: every winning pose is reported) and the walk's agreement is what refuses a
-// pose. Returns nothing (and logs why) with fewer than 5 right poses, or 1 to 4 wrong ones.
+// pose. Returns nothing (and logs why) with fewer than 5 right poses, 1 to 4 wrong ones, or fewer
+// poses in all than PoseCalibrationOptions::min_poses (10).
 std::optional<BundleCalibration> fit_bundle_calibration(const BundleCalibrationOptions& options,
                                                         const std::shared_ptr<AreaBundle>& bundle, const AreaFile& file,
                                                         const LandmarkMap& map);
