@@ -30,10 +30,9 @@ status=$?
 grep -q "areas: $work/bare/vocab.lbv: no such file" "$work/bare.log" || fail "no refusal line: $(cat "$work/bare.log")"
 [ ! -e "$work/bare/areas" ] || fail "a refused job made $work/bare/areas"
 
-# The single model of the main job: one of the areas' run (a model of the same map and vocabulary).
+# The main job's single model: a few rounds on the same map and vocabulary, evaluated beside the bundle.
 export LMB_AREAS_ARGS="--min-observations 3 --overlap 0.2 --max-classes 400"
 export LMB_TRAIN_ARGS="--rounds 6 --dims-per-round 64"
-export LMB_EXPORT_ARGS="--max-exemplars 4"
 export LMB_EVAL_ARGS="--prior-noise 5 --track 1 --ransac-sweep-seeds 1"
 "$lboost" train --map "$work/out/map.h5" --vocab "$work/out/vocab.lbv" --out "$work/single" --rounds 6 \
   --dims-per-round 64 --top-k 200 > "$work/single.log" 2>&1 || fail "single model: $(tail -3 "$work/single.log")"
